@@ -1,0 +1,97 @@
+#pragma once
+/// The typed, validated contents of a dataset spec file (YAML). Every field has a schema
+/// entry (generators/spec_schema.cpp) with its type, default, unit, allowed range and doc
+/// line; `chromasim schema` prints that table, docs/SPEC_REFERENCE.md holds a copy.
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+
+namespace chromasim::generators {
+
+/// A user's mistake in a spec file or argument. The message already names the file,
+/// line:column, the key, the bad value and what is allowed, e.g.
+/// `spec.yaml:12:5: render.width_px: value '-3' is out of range; allowed: integer in [16, 4096] (px)`.
+class SpecError : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
+};
+
+using Rgb = std::array<double, 3>;
+
+struct LayerMaterial {
+    double E_MPa = 1.0; ///< Young's modulus, MPa (= N/mm^2)
+    double nu = 0.45;   ///< Poisson's ratio
+};
+
+struct Spec {
+    std::filesystem::path source_path; ///< the file it was read from
+    std::string name;
+    std::uint64_t seed = 1;
+
+    struct Sensor {
+        std::string mesh_level = "coarse"; ///< coarse | medium | fine
+        LayerMaterial inner_marker_layer{0.8, 0.45};
+        LayerMaterial clear_layer{0.3, 0.45};
+        LayerMaterial outer_marker_layer{0.8, 0.45};
+        LayerMaterial coating{1.0, 0.45};
+        double contact_candidate_angle_deg = 35.0;
+        double camera_half_fov_deg = 84.0;
+        int led_count = 6;
+        double led_ring_radius_mm = 10.0;
+        double led_z_mm = -1.0;
+        Rgb coating_albedo{0.85, 0.85, 0.85};
+        Rgb inner_marker_absorption_per_mm{0.2, 3.0, 0.3};
+        Rgb outer_marker_absorption_per_mm{3.0, 0.3, 0.2};
+        Rgb outer_marker_albedo{0.10, 0.70, 0.75};
+        double outer_marker_scatter_fraction = 0.5;
+    } sensor;
+
+    struct Object {
+        std::string shape = "flat"; ///< flat (rigid plane); more shapes come with the mechanics issue
+        double mu = 0.8;            ///< Coulomb friction coefficient
+    } object;
+
+    struct Press {
+        double normal_force_N = 1.5; ///< grip force reached at the end of the press
+        int frames = 2;              ///< frames of the linear normal-force ramp (last one at full force)
+    } press;
+
+    struct Pull {
+        double tangential_force_N = 0.5; ///< tangential load reached at the end of the pull
+        double direction_deg = 0.0;      ///< direction of the pull in the x-y plane, from +x
+        int frames = 3;                  ///< frames of the linear tangential ramp (0: no pull)
+    } pull;
+
+    struct Render {
+        int width_px = 256;
+        int height_px = 256;
+        int samples_per_pixel = 4;
+        double exposure = 1.0;
+    } render;
+
+    struct Outputs {
+        bool images = true;  ///< PNG per frame (skips the whole render stage when false)
+        bool labels = true;  ///< labels.csv
+        bool markers = true; ///< markers.csv (3D displacement of every marker)
+    } outputs;
+
+    /// The resolved spec (every key, defaults filled) as YAML, in schema order. Written next to
+    /// the dataset and hashed to tell whether an existing output came from the same spec.
+    std::string resolved_yaml;
+};
+
+/// Reads, validates and resolves a spec file. Throws SpecError (with file:line:column, key,
+/// value and what is allowed) on malformed YAML, unknown keys, wrong types, out-of-range or
+/// disallowed values, and on cross-key constraints (at least one output enabled). Does no
+/// other work and writes nothing.
+Spec load_spec(const std::filesystem::path& path);
+
+/// Same, from text; `display_name` stands in for the file name in messages.
+Spec parse_spec(const std::string& yaml_text, const std::string& display_name);
+
+/// The schema as a Markdown table (key, type, default, unit, allowed, doc): the user manual.
+std::string schema_markdown();
+
+} // namespace chromasim::generators

@@ -1,0 +1,179 @@
+#include "mechanics/dome_geometry.hpp"
+
+#include <Eigen/Geometry>
+
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+
+namespace chromasim::mechanics {
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+double deg(double d) { return d * kPi / 180.0; }
+
+/// The angular grid shared by all five hemispheres. Ring i = 1..n-1 at polar angle
+/// (i - 1/2) * step, ring n the rim (pi/2). The top is a small flat polygon with an odd vertex count rather than a
+/// pole vertex, so that no mesh edge runs along the axis through the apex markers; the
+/// azimuths are offset by an arbitrary angle for the same reason.
+struct AngularGrid {
+    std::vector<std::vector<Eigen::Vector3d>> rings; ///< unit directions per ring
+};
+
+AngularGrid angular_grid(double outer_radius_mm, double edge_mm) {
+    constexpr double kAzimuthOffset = 0.1234;
+    const int n = std::max(3, int(std::ceil(0.5 * kPi * outer_radius_mm / edge_mm)));
+    const double step = 0.5 * kPi / (n - 0.5);
+    AngularGrid grid;
+    for (int i = 1; i <= n; ++i) {
+        const double theta = i == n ? 0.5 * kPi : step * (i - 0.5);
+        int m = std::max(5, int(std::lround(2 * kPi * std::sin(theta) * outer_radius_mm /
+                                            edge_mm)));
+        if (i == 1) m |= 1; // odd: no chord of the top polygon passes through the axis
+        std::vector<Eigen::Vector3d> ring;
+        const double phase = (i % 2) * 0.5; // stagger alternate rings for better triangles
+        for (int j = 0; j < m; ++j) {
+            const double phi = 2 * kPi * (j + phase) / m + kAzimuthOffset;
+            ring.emplace_back(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi),
+                              i == n ? 0.0 : std::cos(theta));
+        }
+        grid.rings.push_back(std::move(ring));
+    }
+    return grid;
+}
+
+double azimuth(const Eigen::Vector3d& d) {
+    double a = std::atan2(d.y(), d.x());
+    return a < 0 ? a + 2 * kPi : a;
+}
+
+/// Triangulates the band between two rings (indices into a vertex list) by merging them in
+/// azimuth order: the classic "zipper" of two closed polylines.
+void zip_rings(const std::vector<int>& a, const std::vector<int>& b,
+               const std::vector<Eigen::Vector3d>& dirs, std::vector<std::array<int, 3>>& out) {
+    std::size_t i = 0, j = 0;
+    const std::size_t na = a.size(), nb = b.size();
+    auto angle = [&](int v, std::size_t k, std::size_t n) {
+        return azimuth(dirs[v]) + (k >= n ? 2 * kPi : 0.0);
+    };
+    while (i < na || j < nb) {
+        const double ta = angle(a[(i + 1) % na], i + 1, na);
+        const double tb = angle(b[(j + 1) % nb], j + 1, nb);
+        if (j >= nb || (i < na && ta < tb)) {
+            out.push_back({a[i % na], b[j % nb], a[(i + 1) % na]});
+            ++i;
+        } else {
+            out.push_back({a[i % na], b[j % nb], b[(j + 1) % nb]});
+            ++j;
+        }
+    }
+}
+
+} // namespace
+
+MeshLevel mesh_level(const std::string& name) {
+    // Edge lengths are on the outer sphere; the volume bound keeps interior tets of the 1.2 mm
+    // clear layer no larger than the surface triangles imply.
+    if (name == "coarse") return {name, 1.2, 0.30};
+    if (name == "medium") return {name, 0.8, 0.09};
+    if (name == "fine") return {name, 0.5, 0.025};
+    throw std::invalid_argument("unknown mesh level '" + name +
+                                "'; allowed: coarse, medium, fine");
+}
+
+std::vector<Eigen::Vector3d> marker_directions(const DomeParams& dome) {
+    std::vector<Eigen::Vector3d> dirs{Eigen::Vector3d::UnitZ()};
+    const double step = deg(dome.ring_step_deg);
+    for (int k = 1; k <= dome.ring_count; ++k) {
+        const int m = int(std::lround(6.0 * std::sin(k * step) / std::sin(step)));
+        for (int j = 0; j < m; ++j) {
+            const double phi = 2 * kPi * j / m;
+            dirs.emplace_back(std::sin(k * step) * std::cos(phi),
+                              std::sin(k * step) * std::sin(phi), std::cos(k * step));
+        }
+    }
+    return dirs;
+}
+
+MarkerDiscs marker_discs(const DomeParams& dome) {
+    const auto dirs = marker_directions(dome);
+    const int rim = dome.marker_rim_points;
+    MarkerDiscs discs;
+    discs.markers_per_layer = int(dirs.size());
+    discs.points_per_marker = 1 + rim;
+    discs.points.resize(2 * dirs.size() * std::size_t(1 + rim), 3);
+    // Markers sit at mid-thickness of the inner (layer 1) and outer (layer 3) marker layers.
+    const double mid[2] = {0.5 * (dome.radii_mm[0] + dome.radii_mm[1]),
+                           0.5 * (dome.radii_mm[2] + dome.radii_mm[3])};
+    int row = 0;
+    for (double r : mid)
+        for (const Eigen::Vector3d& n : dirs) {
+            // Tangent frame of the sphere at n (any frame: the disc is round).
+            const Eigen::Vector3d t1 =
+                (std::abs(n.z()) > 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitZ())
+                    .cross(n)
+                    .normalized();
+            const Eigen::Vector3d t2 = n.cross(t1);
+            discs.points.row(row++) = r * n;
+            for (int k = 0; k < rim; ++k) {
+                const double a = 2 * kPi * k / rim;
+                discs.points.row(row++) =
+                    r * n + dome.marker_radius_mm * (std::cos(a) * t1 + std::sin(a) * t2);
+            }
+        }
+    return discs;
+}
+
+Plc dome_plc(const DomeParams& dome, double edge_mm) {
+    const AngularGrid grid = angular_grid(dome.radii_mm.back(), edge_mm);
+    std::vector<Eigen::Vector3d> dirs;
+    std::vector<std::vector<int>> ring_ids; // direction indices per ring
+    for (const auto& ring : grid.rings) {
+        ring_ids.emplace_back();
+        for (const auto& d : ring) {
+            ring_ids.back().push_back(int(dirs.size()));
+            dirs.push_back(d);
+        }
+    }
+    std::vector<std::array<int, 3>> cap; // triangles in direction indices
+    for (std::size_t i = 0; i + 1 < ring_ids.size(); ++i) zip_rings(ring_ids[i], ring_ids[i + 1], dirs, cap);
+
+    const int nd = int(dirs.size());
+    const int ns = kLayerCount + 1;
+    Plc plc;
+    plc.points.resize(std::size_t(nd) * ns, 3);
+    for (int s = 0; s < ns; ++s)
+        for (int d = 0; d < nd; ++d) plc.points.row(s * nd + d) = dome.radii_mm[s] * dirs[d];
+    for (int s = 0; s < ns; ++s) {
+        std::vector<int> top; // the flat top polygon (first ring) closing the cap
+        for (int d : ring_ids.front()) top.push_back(s * nd + d);
+        plc.facets.push_back(top);
+        plc.facet_markers.push_back(s + 1);
+        for (const auto& tri : cap) {
+            plc.facets.push_back({s * nd + tri[0], s * nd + tri[1], s * nd + tri[2]});
+            plc.facet_markers.push_back(s + 1);
+        }
+    }
+    // Rim annuli in z = 0: one planar quad per rim segment between neighbouring spheres.
+    const auto& rim = ring_ids.back();
+    for (int s = 0; s + 1 < ns; ++s)
+        for (std::size_t j = 0; j < rim.size(); ++j) {
+            const int a = rim[j], b = rim[(j + 1) % rim.size()];
+            plc.facets.push_back({s * nd + a, s * nd + b, (s + 1) * nd + b, (s + 1) * nd + a});
+            plc.facet_markers.push_back(10 + s);
+        }
+    // Region seeds at mid-thickness, 45 degrees off the axis, between two grid directions.
+    const Eigen::Vector3d seed_dir = Eigen::Vector3d(0.3, 0.2, 1.0).normalized();
+    for (int l = 0; l < kLayerCount; ++l)
+        plc.regions.push_back({0.5 * (dome.radii_mm[l] + dome.radii_mm[l + 1]) * seed_dir, l + 1});
+    return plc;
+}
+
+double dome_layer_volume(const DomeParams& dome, int layer) {
+    auto hemi = [](double r) { return 2.0 / 3.0 * kPi * r * r * r; };
+    if (layer < 0) return hemi(dome.radii_mm.back()) - hemi(dome.radii_mm.front());
+    return hemi(dome.radii_mm[layer]) - hemi(dome.radii_mm[layer - 1]);
+}
+
+} // namespace chromasim::mechanics

@@ -1,0 +1,58 @@
+#pragma once
+/// Geometry of the ChromaTouch dome (SENSOR.md section 1): layer radii, marker pattern, and the
+/// piecewise linear complex of the layered hemispherical shell that TetGen meshes.
+#include "mechanics/tet_mesh.hpp"
+
+#include <array>
+#include <string>
+#include <vector>
+
+namespace chromasim::mechanics {
+
+/// Region attributes of the four solid layers, innermost first.
+enum Layer : int { kInnerMarkerLayer = 1, kClearLayer = 2, kOuterMarkerLayer = 3, kCoating = 4 };
+inline constexpr int kLayerCount = 4;
+
+/// Dimensions of the dome. The dome is a hemisphere about +z, centred at the origin, clamped
+/// at its rim in the plane z = 0; the interior (r < inner radius) is hollow.
+struct DomeParams {
+    /// Interface radii in mm, innermost first: 5 spheres bounding the 4 layers [K].
+    std::array<double, kLayerCount + 1> radii_mm{10.5, 11.0, 12.2, 12.7, 13.2};
+    /// Marker rings: polar angle step and number of rings (apex marker not counted) [K].
+    double ring_step_deg = 12.5;
+    int ring_count = 5;
+    double marker_radius_mm = 0.5;    ///< disc radius (diameter 1.0 mm) [K]
+    int marker_rim_points = 12;       ///< polygon resolution of each disc's rim
+};
+
+/// Mesh resolution: named levels map to a target surface edge length and a tet volume bound.
+struct MeshLevel {
+    std::string name;
+    double edge_mm;        ///< target edge length of the surface triangulation
+    double max_volume_mm3; ///< TetGen -a bound
+};
+/// The named level ("coarse", "medium", "fine"); throws std::invalid_argument otherwise.
+MeshLevel mesh_level(const std::string& name);
+
+/// Unit directions of the markers of one layer: apex + rings k = 1..ring_count at polar angle
+/// k * step with round(6 sin(k step) / sin(step)) markers each (82 for the default) [K].
+std::vector<Eigen::Vector3d> marker_directions(const DomeParams& dome);
+
+/// The marker discs of both layers, undeformed: for each marker its centre followed by its
+/// `marker_rim_points` rim points (#markers * (1 + rim) x 3, mm). Inner layer first.
+struct MarkerDiscs {
+    Points points;
+    int markers_per_layer = 0;
+    int points_per_marker = 0;
+};
+MarkerDiscs marker_discs(const DomeParams& dome);
+
+/// The layered hemispherical shell as a PLC: five concentric hemispheres sharing one
+/// angular triangulation (edge about `edge_mm` on the outer sphere), annular rim facets in
+/// z = 0 between them, and one region seed per layer.
+Plc dome_plc(const DomeParams& dome, double edge_mm);
+
+/// Analytic volume of layer `layer` (1..4), or of the whole shell for layer = -1, in mm^3.
+double dome_layer_volume(const DomeParams& dome, int layer = -1);
+
+} // namespace chromasim::mechanics

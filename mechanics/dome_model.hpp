@@ -1,0 +1,73 @@
+#pragma once
+/// The layered dome as a linear elastic FE model under a rigid flat object: meshing,
+/// assembly, one factorization, the compliance of the surface nodes that can touch, then a
+/// cheap contact solve per frame. Plain data in, plain data out.
+#include "mechanics/contact.hpp"
+#include "mechanics/dome_geometry.hpp"
+#include "mechanics/linear_elasticity.hpp"
+#include "mechanics/tet_mesh.hpp"
+
+#include <array>
+#include <memory>
+#include <string>
+
+namespace chromasim::mechanics {
+
+struct DomeModelOptions {
+    DomeParams dome;
+    std::string mesh_level = "coarse";
+    /// Materials of the layers, innermost first (indexed by Layer - 1).
+    std::array<Material, kLayerCount> materials{
+        {{0.8, 0.45}, {0.3, 0.45}, {0.8, 0.45}, {1.0, 0.45}}};
+    /// Outer-surface nodes up to this polar angle may touch the object.
+    double contact_candidate_angle_deg = 35.0;
+};
+
+/// A surface of the mesh: the mesh nodes it uses and its triangles in local indices.
+struct SurfacePatch {
+    std::vector<int> nodes; ///< mesh node per local vertex
+    Triangles F;            ///< local vertex indices; orientation documented where built
+};
+
+/// Timings (s) and sizes of the precomputation.
+struct PrecomputeStats {
+    double mesh_s = 0, assemble_s = 0, factorize_s = 0, compliance_s = 0;
+    int nodes = 0, tets = 0, free_dofs = 0, candidates = 0;
+};
+
+/// What a frame produces. Fields are filled only when asked for (FrameRequest).
+struct FrameResult {
+    ContactSolution contact;
+    double contact_area_mm2 = 0.0;  ///< tributary area of the nodes in contact
+    bool at_candidate_edge = false; ///< contact reached the rim of the candidate cap
+    Points node_displacement_mm;    ///< #V x 3 (empty unless requested)
+    Points marker_points_mm;        ///< deformed MarkerDiscs::points (empty unless requested)
+};
+
+struct FrameRequest {
+    bool displacements = false; ///< node displacements (needed by images)
+    bool markers = false;       ///< deformed marker discs (images, markers.csv)
+};
+
+class DomeModel {
+public:
+    /// Meshes, assembles, factorizes and precomputes. Throws std::runtime_error on failure
+    /// (a singular system, a TetGen error, a marker outside the mesh).
+    explicit DomeModel(const DomeModelOptions& options);
+    ~DomeModel();
+
+    /// Solves one quasi-static frame under `load`.
+    FrameResult solve(const ContactLoad& load, const FrameRequest& request) const;
+
+    const TetMesh& mesh() const;
+    const MarkerDiscs& markers() const;
+    /// Inner face of the coating (interface of layers 3 and 4), normals towards the centre.
+    const SurfacePatch& coating_surface() const;
+    const PrecomputeStats& stats() const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> m_impl;
+};
+
+} // namespace chromasim::mechanics

@@ -1,0 +1,32 @@
+#pragma once
+/// Small-strain isotropic linear elasticity on linear tetrahedra (units: mm, N, MPa = N/mm^2).
+#include "mechanics/tet_mesh.hpp"
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+#include <vector>
+
+namespace chromasim::mechanics {
+
+/// Isotropic material of one region.
+struct Material {
+    double E_MPa = 1.0; ///< Young's modulus
+    double nu = 0.45;   ///< Poisson's ratio, [0, 0.5)
+};
+
+using Matrix12d = Eigen::Matrix<double, 12, 12>;
+
+/// Element stiffness (N/mm) of a linear tet with vertices X (4 x 3, mm): vol * B^T D B, dofs
+/// ordered (x0, y0, z0, x1, ...).
+Matrix12d tet_stiffness(const Eigen::Matrix<double, 4, 3>& X, const Material& material);
+
+/// Global stiffness (3 #V x 3 #V, N/mm) with the material of each tet picked by its region:
+/// `materials[region(t) - 1]`.
+Eigen::SparseMatrix<double> assemble_stiffness(const TetMesh& mesh,
+                                               const std::vector<Material>& materials);
+
+/// Elastic energy 1/2 u^T K u (N mm) of a displacement field (3 #V, mm): for tests.
+double elastic_energy(const Eigen::SparseMatrix<double>& K, const Eigen::VectorXd& u);
+
+} // namespace chromasim::mechanics

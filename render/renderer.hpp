@@ -1,0 +1,36 @@
+#pragma once
+/// Renders fisheye images of a deformed sensor with Embree.
+#include "render/scene_data.hpp"
+
+#include <memory>
+#include <optional>
+
+namespace chromasim::render {
+
+/// Owns the Embree device and scene. Build once per sensor, then call `set_frame` for each
+/// frame: when only vertex positions change (same triangle counts), buffers are updated in
+/// place and the BVH refitted instead of rebuilt.
+class Renderer {
+public:
+    Renderer(const CameraParams& camera, const OpticsParams& optics);
+    ~Renderer();
+    Renderer(const Renderer&) = delete;
+    Renderer& operator=(const Renderer&) = delete;
+
+    /// Loads (first call, or changed topology) or refits (same topology) the scene.
+    void set_frame(const SensorFrame& frame);
+
+    /// Renders the current frame. Linear RGB, auto-exposed so that the undeformed apex of a
+    /// white coating maps to about 0.8 (times OpticsParams::exposure).
+    Image render(const RenderSettings& settings) const;
+
+    /// Projects a 3D point (mm, camera frame) to pixel coordinates; nullopt if outside the
+    /// image circle. Exposed for tests and label overlays.
+    std::optional<Eigen::Vector2d> project(const Vec3& p_mm) const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> m_impl;
+};
+
+} // namespace chromasim::render
