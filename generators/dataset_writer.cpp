@@ -1,0 +1,142 @@
+#include "generators/dataset_writer.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <iomanip>
+#include <sstream>
+#include <unistd.h>
+
+namespace fs = std::filesystem;
+
+namespace chromasim::generators {
+
+namespace {
+
+std::string read_file(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::ostringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+std::string utc_now() {
+    const std::time_t t = std::time(nullptr);
+    char buf[32];
+    std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
+    return buf;
+}
+
+std::ofstream open_csv(const fs::path& p, const char* header) {
+    std::ofstream out(p);
+    if (!out) throw std::runtime_error("cannot write " + p.string());
+    out << header << '\n' << std::setprecision(9);
+    return out;
+}
+
+} // namespace
+
+std::string stored_spec_text(const Spec& spec) {
+    return "# resolved by chromasim " CHROMASIM_VERSION "\n" + spec.resolved_yaml;
+}
+
+OutputState inspect_output(const fs::path& out_dir, const Spec& spec) {
+    std::error_code ec;
+    if (!fs::exists(out_dir, ec)) return OutputState::absent;
+    if (!fs::is_directory(out_dir, ec))
+        throw SpecError(out_dir.string() + ": output path exists and is not a folder; allowed: " +
+                        "a new path or an existing dataset folder");
+    if (fs::is_empty(out_dir, ec)) return OutputState::absent;
+    const fs::path stored = out_dir / "spec.resolved.yaml";
+    if (fs::exists(out_dir / "manifest.yaml") && fs::exists(stored) &&
+        read_file(stored) == stored_spec_text(spec))
+        return OutputState::up_to_date;
+    return OutputState::other_content;
+}
+
+DatasetWriter::DatasetWriter(fs::path out_dir, const Spec& spec, bool overwrite)
+    : m_out(std::move(out_dir)), m_spec(spec), m_overwrite(overwrite) {
+    if (!m_overwrite && inspect_output(m_out, spec) == OutputState::other_content)
+        throw SpecError(m_out.string() + ": output folder already holds other content (a " +
+                        "dataset from another spec or version, or other files); allowed: a new " +
+                        "path, or --overwrite to replace it once the new dataset is complete");
+    const fs::path parent = fs::absolute(m_out).parent_path();
+    fs::create_directories(parent);
+    m_staging = parent / (m_out.filename().string() + ".partial-" + std::to_string(::getpid()));
+    fs::remove_all(m_staging);
+    fs::create_directories(m_staging);
+    if (m_spec.outputs.images) fs::create_directories(m_staging / "images");
+    if (m_spec.outputs.labels)
+        m_labels = open_csv(m_staging / "labels.csv",
+                            "frame,phase,image,normal_force_N,tangential_force_N,"
+                            "tangential_force_x_N,tangential_force_y_N,"
+                            "requested_tangential_force_N,mu,gamma,sliding,indentation_mm,"
+                            "contact_area_mm2,contact_nodes,solver_iterations,converged,status");
+    if (m_spec.outputs.markers)
+        m_markers = open_csv(m_staging / "markers.csv",
+                             "frame,layer,marker,x0_mm,y0_mm,z0_mm,ux_mm,uy_mm,uz_mm");
+}
+
+DatasetWriter::~DatasetWriter() {
+    if (!m_committed) {
+        std::error_code ec;
+        fs::remove_all(m_staging, ec);
+    }
+}
+
+fs::path DatasetWriter::image_path(int frame, std::string* relative) {
+    char name[32];
+    std::snprintf(name, sizeof name, "frame_%06d.png", frame);
+    if (relative) *relative = std::string("images/") + name;
+    ++m_images;
+    return m_staging / "images" / name;
+}
+
+void DatasetWriter::write_label(const LabelRow& r) {
+    if (!m_labels.is_open()) return;
+    const double ft = std::hypot(r.tangential_x_N, r.tangential_y_N);
+    m_labels << r.frame << ',' << r.phase << ',' << r.image << ',' << r.normal_force_N << ','
+             << ft << ',' << r.tangential_x_N << ',' << r.tangential_y_N << ','
+             << r.requested_tangential_N << ',' << r.mu << ',' << r.gamma << ','
+             << int(r.sliding) << ',' << r.indentation_mm << ',' << r.contact_area_mm2 << ','
+             << r.contact_nodes << ',' << r.solver_iterations << ',' << int(r.converged) << ','
+             << r.status << '\n';
+    ++m_label_rows;
+}
+
+void DatasetWriter::write_marker(int frame, const char* layer, int marker, const double x0[3],
+                                 const double u[3]) {
+    if (!m_markers.is_open()) return;
+    m_markers << frame << ',' << layer << ',' << marker << ',' << x0[0] << ',' << x0[1] << ','
+              << x0[2] << ',' << u[0] << ',' << u[1] << ',' << u[2] << '\n';
+}
+
+void DatasetWriter::commit(const std::string& manifest_extra) {
+    for (std::ofstream* f : {&m_labels, &m_markers})
+        if (f->is_open()) {
+            f->close();
+            if (!*f) throw std::runtime_error("write error in " + m_staging.string());
+        }
+    std::ofstream(m_staging / "spec.resolved.yaml", std::ios::binary) << stored_spec_text(m_spec);
+    std::ofstream manifest(m_staging / "manifest.yaml");
+    manifest << "# chromasim dataset manifest (docs/DATASET_FORMAT.md)\n"
+             << "name: " << m_spec.name << "\nchromasim_version: " CHROMASIM_VERSION "\n"
+             << "created_utc: " << utc_now() << "\nspec_source: " << m_spec.source_path.string()
+             << "\nimages: " << m_images << "\nlabel_rows: " << m_label_rows << '\n'
+             << manifest_extra;
+    manifest.close();
+    if (!manifest) throw std::runtime_error("write error in " + m_staging.string());
+    // Swap into place: the old dataset (if replacing) is removed only after the rename.
+    fs::path old;
+    if (fs::exists(m_out)) {
+        old = m_staging.parent_path() / (m_out.filename().string() + ".old-" +
+                                         std::to_string(::getpid()));
+        fs::rename(m_out, old);
+    }
+    fs::rename(m_staging, m_out);
+    m_committed = true;
+    if (!old.empty()) fs::remove_all(old);
+}
+
+} // namespace chromasim::generators

@@ -1,0 +1,133 @@
+#include "generators/generate.hpp"
+
+#include "generators/dataset_writer.hpp"
+#include "generators/image_io.hpp"
+#include "generators/plan.hpp"
+#include "generators/sensor_bridge.hpp"
+#include "render/renderer.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <ostream>
+#include <sstream>
+
+namespace chromasim::generators {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t0) {
+    return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+LabelRow label_row(const FramePlan& f, const mechanics::FrameResult& r) {
+    LabelRow row;
+    row.frame = f.index;
+    row.phase = f.phase;
+    row.normal_force_N = r.contact.normal_force_N;
+    row.tangential_x_N = r.contact.tangential_force_N.x();
+    row.tangential_y_N = r.contact.tangential_force_N.y();
+    row.requested_tangential_N = f.tangential_force_N.norm();
+    row.mu = f.mu;
+    row.gamma = r.contact.gamma;
+    row.sliding = r.contact.sliding;
+    row.indentation_mm = r.contact.indentation_mm;
+    row.contact_area_mm2 = r.contact_area_mm2;
+    row.contact_nodes = int(r.contact.active.size());
+    row.solver_iterations = r.contact.iterations;
+    row.converged = r.contact.converged && !r.at_candidate_edge;
+    row.status = r.at_candidate_edge ? "contact_at_candidate_edge" : r.contact.status;
+    return row;
+}
+
+void write_markers(DatasetWriter& writer, int frame, const mechanics::DomeModel& model,
+                   const mechanics::FrameResult& r) {
+    const mechanics::MarkerDiscs& discs = model.markers();
+    for (int layer = 0; layer < 2; ++layer)
+        for (int m = 0; m < discs.markers_per_layer; ++m) {
+            const int row = (layer * discs.markers_per_layer + m) * discs.points_per_marker;
+            double x0[3], u[3];
+            for (int k = 0; k < 3; ++k) {
+                x0[k] = discs.points(row, k);
+                u[k] = r.marker_points_mm(row, k) - x0[k];
+            }
+            writer.write_marker(frame, layer == 0 ? "inner" : "outer", m, x0, u);
+        }
+}
+
+} // namespace
+
+GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::ostream& log) {
+    const auto t_start = Clock::now();
+    GenerateReport report;
+    // 1. Output path first: nothing is computed for a dataset that exists or cannot be written.
+    const OutputState state = inspect_output(options.out_dir, spec);
+    if (state == OutputState::up_to_date && !options.overwrite) {
+        report.up_to_date = true;
+        log << "chromasim: " << options.out_dir.string()
+            << " already holds this dataset (same resolved spec); nothing to do.\n";
+        return report;
+    }
+    DatasetWriter writer(options.out_dir, spec, options.overwrite);
+    const Plan plan = make_plan(spec);
+
+    // 2. Precompute what every frame shares: mesh, factorization, contact compliance, scene.
+    auto t0 = Clock::now();
+    const mechanics::DomeModel model(dome_options(spec));
+    std::unique_ptr<render::Renderer> renderer;
+    if (spec.outputs.images)
+        renderer = std::make_unique<render::Renderer>(camera_params(spec), optics_params(spec));
+    report.precompute_s = since(t0);
+    const auto& st = model.stats();
+    log << "chromasim: dome mesh '" << spec.sensor.mesh_level << "': " << st.nodes << " nodes, "
+        << st.tets << " tets, " << st.candidates << " contact candidates; precomputed in "
+        << report.precompute_s << " s\n";
+
+    // 3. Frames: mechanics, then (only if images are asked for) render, then writers.
+    const mechanics::FrameRequest request{spec.outputs.images, spec.outputs.images ||
+                                                                   spec.outputs.markers};
+    render::SensorFrame sensor_frame;
+    const render::RenderSettings settings{spec.render.samples_per_pixel, spec.seed};
+    for (const FramePlan& f : plan.frames) {
+        t0 = Clock::now();
+        const mechanics::FrameResult r =
+            model.solve({f.normal_force_N, f.tangential_force_N, f.mu}, request);
+        report.mechanics_s += since(t0);
+        LabelRow row = label_row(f, r);
+        if (renderer) {
+            t0 = Clock::now();
+            fill_sensor_frame(model, r, sensor_frame);
+            renderer->set_frame(sensor_frame);
+            const render::Image image = renderer->render(settings);
+            report.render_s += since(t0);
+            t0 = Clock::now();
+            write_png(writer.image_path(f.index, &row.image), image);
+            report.write_s += since(t0);
+            ++report.images;
+        }
+        t0 = Clock::now();
+        writer.write_label(row);
+        if (spec.outputs.markers) write_markers(writer, f.index, model, r);
+        report.write_s += since(t0);
+        if (!row.converged) {
+            ++report.flagged_frames;
+            log << "chromasim: warning: frame " << f.index << " flagged: " << row.status << '\n';
+        }
+        if (!options.quiet)
+            log << "  frame " << f.index + 1 << "/" << plan.frames.size() << " " << f.phase
+                << "  Fn " << row.normal_force_N << " N  Ft "
+                << std::hypot(row.tangential_x_N, row.tangential_y_N) << " N  Gamma "
+                << row.gamma << '\n';
+    }
+    report.frames = int(plan.frames.size());
+    report.total_s = since(t_start);
+    std::ostringstream extra;
+    extra << "frames: " << report.frames << "\nflagged_frames: " << report.flagged_frames
+          << "\nmesh: {level: " << spec.sensor.mesh_level << ", nodes: " << st.nodes
+          << ", tets: " << st.tets << "}\nwall_time_s: " << report.total_s << '\n';
+    writer.commit(extra.str());
+    return report;
+}
+
+} // namespace chromasim::generators

@@ -1,0 +1,27 @@
+#pragma once
+/// The main job: spec -> plan -> mechanics -> render -> writers.
+#include "generators/spec.hpp"
+
+#include <filesystem>
+#include <iosfwd>
+
+namespace chromasim::generators {
+
+struct GenerateOptions {
+    std::filesystem::path out_dir;
+    bool overwrite = false; ///< replace an existing dataset from another spec
+    bool quiet = false;     ///< no per-frame progress lines
+};
+
+struct GenerateReport {
+    bool up_to_date = false; ///< nothing done: the output already holds this dataset
+    int frames = 0, images = 0, flagged_frames = 0;
+    double precompute_s = 0, mechanics_s = 0, render_s = 0, write_s = 0, total_s = 0;
+};
+
+/// Runs a validated spec. Checks the output path before any work; writes atomically
+/// (dataset_writer.hpp). Frames whose solver did not converge are written with
+/// converged = 0 and a status, counted in `flagged_frames`, and reported on `log`.
+GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::ostream& log);
+
+} // namespace chromasim::generators

@@ -1,0 +1,75 @@
+#include "generators/sensor_bridge.hpp"
+
+#include <stdexcept>
+
+namespace chromasim::generators {
+
+namespace {
+mechanics::Material material(const LayerMaterial& m) { return {m.E_MPa, m.nu}; }
+render::Vec3 vec(const Rgb& c) { return {c[0], c[1], c[2]}; }
+
+/// Marker discs as triangle fans (centre, rim k, rim k+1), layer `layer` (0 inner, 1 outer).
+void fill_fans(const mechanics::Points& points, int markers, int per_marker, int layer,
+               render::SurfaceMesh& out) {
+    const int rim = per_marker - 1;
+    const int first = layer * markers * per_marker;
+    out.V = points.middleRows(first, Eigen::Index(markers) * per_marker).cast<float>();
+    if (out.F.rows() == Eigen::Index(markers) * rim) return; // topology unchanged
+    out.F.resize(Eigen::Index(markers) * rim, 3);
+    for (int m = 0; m < markers; ++m)
+        for (int k = 0; k < rim; ++k) {
+            const std::uint32_t c = std::uint32_t(m * per_marker);
+            out.F.row(m * rim + k) << c, c + 1 + k, c + 1 + (k + 1) % rim;
+        }
+}
+} // namespace
+
+mechanics::DomeModelOptions dome_options(const Spec& spec) {
+    mechanics::DomeModelOptions o;
+    o.mesh_level = spec.sensor.mesh_level;
+    o.materials = {material(spec.sensor.inner_marker_layer), material(spec.sensor.clear_layer),
+                   material(spec.sensor.outer_marker_layer), material(spec.sensor.coating)};
+    o.contact_candidate_angle_deg = spec.sensor.contact_candidate_angle_deg;
+    return o;
+}
+
+render::CameraParams camera_params(const Spec& spec) {
+    return {spec.render.width_px, spec.render.height_px, spec.sensor.camera_half_fov_deg};
+}
+
+render::OpticsParams optics_params(const Spec& spec) {
+    render::OpticsParams o;
+    o.coating_albedo = vec(spec.sensor.coating_albedo);
+    o.inner_marker_absorption_per_mm = vec(spec.sensor.inner_marker_absorption_per_mm);
+    o.outer_marker_absorption_per_mm = vec(spec.sensor.outer_marker_absorption_per_mm);
+    o.outer_marker_albedo = vec(spec.sensor.outer_marker_albedo);
+    o.outer_marker_scatter_fraction = spec.sensor.outer_marker_scatter_fraction;
+    o.led_count = spec.sensor.led_count;
+    o.led_ring_radius_mm = spec.sensor.led_ring_radius_mm;
+    o.led_z_mm = spec.sensor.led_z_mm;
+    o.exposure = spec.render.exposure;
+    return o;
+}
+
+void fill_sensor_frame(const mechanics::DomeModel& model, const mechanics::FrameResult& frame,
+                       render::SensorFrame& out) {
+    if (frame.node_displacement_mm.rows() == 0 || frame.marker_points_mm.rows() == 0)
+        throw std::logic_error("fill_sensor_frame: frame solved without displacement fields");
+    const mechanics::SurfacePatch& coating = model.coating_surface();
+    const mechanics::TetMesh& mesh = model.mesh();
+    out.coating.V.resize(Eigen::Index(coating.nodes.size()), 3);
+    for (std::size_t i = 0; i < coating.nodes.size(); ++i) {
+        const int n = coating.nodes[i];
+        out.coating.V.row(Eigen::Index(i)) =
+            (mesh.V.row(n) + frame.node_displacement_mm.row(n)).cast<float>();
+    }
+    if (out.coating.F.rows() != coating.F.rows()) out.coating.F = coating.F.cast<std::uint32_t>();
+    const mechanics::MarkerDiscs& discs = model.markers();
+    fill_fans(frame.marker_points_mm, discs.markers_per_layer, discs.points_per_marker, 0,
+              out.inner_markers);
+    fill_fans(frame.marker_points_mm, discs.markers_per_layer, discs.points_per_marker, 1,
+              out.outer_markers);
+    out.triangles_per_marker = discs.points_per_marker - 1;
+}
+
+} // namespace chromasim::generators

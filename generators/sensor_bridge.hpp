@@ -1,0 +1,19 @@
+#pragma once
+/// Where mechanics and render meet: translates a spec into each stage's parameters and a
+/// mechanics frame into the plain SensorFrame that render takes. Render never sees mechanics.
+#include "generators/spec.hpp"
+#include "mechanics/dome_model.hpp"
+#include "render/scene_data.hpp"
+
+namespace chromasim::generators {
+
+mechanics::DomeModelOptions dome_options(const Spec& spec);
+render::CameraParams camera_params(const Spec& spec);
+render::OpticsParams optics_params(const Spec& spec);
+
+/// Fills `out` with the deformed coating and marker discs of `frame`, which must carry node
+/// displacements and marker points. Reuses `out`'s buffers (same sizes every frame).
+void fill_sensor_frame(const mechanics::DomeModel& model, const mechanics::FrameResult& frame,
+                       render::SensorFrame& out);
+
+} // namespace chromasim::generators

@@ -1,0 +1,106 @@
+#include "mechanics/contact.hpp"
+#include "mechanics/dome_model.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+
+using namespace chromasim::mechanics;
+
+namespace {
+const DomeModel& coarse_model() {
+    static const DomeModel model(DomeModelOptions{});
+    return model;
+}
+} // namespace
+
+TEST_CASE("safety margin follows its definition and is clamped", "[mechanics][contact]") {
+    CHECK(safety_margin(0.8, 1.0, 0.0) == Approx(1.0));
+    CHECK(safety_margin(0.8, 1.0, 0.2) == Approx(0.75));
+    CHECK(safety_margin(0.8, 1.0, 0.8) == Approx(0.0).margin(1e-15));
+    CHECK(safety_margin(0.8, 1.0, 1.6) == 0.0);
+    CHECK(safety_margin(0.0, 1.0, 0.0) == 0.0); // no frictional strength at all
+}
+
+TEST_CASE("two springs against a plane: active set and force control are exact",
+          "[mechanics][contact]") {
+    // Two decoupled nodes, compliances 1 and 2 mm/N (z), gaps 0 and 0.1 mm.
+    Eigen::MatrixXd C = Eigen::MatrixXd::Zero(6, 6);
+    C.diagonal() << 1, 1, 1, 2, 2, 2;
+    Eigen::VectorXd gap(2);
+    gap << 0.0, 0.1;
+    SECTION("light load: one node in contact") {
+        const ContactSolution s = solve_flat_contact(C, gap, {0.05, {0, 0}, 0.5});
+        REQUIRE(s.converged);
+        CHECK(s.active == std::vector<int>{0});
+        CHECK(s.indentation_mm == Approx(0.05)); // d = c1 P
+    }
+    SECTION("heavy load: both nodes, d from c1 f1 = d, c2 f2 = d - 0.1, f1 + f2 = P") {
+        const double P = 1.0;
+        const ContactSolution s = solve_flat_contact(C, gap, {P, {0, 0}, 0.5});
+        REQUIRE(s.converged);
+        CHECK(s.active.size() == 2);
+        const double d = (P + 0.1 / 2) / (1.0 + 0.5); // f1 = d, f2 = (d - 0.1) / 2
+        CHECK(s.indentation_mm == Approx(d));
+        CHECK(-s.forces_N(0, 2) == Approx(d));
+        CHECK(s.normal_force_N == Approx(P));
+    }
+}
+
+TEST_CASE("dome under a flat: force balance, no penetration, tensionless contact",
+          "[mechanics][contact]") {
+    const DomeModel& model = coarse_model();
+    for (double P : {0.05, 0.5, 2.5}) {
+        INFO("P = " << P);
+        const FrameResult r = model.solve({P, {0, 0}, 0.8}, {true, true});
+        REQUIRE(r.contact.converged);
+        CHECK_FALSE(r.at_candidate_edge);
+        CHECK(r.contact.normal_force_N == Approx(P).epsilon(1e-9));
+        CHECK(r.contact.gamma == 1.0);
+        for (int j : r.contact.active) CHECK(-r.contact.forces_N(j, 2) >= 0.0);
+        // No node of the outer surface ends above the plane z = R - d.
+        const double plane = 13.2 - r.contact.indentation_mm;
+        for (int v = 0; v < model.mesh().V.rows(); ++v)
+            REQUIRE(model.mesh().V(v, 2) + r.node_displacement_mm(v, 2) <= plane + 1e-7);
+        // The apex markers move down with the indentation.
+        CHECK(r.marker_points_mm(0, 2) < 10.75);
+    }
+}
+
+TEST_CASE("dome contact stiffens with load: indentation and area grow with force",
+          "[mechanics][contact]") {
+    const DomeModel& model = coarse_model();
+    double last_d = 0, last_area = 0;
+    for (double P : {0.25, 0.5, 1.0, 2.0, 3.2}) {
+        const FrameResult r = model.solve({P, {0, 0}, 0.8}, {});
+        CHECK(r.contact.indentation_mm > last_d);
+        CHECK(r.contact_area_mm2 >= last_area);
+        last_d = r.contact.indentation_mm;
+        last_area = r.contact_area_mm2;
+    }
+}
+
+TEST_CASE("tangential pull: stick below mu P, full slip beyond, Gamma as defined",
+          "[mechanics][contact]") {
+    const DomeModel& model = coarse_model();
+    const double P = 1.5, mu = 0.8;
+    const FrameResult stick = model.solve({P, {0.3, 0.0}, mu}, {false, true});
+    REQUIRE(stick.contact.converged);
+    CHECK_FALSE(stick.contact.sliding);
+    CHECK(stick.contact.tangential_force_N.x() == Approx(0.3));
+    CHECK(stick.contact.tangential_force_N.y() == Approx(0.0).margin(1e-12));
+    CHECK(stick.contact.gamma == Approx((mu * P - 0.3) / (mu * P)));
+    // Pulling along +x drags the outer apex marker along +x, more than the inner one.
+    const int per = model.markers().points_per_marker, n = model.markers().markers_per_layer;
+    const double ux_outer = stick.marker_points_mm(n * per, 0) - model.markers().points(n * per, 0);
+    const double ux_inner = stick.marker_points_mm(0, 0) - model.markers().points(0, 0);
+    CHECK(ux_outer > 0);
+    CHECK(ux_outer > ux_inner);
+
+    const FrameResult slip = model.solve({P, {0.0, 5.0}, mu}, {});
+    REQUIRE(slip.contact.converged);
+    CHECK(slip.contact.sliding);
+    CHECK(slip.contact.gamma == 0.0);
+    CHECK(slip.contact.tangential_force_N.norm() == Approx(mu * P));
+    CHECK(slip.contact.tangential_force_N.y() == Approx(mu * P)); // along the pull
+}
