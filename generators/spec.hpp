@@ -27,7 +27,7 @@ struct LayerMaterial {
 
 struct Spec {
     std::filesystem::path source_path; ///< the file it was read from
-    std::string name;
+    std::string name = "unnamed";
     std::uint64_t seed = 1;
 
     struct Sensor {

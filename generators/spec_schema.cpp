@@ -1,0 +1,644 @@
+#include "generators/spec_schema.hpp"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <type_traits>
+
+namespace chromasim::generators {
+namespace detail {
+namespace { // internal linkage: these names are common
+
+// ---- Storing values into fields and reading them back ---------------------------------------
+
+/// Stores a validated value; integers travel as int64_t and narrow to the field's type (the
+/// schema range guarantees they fit).
+template <class T> void assign(T& field, const SpecValue& v) {
+    if constexpr (std::is_integral_v<T> && !std::is_same_v<T, bool>) {
+        field = static_cast<T>(std::get<std::int64_t>(v));
+    } else {
+        field = std::get<T>(v);
+    }
+}
+
+template <class T> SpecValue to_value(const T& x) {
+    if constexpr (std::is_integral_v<T> && !std::is_same_v<T, bool>) {
+        return static_cast<std::int64_t>(x);
+    } else {
+        return x;
+    }
+}
+
+// ---- Building entries -----------------------------------------------------------------------
+
+/// `access` is a generic lambda `(auto& spec) -> auto&` naming the field, so one expression
+/// serves both the setter (Spec&) and the getter (const Spec&).
+template <class Access>
+SchemaEntry make_entry(std::string key, ValueType type, SpecValue def, std::string unit,
+                       Range range, std::string doc, Access access) {
+    SchemaEntry e;
+    e.key = std::move(key);
+    e.type = type;
+    e.default_value = std::move(def);
+    e.unit = std::move(unit);
+    e.range = range;
+    e.doc = std::move(doc);
+    e.set = [access](Spec& s, const SpecValue& v) { assign(access(s), v); };
+    e.get = [access](const Spec& s) { return to_value(access(s)); };
+    return e;
+}
+
+Range closed(double lo, double hi) {
+    return {lo, hi, true, true};
+}
+Range left_open(double lo, double hi) {
+    return {lo, hi, false, true};
+}
+
+template <class Access>
+SchemaEntry number(std::string key, double def, Range range, std::string unit, std::string doc,
+                   Access access) {
+    return make_entry(std::move(key), ValueType::Number, def, std::move(unit), range,
+                      std::move(doc), access);
+}
+
+template <class Access>
+SchemaEntry integer(std::string key, std::int64_t def, Range range, std::string unit,
+                    std::string doc, Access access) {
+    return make_entry(std::move(key), ValueType::Integer, def, std::move(unit), range,
+                      std::move(doc), access);
+}
+
+template <class Access> SchemaEntry boolean(std::string key, bool def, std::string doc, Access a) {
+    return make_entry(std::move(key), ValueType::Bool, def, "", Range{}, std::move(doc), a);
+}
+
+template <class Access>
+SchemaEntry choice(std::string key, std::string def, std::vector<std::string> choices,
+                   std::string doc, Access access) {
+    SchemaEntry e = make_entry(std::move(key), ValueType::Enum, std::move(def), "", Range{},
+                               std::move(doc), access);
+    e.choices = std::move(choices);
+    return e;
+}
+
+template <class Access>
+SchemaEntry text(std::string key, std::string def, std::string doc, Access access) {
+    return make_entry(std::move(key), ValueType::String, std::move(def), "", Range{},
+                      std::move(doc), access);
+}
+
+template <class Access>
+SchemaEntry rgb(std::string key, Rgb def, Range range, std::string unit, std::string doc,
+                Access access) {
+    return make_entry(std::move(key), ValueType::Rgb, def, std::move(unit), range, std::move(doc),
+                      access);
+}
+
+// ---- The table ------------------------------------------------------------------------------
+
+// The accessor of one Spec field, for both Spec& and const Spec& (see make_entry).
+// clang-format off
+#define CHROMASIM_FIELD(member) [](auto& s) -> auto& { return s.member; }
+// clang-format on
+
+/// "inner_marker_layer" -> "inner marker layer".
+std::string words(std::string key) {
+    std::replace(key.begin(), key.end(), '_', ' ');
+    return key;
+}
+
+/// The E and nu entries of one layer; `what` describes the material for the doc line.
+template <class Access>
+void add_layer(std::vector<SchemaEntry>& out, const std::string& layer, double E_MPa,
+               const std::string& what, Access layer_access) {
+    const std::string key = "sensor.materials." + layer;
+    out.push_back(number(
+        key + ".E_MPa", E_MPa, left_open(0, 1000), "MPa",
+        "Young's modulus of the " + what + " [G].", [layer_access](auto& s) -> auto& {
+            return layer_access(s).E_MPa;
+        }));
+    out.push_back(number(
+        key + ".nu", 0.45, closed(0, 0.4999), "",
+        "Poisson's ratio of the " + words(layer) + " (nearly incompressible: 0.45 to 0.49) [G].",
+        [layer_access](auto& s) -> auto& { return layer_access(s).nu; }));
+}
+
+void add_general(std::vector<SchemaEntry>& out) {
+    out.push_back(text("name", "unnamed", "Dataset name.", CHROMASIM_FIELD(name)));
+    out.push_back(integer("seed", 1, closed(0, 2147483647), "",
+                          "Seed of every random draw made for the dataset.",
+                          CHROMASIM_FIELD(seed)));
+}
+
+void add_sensor_mechanics(std::vector<SchemaEntry>& out) {
+    out.push_back(choice("sensor.mesh_level", "coarse", {"coarse", "medium", "fine"},
+                         "TetGen mesh level of the dome (coarse is the fastest).",
+                         CHROMASIM_FIELD(sensor.mesh_level)));
+    add_layer(out, "inner_marker_layer", 0.8,
+              "inner marker layer (printed flexible clear resin, Agilus30-like: 0.6 to 1.0 MPa)",
+              CHROMASIM_FIELD(sensor.inner_marker_layer));
+    add_layer(out, "clear_layer", 0.3,
+              "clear layer between the marker arrays (SortaClear 12A: 0.2 to 0.4 MPa)",
+              CHROMASIM_FIELD(sensor.clear_layer));
+    add_layer(out, "outer_marker_layer", 0.8,
+              "outer marker layer (printed flexible clear resin, Agilus30-like: 0.6 to 1.0 MPa)",
+              CHROMASIM_FIELD(sensor.outer_marker_layer));
+    add_layer(out, "coating", 1.0, "white diffusing coating (pigmented silicone: about 1 MPa)",
+              CHROMASIM_FIELD(sensor.coating));
+    out.push_back(number("sensor.contact_candidate_angle_deg", 35, closed(5, 80), "deg",
+                         "Polar angle of the outer-surface cap whose nodes may touch the object.",
+                         CHROMASIM_FIELD(sensor.contact_candidate_angle_deg)));
+}
+
+void add_sensor_optics(std::vector<SchemaEntry>& out) {
+    out.push_back(number("sensor.camera.half_fov_deg", 84, left_open(10, 100), "deg",
+                         "Equidistant fisheye half field of view at the image-circle edge.",
+                         CHROMASIM_FIELD(sensor.camera_half_fov_deg)));
+    out.push_back(integer("sensor.led.count", 6, closed(1, 64), "",
+                          "Number of LEDs on the ring (6 on the real board).",
+                          CHROMASIM_FIELD(sensor.led_count)));
+    out.push_back(number("sensor.led.ring_radius_mm", 10, closed(0, 13), "mm",
+                         "Radius of the LED ring around the lens (board: 17 to 23 mm across).",
+                         CHROMASIM_FIELD(sensor.led_ring_radius_mm)));
+    out.push_back(number("sensor.led.z_mm", -1, closed(-10, 10), "mm",
+                         "Height of the LED ring; the dome rim plane is z = 0 [G].",
+                         CHROMASIM_FIELD(sensor.led_z_mm)));
+    out.push_back(rgb("sensor.optics.coating_albedo", {0.85, 0.85, 0.85}, closed(0, 1), "",
+                      "Diffuse albedo of the white coating, linear RGB [G].",
+                      CHROMASIM_FIELD(sensor.coating_albedo)));
+    out.push_back(rgb("sensor.optics.inner_marker_absorption_per_mm", {0.2, 3.0, 0.3},
+                      closed(0, 100), "1/mm",
+                      "Absorption coefficient of the inner markers (magenta filter), RGB [G].",
+                      CHROMASIM_FIELD(sensor.inner_marker_absorption_per_mm)));
+    out.push_back(rgb("sensor.optics.outer_marker_absorption_per_mm", {3.0, 0.3, 0.2},
+                      closed(0, 100), "1/mm",
+                      "Absorption coefficient of the outer markers (cyan), RGB [G].",
+                      CHROMASIM_FIELD(sensor.outer_marker_absorption_per_mm)));
+    out.push_back(rgb("sensor.optics.outer_marker_albedo", {0.10, 0.70, 0.75}, closed(0, 1), "",
+                      "Albedo of the outer markers (cyan), linear RGB [G].",
+                      CHROMASIM_FIELD(sensor.outer_marker_albedo)));
+    out.push_back(number("sensor.optics.outer_marker_scatter_fraction", 0.5, closed(0, 1), "",
+                         "Fraction of the light at an outer marker that it scatters back; the "
+                         "rest is filtered through it [G].",
+                         CHROMASIM_FIELD(sensor.outer_marker_scatter_fraction)));
+}
+
+void add_object_and_protocol(std::vector<SchemaEntry>& out) {
+    out.push_back(choice("object.shape", "flat", {"flat"},
+                         "Shape of the rigid object: flat is a rigid plane (sphere and meshes "
+                         "come later).",
+                         CHROMASIM_FIELD(object.shape)));
+    out.push_back(number("object.mu", 0.8, closed(0, 10), "",
+                         "Coulomb friction coefficient between coating and object (seed 001: "
+                         "1.1, 0.8, 0.5).",
+                         CHROMASIM_FIELD(object.mu)));
+    out.push_back(number("protocol.press.normal_force_N", 1.5, left_open(0, 50), "N",
+                         "Normal (grip) force reached at the end of the press.",
+                         CHROMASIM_FIELD(press.normal_force_N)));
+    out.push_back(integer("protocol.press.frames", 2, closed(1, 10000), "",
+                          "Frames of the linear normal-force ramp (the last one at full force).",
+                          CHROMASIM_FIELD(press.frames)));
+    out.push_back(number("protocol.pull.tangential_force_N", 0.5, closed(0, 50), "N",
+                         "Tangential load reached at the end of the pull.",
+                         CHROMASIM_FIELD(pull.tangential_force_N)));
+    out.push_back(number("protocol.pull.direction_deg", 0, closed(-360, 360), "deg",
+                         "Direction of the pull in the x-y plane, from +x.",
+                         CHROMASIM_FIELD(pull.direction_deg)));
+    out.push_back(integer("protocol.pull.frames", 3, closed(0, 100000), "",
+                          "Frames of the linear tangential ramp after the press (0: no pull).",
+                          CHROMASIM_FIELD(pull.frames)));
+}
+
+void add_render_and_outputs(std::vector<SchemaEntry>& out) {
+    out.push_back(integer("render.width_px", 256, closed(16, 4096), "px", "Image width.",
+                          CHROMASIM_FIELD(render.width_px)));
+    out.push_back(integer("render.height_px", 256, closed(16, 4096), "px", "Image height.",
+                          CHROMASIM_FIELD(render.height_px)));
+    out.push_back(integer("render.samples_per_pixel", 4, closed(1, 1024), "",
+                          "Path-tracing samples per pixel.",
+                          CHROMASIM_FIELD(render.samples_per_pixel)));
+    out.push_back(number("render.exposure", 1, left_open(0, 100), "",
+                         "Linear scale applied to the rendered radiance before writing.",
+                         CHROMASIM_FIELD(render.exposure)));
+    out.push_back(boolean("outputs.images", true,
+                          "Write a PNG per frame (false skips the whole render stage).",
+                          CHROMASIM_FIELD(outputs.images)));
+    out.push_back(
+        boolean("outputs.labels", true, "Write labels.csv.", CHROMASIM_FIELD(outputs.labels)));
+    out.push_back(boolean("outputs.markers", true,
+                          "Write markers.csv (3D displacement of every marker).",
+                          CHROMASIM_FIELD(outputs.markers)));
+}
+
+#undef CHROMASIM_FIELD
+
+std::vector<SchemaEntry> build_schema() {
+    std::vector<SchemaEntry> out;
+    add_general(out);
+    add_sensor_mechanics(out);
+    add_sensor_optics(out);
+    add_object_and_protocol(out);
+    add_render_and_outputs(out);
+    return out;
+}
+
+std::vector<SchemaRule> build_rules() {
+    SchemaRule outputs;
+    outputs.key = "outputs";
+    outputs.holds = [](const Spec& s) {
+        return s.outputs.images || s.outputs.labels || s.outputs.markers;
+    };
+    outputs.problem = "enables no output";
+    outputs.allowed = "at least one of outputs.images, outputs.labels, outputs.markers is true";
+    return {outputs};
+}
+
+// ---- Converting scalar text -----------------------------------------------------------------
+
+/// `text` without one leading '+' (std::from_chars rejects it; YAML allows it).
+std::string_view strip_plus(std::string_view text) {
+    if (text.size() > 1 && text[0] == '+' && text[1] != '+' && text[1] != '-') {
+        text.remove_prefix(1);
+    }
+    return text;
+}
+
+ScalarCheck check_number(const SchemaEntry& e, std::string_view text, bool quoted) {
+    if (quoted) return {0.0, "is quoted text, not a number"};
+    const std::string_view digits = strip_plus(text);
+    double x = 0.0;
+    const auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), x);
+    if (ec == std::errc::result_out_of_range) return {0.0, "is out of range"};
+    if (ec != std::errc{} || end != digits.data() + digits.size()) {
+        return {0.0, "is not a number"};
+    }
+    if (!std::isfinite(x)) return {0.0, "is not a finite number"};
+    if (!e.range.contains(x)) return {x, "is out of range"};
+    return {x, ""};
+}
+
+ScalarCheck check_integer(const SchemaEntry& e, std::string_view text, bool quoted) {
+    if (quoted) return {std::int64_t{0}, "is quoted text, not an integer"};
+    const std::string_view digits = strip_plus(text);
+    std::int64_t n = 0;
+    const auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), n);
+    if (ec == std::errc::result_out_of_range) return {n, "is out of range"};
+    if (ec != std::errc{} || end != digits.data() + digits.size()) {
+        return {n, "is not an integer"};
+    }
+    if (!e.range.contains(static_cast<double>(n))) return {n, "is out of range"};
+    return {n, ""};
+}
+
+ScalarCheck check_bool(std::string_view text, bool quoted) {
+    if (quoted) return {false, "is quoted text, not true or false"};
+    if (text == "true") return {true, ""};
+    if (text == "false") return {false, ""};
+    return {false, "is not true or false"};
+}
+
+ScalarCheck check_enum(const SchemaEntry& e, std::string_view text) {
+    const std::string value(text);
+    if (std::find(e.choices.begin(), e.choices.end(), value) != e.choices.end()) {
+        return {value, ""};
+    }
+    const std::string near = closest_match(text, e.choices);
+    return {value, near.empty()
+                       ? "is not one of the allowed values"
+                       : "is not one of the allowed values (did you mean '" + near + "'?)"};
+}
+
+// ---- Formatting -----------------------------------------------------------------------------
+
+/// Shortest round-trip text of `x`, as std::to_chars writes it ("35", "0.8", "1e-07").
+std::string shortest(double x) {
+    char buf[64];
+    const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, x);
+    (void)ec; // 64 chars always suffice for a double
+    return std::string(buf, end);
+}
+
+/// A bound of a range: integers for integer entries, shortest text otherwise.
+std::string format_bound(ValueType type, double x) {
+    if (type == ValueType::Integer) return std::to_string(static_cast<std::int64_t>(x));
+    return shortest(x);
+}
+
+std::string range_text(const SchemaEntry& e) {
+    return std::string(e.range.lo_inclusive ? "[" : "(") + format_bound(e.type, e.range.lo) + ", " +
+           format_bound(e.type, e.range.hi) + (e.range.hi_inclusive ? "]" : ")");
+}
+
+std::string join(const std::vector<std::string>& items, const std::string& sep,
+                 const std::string& quote = "") {
+    std::string out;
+    for (std::size_t i = 0; i < items.size(); ++i) {
+        out += (i ? sep : "") + quote + items[i] + quote;
+    }
+    return out;
+}
+
+/// A YAML double-quoted scalar; escapes are the JSON-compatible subset of YAML.
+std::string quote_yaml(const std::string& s) {
+    std::string out = "\"";
+    for (const char c : s) {
+        const auto u = static_cast<unsigned char>(c);
+        if (c == '"' || c == '\\') {
+            out += '\\';
+            out += c;
+        } else if (u < 0x20 || u == 0x7f) {
+            char buf[8];
+            std::snprintf(buf, sizeof buf, "\\x%02x", u);
+            out += buf;
+        } else {
+            out += c;
+        }
+    }
+    return out + "\"";
+}
+
+std::vector<std::string> split_key(const std::string& key) {
+    std::vector<std::string> parts;
+    std::size_t start = 0;
+    for (std::size_t dot = key.find('.'); dot != std::string::npos; dot = key.find('.', start)) {
+        parts.push_back(key.substr(start, dot - start));
+        start = dot + 1;
+    }
+    parts.push_back(key.substr(start));
+    return parts;
+}
+
+const char* type_name(ValueType type) {
+    switch (type) {
+    case ValueType::Number:
+        return "number";
+    case ValueType::Integer:
+        return "integer";
+    case ValueType::Bool:
+        return "bool";
+    case ValueType::Enum:
+        return "enum";
+    case ValueType::String:
+        return "string";
+    case ValueType::Rgb:
+        return "rgb";
+    }
+    return "?";
+}
+
+// ---- The manual -----------------------------------------------------------------------------
+
+/// The "allowed" column: the range, the words, or the shape.
+std::string allowed_cell(const SchemaEntry& e) {
+    switch (e.type) {
+    case ValueType::Number:
+    case ValueType::Integer:
+        return range_text(e);
+    case ValueType::Bool:
+        return "`true`, `false`";
+    case ValueType::Enum:
+        return join(e.choices, ", ", "`");
+    case ValueType::String:
+        return "non-empty";
+    case ValueType::Rgb:
+        return "3 numbers, each in " + range_text(e);
+    }
+    return "";
+}
+
+std::string markdown_cell(std::string s) {
+    std::string out;
+    for (const char c : s) {
+        out += (c == '|') ? std::string("\\|") : std::string(1, c);
+    }
+    return out;
+}
+
+const char* markdown_intro() {
+    return R"(# Spec reference
+
+A dataset spec is a YAML file: one mapping whose keys nest by the dots of the keys below
+(`sensor.led.count: 6` is written `sensor:` / `  led:` / `    count: 6`). Every key is optional
+and takes its default when left out; a section written with nothing under it (`sensor:`) keeps
+all its defaults. `datasets_spec/quickstart.yaml` is a commented example that shows every
+section.
+
+Reading rules (an error names the file, line:column, key, value and what is allowed):
+- An unknown key is an error, with a "did you mean" suggestion when a known key is close.
+- `number`: decimal or exponent notation (`0.5`, `-1`, `2e-3`), finite. `integer`: decimal
+  digits only (`2.5`, `2.0` and `1e3` are rejected).
+- `bool`: exactly `true` or `false` (`yes`, `no`, `on`, `off`, `True` are rejected).
+- Quoted text (`"1.5"`) is a string: it is never taken as a number or a bool.
+- `rgb`: a list of exactly 3 numbers in red, green, blue order, e.g. `[0.85, 0.85, 0.85]`.
+- Ranges: `[a, b]` includes both ends, `(a, b]` excludes `a`.
+- A key given twice in the same mapping is an error.
+- [G] marks an assumption: a default to override when better data exist.
+
+This file is generated from the schema in `generators/spec_schema.cpp`; regenerate it with
+`chromasim schema > docs/SPEC_REFERENCE.md`. A test (`tests/generators/test_spec.cpp`) fails
+when it no longer matches the schema.
+
+| key | type | default | unit | allowed | doc |
+|---|---|---|---|---|---|
+)";
+}
+
+} // namespace
+} // namespace detail
+
+// ---- Public functions -----------------------------------------------------------------------
+
+bool Range::contains(double x) const {
+    const bool above_lo = lo_inclusive ? x >= lo : x > lo;
+    const bool below_hi = hi_inclusive ? x <= hi : x < hi;
+    return above_lo && below_hi;
+}
+
+const std::vector<SchemaEntry>& spec_schema() {
+    static const std::vector<SchemaEntry> schema = detail::build_schema();
+    return schema;
+}
+
+const std::vector<SchemaRule>& spec_rules() {
+    static const std::vector<SchemaRule> rules = detail::build_rules();
+    return rules;
+}
+
+const SchemaEntry* find_schema_entry(std::string_view key) {
+    for (const SchemaEntry& e : spec_schema()) {
+        if (e.key == key) return &e;
+    }
+    return nullptr;
+}
+
+bool is_schema_section(std::string_view key) {
+    if (key.empty()) return true;
+    for (const SchemaEntry& e : spec_schema()) {
+        if (e.key.size() > key.size() && e.key.compare(0, key.size(), key) == 0 &&
+            e.key[key.size()] == '.') {
+            return true;
+        }
+    }
+    return false;
+}
+
+std::vector<std::string> schema_children(std::string_view section) {
+    const std::string prefix = section.empty() ? "" : std::string(section) + ".";
+    std::vector<std::string> names;
+    for (const SchemaEntry& e : spec_schema()) {
+        if (e.key.compare(0, prefix.size(), prefix) != 0) continue;
+        const std::string rest = e.key.substr(prefix.size());
+        const std::string name = rest.substr(0, rest.find('.'));
+        if (std::find(names.begin(), names.end(), name) == names.end()) names.push_back(name);
+    }
+    return names;
+}
+
+ScalarCheck check_scalar(const SchemaEntry& entry, std::string_view text, bool quoted) {
+    switch (entry.type) {
+    case ValueType::Number:
+    case ValueType::Rgb:
+        return detail::check_number(entry, text, quoted);
+    case ValueType::Integer:
+        return detail::check_integer(entry, text, quoted);
+    case ValueType::Bool:
+        return detail::check_bool(text, quoted);
+    case ValueType::Enum:
+        return detail::check_enum(entry, text);
+    case ValueType::String:
+        if (text.empty()) return {std::string(), "is empty"};
+        return {std::string(text), ""};
+    }
+    return {0.0, "has an unknown type"};
+}
+
+std::string describe_allowed(const SchemaEntry& entry) {
+    const std::string unit = entry.unit.empty() ? "" : " (" + entry.unit + ")";
+    switch (entry.type) {
+    case ValueType::Number:
+        return "number in " + detail::range_text(entry) + unit;
+    case ValueType::Integer:
+        return "integer in " + detail::range_text(entry) + unit;
+    case ValueType::Bool:
+        return "true or false";
+    case ValueType::Enum:
+        return "one of " + detail::join(entry.choices, ", ");
+    case ValueType::String:
+        return "non-empty string";
+    case ValueType::Rgb:
+        return "list of 3 numbers, each in " + detail::range_text(entry) + unit;
+    }
+    return "";
+}
+
+std::string format_number(double x) {
+    std::string s = detail::shortest(x);
+    if (s.find_first_not_of("-0123456789") == std::string::npos) s += ".0";
+    return s;
+}
+
+std::string value_to_yaml(const SpecValue& value, ValueType type) {
+    switch (type) {
+    case ValueType::Number:
+        return format_number(std::get<double>(value));
+    case ValueType::Integer:
+        return std::to_string(std::get<std::int64_t>(value));
+    case ValueType::Bool:
+        return std::get<bool>(value) ? "true" : "false";
+    case ValueType::Enum:
+        return std::get<std::string>(value);
+    case ValueType::String:
+        return detail::quote_yaml(std::get<std::string>(value));
+    case ValueType::Rgb: {
+        const Rgb& c = std::get<Rgb>(value);
+        return "[" + format_number(c[0]) + ", " + format_number(c[1]) + ", " + format_number(c[2]) +
+               "]";
+    }
+    }
+    return "";
+}
+
+std::string resolved_spec_yaml(const Spec& spec) {
+    std::string out = "# chromasim resolved spec: every key, defaults filled, schema order.\n";
+    std::vector<std::string> open; // the sections the previous key was in
+    for (const SchemaEntry& e : spec_schema()) {
+        std::vector<std::string> parts = detail::split_key(e.key);
+        const std::string leaf = parts.back();
+        parts.pop_back();
+        std::size_t common = 0;
+        while (common < open.size() && common < parts.size() && open[common] == parts[common]) {
+            ++common;
+        }
+        for (std::size_t i = common; i < parts.size(); ++i) {
+            out += std::string(2 * i, ' ') + parts[i] + ":\n";
+        }
+        out += std::string(2 * parts.size(), ' ') + leaf + ": " +
+               value_to_yaml(e.get(spec), e.type) + "\n";
+        open = std::move(parts);
+    }
+    return out;
+}
+
+Spec default_spec() {
+    Spec spec;
+    for (const SchemaEntry& e : spec_schema()) {
+        e.set(spec, e.default_value);
+    }
+    return spec;
+}
+
+std::size_t edit_distance(std::string_view a, std::string_view b) {
+    // d[i][j]: distance between the first i chars of a and the first j chars of b.
+    std::vector<std::vector<std::size_t>> d(a.size() + 1, std::vector<std::size_t>(b.size() + 1));
+    for (std::size_t i = 0; i <= a.size(); ++i) {
+        d[i][0] = i;
+    }
+    for (std::size_t j = 0; j <= b.size(); ++j) {
+        d[0][j] = j;
+    }
+    for (std::size_t i = 1; i <= a.size(); ++i) {
+        for (std::size_t j = 1; j <= b.size(); ++j) {
+            const std::size_t cost = a[i - 1] == b[j - 1] ? 0 : 1;
+            d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + cost});
+            if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1]) {
+                d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+            }
+        }
+    }
+    return d[a.size()][b.size()];
+}
+
+std::string closest_match(std::string_view word, const std::vector<std::string>& candidates,
+                          std::size_t max_distance) {
+    std::string best;
+    std::size_t best_distance = max_distance + 1;
+    for (const std::string& c : candidates) {
+        const std::size_t d = edit_distance(word, c);
+        // A distance equal to the longer length means nothing in common: no suggestion.
+        if (d < best_distance && d < std::max(word.size(), c.size())) {
+            best = c;
+            best_distance = d;
+        }
+    }
+    return best;
+}
+
+std::string schema_markdown() {
+    std::string out = detail::markdown_intro();
+    for (const SchemaEntry& e : spec_schema()) {
+        out += "| `" + e.key + "` | " + detail::type_name(e.type) + " | `" +
+               detail::markdown_cell(value_to_yaml(e.default_value, e.type)) + "` | " +
+               detail::markdown_cell(e.unit) + " | " +
+               detail::markdown_cell(detail::allowed_cell(e)) + " | " +
+               detail::markdown_cell(e.doc) + " |\n";
+    }
+    out += "\nCross-key rules, checked once every key is valid:\n";
+    for (const SchemaRule& r : spec_rules()) {
+        out += "- `" + r.key + "`: " + r.allowed + ".\n";
+    }
+    return out;
+}
+
+} // namespace chromasim::generators

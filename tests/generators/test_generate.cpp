@@ -1,0 +1,192 @@
+// End to end: the quickstart spec through mechanics, render and writers, read back from disk.
+#include "generators/generate.hpp"
+#include "generators/image_io.hpp"
+#include "generators/spec.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <vector>
+
+namespace fs = std::filesystem;
+using namespace chromasim::generators;
+
+namespace {
+
+fs::path fresh_dir(const std::string& name) {
+    const fs::path p = fs::temp_directory_path() / ("chromasim_test_" + name);
+    fs::remove_all(p);
+    return p;
+}
+
+using CsvRow = std::map<std::string, std::string>;
+std::vector<CsvRow> read_csv(const fs::path& p) {
+    std::ifstream in(p);
+    std::string line;
+    std::getline(in, line);
+    std::vector<std::string> header;
+    std::stringstream hs(line);
+    for (std::string h; std::getline(hs, h, ',');) header.push_back(h);
+    std::vector<CsvRow> rows;
+    while (std::getline(in, line)) {
+        std::stringstream ls(line);
+        CsvRow row;
+        std::string v;
+        for (const auto& h : header) {
+            std::getline(ls, v, ',');
+            row[h] = v;
+        }
+        rows.push_back(row);
+    }
+    return rows;
+}
+
+double num(const CsvRow& r, const std::string& key) {
+    const double v = std::stod(r.at(key));
+    REQUIRE(std::isfinite(v));
+    return v;
+}
+
+/// Pixel of a direction under the equidistant fisheye (the spec's 84 deg half field).
+std::array<int, 2> pixel_of(double theta_deg, double phi_deg, int w, int h) {
+    const double r = theta_deg / 84.0 * std::min(w, h) / 2.0;
+    const double phi = phi_deg * M_PI / 180;
+    return {int(w / 2.0 + r * std::cos(phi)), int(h / 2.0 + r * std::sin(phi))};
+}
+
+struct Quickstart {
+    Spec spec = load_spec("datasets_spec/quickstart.yaml");
+    fs::path out = fresh_dir("quickstart");
+    GenerateReport report;
+    Quickstart() {
+        std::ostringstream log;
+        report = generate(spec, {out, false, true}, log);
+    }
+};
+const Quickstart& quickstart() {
+    static const Quickstart q;
+    return q;
+}
+
+} // namespace
+
+TEST_CASE("quickstart writes a complete dataset and nothing else", "[generators][e2e]") {
+    const Quickstart& q = quickstart();
+    const int frames = q.spec.press.frames + q.spec.pull.frames;
+    CHECK(q.report.frames == frames);
+    CHECK(q.report.flagged_frames == 0);
+    for (const char* f : {"labels.csv", "markers.csv", "manifest.yaml", "spec.resolved.yaml"})
+        CHECK(fs::is_regular_file(q.out / f));
+    int pngs = 0;
+    for (const auto& e : fs::directory_iterator(q.out / "images"))
+        pngs += e.path().extension() == ".png";
+    CHECK(pngs == frames);
+    for (const auto& e : fs::directory_iterator(q.out.parent_path()))
+        CHECK(e.path().filename().string().find("chromasim_test_quickstart.partial") ==
+              std::string::npos);
+}
+
+TEST_CASE("quickstart labels are finite, in range and follow the protocol", "[generators][e2e]") {
+    const Quickstart& q = quickstart();
+    const auto rows = read_csv(q.out / "labels.csv");
+    REQUIRE(rows.size() == std::size_t(q.spec.press.frames + q.spec.pull.frames));
+    const double P = q.spec.press.normal_force_N, mu = q.spec.object.mu;
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        const CsvRow& r = rows[i];
+        INFO("frame " << i);
+        const double gamma = num(r, "gamma"), fn = num(r, "normal_force_N");
+        const double ft = num(r, "tangential_force_N");
+        CHECK(gamma >= 0.0);
+        CHECK(gamma <= 1.0);
+        CHECK(fn > 0.0);
+        CHECK(fn <= P * (1 + 1e-9));
+        CHECK(num(r, "indentation_mm") > 0.0);
+        CHECK(num(r, "contact_area_mm2") > 0.0);
+        CHECK(r.at("converged") == "1");
+        CHECK(gamma == Approx(std::max(0.0, (mu * fn - ft) / (mu * fn))).margin(1e-9));
+        CHECK(fs::is_regular_file(q.out / r.at("image")));
+    }
+    CHECK(num(rows.back(), "normal_force_N") == Approx(P));
+    CHECK(num(rows.back(), "tangential_force_N") ==
+          Approx(std::min(q.spec.pull.tangential_force_N, mu * P)));
+    CHECK(num(rows.front(), "gamma") == 1.0); // press only: no tangential load
+}
+
+TEST_CASE("quickstart markers: 164 per frame, apex pushed in", "[generators][e2e]") {
+    const Quickstart& q = quickstart();
+    const auto rows = read_csv(q.out / "markers.csv");
+    const int frames = q.spec.press.frames + q.spec.pull.frames;
+    REQUIRE(rows.size() == std::size_t(164 * frames));
+    for (const auto& r : rows)
+        for (const char* k : {"x0_mm", "y0_mm", "z0_mm", "ux_mm", "uy_mm", "uz_mm"}) num(r, k);
+    // Last frame, apex marker of each layer (marker 0) moved down, and along the pull (+x).
+    const auto& inner = rows[std::size_t(164 * (frames - 1))];
+    const auto& outer = rows[std::size_t(164 * (frames - 1) + 82)];
+    CHECK(inner.at("layer") == "inner");
+    CHECK(outer.at("layer") == "outer");
+    CHECK(num(inner, "uz_mm") < -0.1);
+    CHECK(num(outer, "ux_mm") > 0.0);
+}
+
+TEST_CASE("quickstart images: right size, not blank, markers visible", "[generators][e2e]") {
+    const Quickstart& q = quickstart();
+    const int w = q.spec.render.width_px, h = q.spec.render.height_px;
+    const Image8 img = read_image8(q.out / "images" / "frame_000000.png");
+    REQUIRE(img.width == w);
+    REQUIRE(img.height == h);
+    REQUIRE(img.channels == 3);
+    // Outside the image circle: black. Inside: lit and not uniform.
+    for (int c = 0; c < 3; ++c) CHECK(img.at(0, 0, c) == 0);
+    double sum = 0, sum2 = 0;
+    for (auto v : img.data) {
+        sum += v;
+        sum2 += double(v) * v;
+    }
+    const double mean = sum / img.data.size();
+    CHECK(mean > 20);
+    CHECK(std::sqrt(sum2 / img.data.size() - mean * mean) > 10);
+    // Background between rings (polar 18.75 deg, between the 12.5 and 25 deg rings): near grey.
+    const auto bg = pixel_of(18.75, 0, w, h);
+    const int br = img.at(bg[0], bg[1], 0), bgc = img.at(bg[0], bg[1], 1),
+              bb = img.at(bg[0], bg[1], 2);
+    CHECK(br > 100);
+    CHECK(std::abs(br - bb) < 30);
+    // A marker of the first ring (12.5 deg, azimuth 0): the stacked magenta filter over the
+    // cyan marker shows blue: red and green well below the background, blue the largest.
+    const auto mk = pixel_of(12.5, 0, w, h);
+    const int mr = img.at(mk[0], mk[1], 0), mg = img.at(mk[0], mk[1], 1),
+              mb = img.at(mk[0], mk[1], 2);
+    INFO("marker pixel " << mr << "," << mg << "," << mb << "  background " << br << "," << bgc
+                         << "," << bb);
+    CHECK(mb > mr + 20);
+    CHECK(mb > mg + 10);
+    CHECK(mr < br - 40);
+}
+
+TEST_CASE("generate again: up to date, nothing rewritten", "[generators][e2e]") {
+    const Quickstart& q = quickstart();
+    const auto before = fs::last_write_time(q.out / "labels.csv");
+    std::ostringstream log;
+    const GenerateReport again = generate(q.spec, {q.out, false, true}, log);
+    CHECK(again.up_to_date);
+    CHECK(again.frames == 0);
+    CHECK(fs::last_write_time(q.out / "labels.csv") == before);
+}
+
+TEST_CASE("an output folder with other content is never overwritten silently",
+          "[generators][e2e]") {
+    const fs::path out = fresh_dir("occupied");
+    fs::create_directories(out);
+    std::ofstream(out / "precious.txt") << "user data";
+    Spec spec = load_spec("datasets_spec/quickstart.yaml");
+    std::ostringstream log;
+    CHECK_THROWS_AS(generate(spec, {out, false, true}, log), SpecError);
+    CHECK(fs::is_regular_file(out / "precious.txt"));
+    CHECK(std::distance(fs::directory_iterator(out), fs::directory_iterator{}) == 1);
+    fs::remove_all(out);
+}

@@ -1,0 +1,378 @@
+// Spec files: the committed quickstart validates, defaults fill, every class of bad input is
+// rejected with FILE:LINE:COL, key, value and what is allowed, and the resolved YAML is a
+// deterministic, exact round trip.
+#include "generators/spec.hpp"
+#include "generators/spec_schema.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+using namespace chromasim::generators;
+using Catch::Matchers::Contains;
+using Catch::Matchers::StartsWith;
+
+namespace {
+
+/// A path inside the repository (the tests also run from the repository root).
+std::filesystem::path repo_file(const std::string& relative) {
+#ifdef CHROMASIM_SOURCE_DIR
+    return std::filesystem::path(CHROMASIM_SOURCE_DIR) / relative;
+#else
+    return relative;
+#endif
+}
+
+/// The SpecError message that parsing `yaml` (as "bad.yaml") raises; fails the test if none.
+std::string error_of(const std::string& yaml) {
+    try {
+        parse_spec(yaml, "bad.yaml");
+    } catch (const SpecError& e) {
+        return e.what();
+    }
+    FAIL("no SpecError for:\n" << yaml);
+    return "";
+}
+
+/// Every schema value of two specs agrees.
+void require_same_values(const Spec& a, const Spec& b) {
+    for (const SchemaEntry& e : spec_schema()) {
+        INFO(e.key);
+        CHECK(e.get(a) == e.get(b));
+    }
+}
+
+const char* const quickstart_reordered = R"(# same values as quickstart.yaml, other order
+outputs: {markers: true, labels: true, images: true}
+render: {exposure: 1, samples_per_pixel: 4, height_px: 256, width_px: 256}
+protocol:
+  pull: {frames: 3, direction_deg: 0, tangential_force_N: 0.6}   # a comment
+  press: {frames: 2, normal_force_N: 1.5}
+object: {mu: 0.8, shape: flat}
+seed: 1
+name: quickstart
+sensor:
+  mesh_level: coarse
+)";
+
+} // namespace
+
+TEST_CASE("the quickstart spec validates with its documented values", "[generators][spec]") {
+    const std::filesystem::path path = repo_file("datasets_spec/quickstart.yaml");
+    const Spec spec = load_spec(path);
+    CHECK(spec.source_path == path);
+    CHECK(spec.name == "quickstart");
+    CHECK(spec.seed == 1);
+    CHECK(spec.sensor.mesh_level == "coarse");
+    CHECK(spec.object.shape == "flat");
+    CHECK(spec.object.mu == 0.8);
+    CHECK(spec.press.normal_force_N == 1.5);
+    CHECK(spec.press.frames == 2);
+    CHECK(spec.pull.tangential_force_N == 0.6);
+    CHECK(spec.pull.direction_deg == 0.0);
+    CHECK(spec.pull.frames == 3);
+    CHECK(spec.render.width_px == 256);
+    CHECK(spec.render.height_px == 256);
+    CHECK(spec.render.samples_per_pixel == 4);
+    CHECK((spec.outputs.images && spec.outputs.labels && spec.outputs.markers));
+}
+
+TEST_CASE("a minimal spec gets the documented defaults", "[generators][spec]") {
+    const Spec spec = parse_spec("name: x\n", "min.yaml");
+    CHECK(spec.name == "x");
+    CHECK(spec.source_path.empty());
+    for (const SchemaEntry& e : spec_schema()) {
+        if (e.key == "name") continue;
+        INFO(e.key);
+        CHECK(e.get(spec) == e.default_value);
+    }
+    // The values the project brief asks for, independent of the schema table.
+    CHECK(spec.seed == 1);
+    CHECK(spec.sensor.mesh_level == "coarse");
+    CHECK(spec.sensor.inner_marker_layer.E_MPa == 0.8);
+    CHECK(spec.sensor.clear_layer.E_MPa == 0.3);
+    CHECK(spec.sensor.outer_marker_layer.E_MPa == 0.8);
+    CHECK(spec.sensor.coating.E_MPa == 1.0);
+    CHECK(spec.sensor.coating.nu == 0.45);
+    CHECK(spec.sensor.contact_candidate_angle_deg == 35.0);
+    CHECK(spec.sensor.camera_half_fov_deg == 84.0);
+    CHECK(spec.sensor.led_count == 6);
+    CHECK(spec.sensor.led_ring_radius_mm == 10.0);
+    CHECK(spec.sensor.led_z_mm == -1.0);
+    CHECK(spec.sensor.coating_albedo == Rgb{0.85, 0.85, 0.85});
+    CHECK(spec.sensor.inner_marker_absorption_per_mm == Rgb{0.2, 3.0, 0.3});
+    CHECK(spec.sensor.outer_marker_absorption_per_mm == Rgb{3.0, 0.3, 0.2});
+    CHECK(spec.sensor.outer_marker_albedo == Rgb{0.10, 0.70, 0.75});
+    CHECK(spec.sensor.outer_marker_scatter_fraction == 0.5);
+    CHECK(spec.pull.tangential_force_N == 0.5);
+    CHECK(spec.render.exposure == 1.0);
+    CHECK(parse_spec("seed: 3\n", "min.yaml").name == "unnamed");
+}
+
+TEST_CASE("an empty section keeps its defaults", "[generators][spec]") {
+    const Spec spec = parse_spec("sensor:\nprotocol:\n  pull:\n", "min.yaml");
+    require_same_values(spec, default_spec());
+}
+
+TEST_CASE("the in-class defaults of Spec agree with the schema", "[generators][spec]") {
+    const Spec plain{};
+    for (const SchemaEntry& e : spec_schema()) {
+        if (e.key == "name") continue; // Spec{} leaves it empty; the schema says "unnamed"
+        INFO(e.key);
+        CHECK(e.get(plain) == e.default_value);
+    }
+}
+
+TEST_CASE("the schema is well formed", "[generators][spec]") {
+    for (const SchemaEntry& e : spec_schema()) {
+        INFO(e.key);
+        CHECK(!e.doc.empty());
+        CHECK(find_schema_entry(e.key) == &e); // keys are unique
+        const std::string text = value_to_yaml(e.default_value, e.type);
+        if (e.type == ValueType::Rgb) {
+            for (double c : std::get<Rgb>(e.default_value))
+                CHECK(e.range.contains(c));
+        } else {
+            CHECK(check_scalar(e, text, e.type == ValueType::String).problem.empty());
+        }
+    }
+    CHECK(schema_children("") == std::vector<std::string>{"name", "seed", "sensor", "object",
+                                                          "protocol", "render", "outputs"});
+    CHECK(is_schema_section("sensor.materials"));
+    CHECK_FALSE(is_schema_section("sensor.materials.coating.E_MPa"));
+    CHECK_FALSE(is_schema_section("sens"));
+}
+
+TEST_CASE("malformed YAML is reported at its line and column", "[generators][spec]") {
+    CHECK(error_of("name: x\nseed: 1\n  mu: 2\n") ==
+          "bad.yaml:3:5: malformed YAML: illegal map value");
+    CHECK(error_of("sensor:\n  led: [1, 2\n") ==
+          "bad.yaml:3:1: malformed YAML: end of sequence flow not found");
+}
+
+TEST_CASE("an unknown key is named with its position and the allowed keys", "[generators][spec]") {
+    CHECK(error_of("sensor:\n  materials:\n    coatng:\n      E_MPa: 1\n") ==
+          "bad.yaml:3:5: sensor.materials.coatng: unknown key 'coatng' (did you mean "
+          "'coating'?); allowed keys in 'sensor.materials': inner_marker_layer, clear_layer, "
+          "outer_marker_layer, coating");
+    CHECK(error_of("render:\n  widht_px: 300\n") ==
+          "bad.yaml:2:3: render.widht_px: unknown key 'widht_px' (did you mean 'width_px'?); "
+          "allowed keys in 'render': width_px, height_px, samples_per_pixel, exposure");
+    CHECK(error_of("name: x\nfrobnicate: 1\n") ==
+          "bad.yaml:2:1: frobnicate: unknown key 'frobnicate'; allowed keys at the top level: "
+          "name, seed, sensor, object, protocol, render, outputs");
+    CHECK_THAT(error_of("sensor.mesh_level: fine\n"),
+               StartsWith("bad.yaml:1:1: sensor.mesh_level: unknown key 'sensor.mesh_level' "
+                          "(a dotted key is written nested"));
+}
+
+TEST_CASE("a key given twice is rejected", "[generators][spec]") {
+    CHECK(error_of("seed: 1\nname: x\nseed: 2\n") ==
+          "bad.yaml:3:1: seed: value 'seed' is given twice (first at line 1); allowed: each key "
+          "once per mapping");
+}
+
+TEST_CASE("a value of the wrong type is rejected", "[generators][spec]") {
+    SECTION("text for a number") {
+        CHECK(error_of("object:\n  mu: high\n") ==
+              "bad.yaml:2:7: object.mu: value 'high' is not a number; allowed: number in [0, 10]");
+    }
+    SECTION("quoted text for a number") {
+        CHECK(error_of("object:\n  mu: \"0.5\"\n") ==
+              "bad.yaml:2:7: object.mu: value '0.5' is quoted text, not a number; allowed: "
+              "number in [0, 10]");
+    }
+    SECTION("a fraction or text for an integer") {
+        CHECK(error_of("name: x\nseed: 2.5\n") ==
+              "bad.yaml:2:7: seed: value '2.5' is not an integer; allowed: integer in [0, "
+              "2147483647]");
+        CHECK(error_of("render:\n    width_px: abc\n") ==
+              "bad.yaml:2:15: render.width_px: value 'abc' is not an integer; allowed: integer "
+              "in [16, 4096] (px)");
+    }
+    SECTION("a mapping or a list for a single value") {
+        CHECK(error_of("seed: {a: 1}\n") ==
+              "bad.yaml:1:7: seed: value '{a: 1}' is a mapping, not a single value; allowed: "
+              "integer in [0, 2147483647]");
+        CHECK(error_of("object:\n  shape: [flat]\n") ==
+              "bad.yaml:2:10: object.shape: value '[flat]' is a list, not a single value; "
+              "allowed: one of flat");
+    }
+    SECTION("a single value for a section") {
+        CHECK(error_of("render: 5\n") ==
+              "bad.yaml:1:9: render: value '5' is a single value, not a mapping; allowed: a "
+              "mapping with keys in 'render': width_px, height_px, samples_per_pixel, exposure");
+    }
+    SECTION("anything but true or false for a bool") {
+        CHECK(error_of("outputs:\n  images: yes\n") ==
+              "bad.yaml:2:11: outputs.images: value 'yes' is not true or false; allowed: true "
+              "or false");
+        CHECK(error_of("outputs:\n  labels: maybe\n") ==
+              "bad.yaml:2:11: outputs.labels: value 'maybe' is not true or false; allowed: true "
+              "or false");
+        CHECK_THAT(error_of("outputs:\n  labels: True\n"), Contains("value 'True'"));
+        CHECK_THAT(error_of("outputs:\n  labels: 'true'\n"), Contains("quoted text"));
+    }
+    SECTION("an empty value") {
+        CHECK(error_of("seed:\nname: x\n") ==
+              "bad.yaml:1:1: seed: value '' is empty; allowed: integer in [0, 2147483647]");
+        CHECK(error_of("name: ''\n") ==
+              "bad.yaml:1:7: name: value '' is empty; allowed: non-empty string");
+    }
+}
+
+TEST_CASE("a value out of its range is rejected", "[generators][spec]") {
+    SECTION("below") {
+        CHECK(error_of("protocol:\n  press:\n    frames: 0\n") ==
+              "bad.yaml:3:13: protocol.press.frames: value '0' is out of range; allowed: "
+              "integer in [1, 10000]");
+        CHECK(error_of("seed: -1\n") ==
+              "bad.yaml:1:7: seed: value '-1' is out of range; allowed: integer in [0, "
+              "2147483647]");
+    }
+    SECTION("above") {
+        CHECK(error_of("render:\n  width_px: 5000\n") ==
+              "bad.yaml:2:13: render.width_px: value '5000' is out of range; allowed: integer "
+              "in [16, 4096] (px)");
+        CHECK(error_of("sensor:\n  materials:\n    clear_layer: {nu: 0.5}\n") ==
+              "bad.yaml:3:23: sensor.materials.clear_layer.nu: value '0.5' is out of range; "
+              "allowed: number in [0, 0.4999]");
+        CHECK_THAT(error_of("seed: 2147483648\n"), Contains("value '2147483648' is out of range"));
+        CHECK_THAT(error_of("seed: 99999999999999999999\n"), Contains("is out of range"));
+    }
+    SECTION("exclusive bounds exclude, inclusive bounds include") {
+        CHECK(error_of("protocol:\n  press:\n    normal_force_N: 0\n") ==
+              "bad.yaml:3:21: protocol.press.normal_force_N: value '0' is out of range; "
+              "allowed: number in (0, 50] (N)");
+        CHECK(error_of("sensor:\n  camera:\n    half_fov_deg: 10\n") ==
+              "bad.yaml:3:19: sensor.camera.half_fov_deg: value '10' is out of range; allowed: "
+              "number in (10, 100] (deg)");
+        const Spec edge = parse_spec("protocol:\n  press: {normal_force_N: 50, frames: 1}\n"
+                                     "sensor:\n  camera: {half_fov_deg: 10.000001}\n"
+                                     "seed: 2147483647\nrender: {exposure: 1e-300}\n",
+                                     "edge.yaml");
+        CHECK(edge.press.normal_force_N == 50.0);
+        CHECK(edge.sensor.camera_half_fov_deg == 10.000001);
+        CHECK(edge.seed == 2147483647u);
+        CHECK(edge.render.exposure == 1e-300);
+    }
+    SECTION("not finite") {
+        CHECK_THAT(error_of("object: {mu: inf}\n"), Contains("value 'inf' is not a finite"));
+    }
+}
+
+TEST_CASE("a value outside an enum is rejected", "[generators][spec]") {
+    CHECK(error_of("sensor:\n  mesh_level: ultra\n") ==
+          "bad.yaml:2:15: sensor.mesh_level: value 'ultra' is not one of the allowed values; "
+          "allowed: one of coarse, medium, fine");
+    CHECK(error_of("sensor:\n  mesh_level: Fine\n") ==
+          "bad.yaml:2:15: sensor.mesh_level: value 'Fine' is not one of the allowed values (did "
+          "you mean 'fine'?); allowed: one of coarse, medium, fine");
+}
+
+TEST_CASE("an rgb must be a list of exactly 3 numbers in range", "[generators][spec]") {
+    const std::string head = "sensor:\n  optics:\n";
+    CHECK(error_of(head + "    coating_albedo: [0.5, 0.5]\n") ==
+          "bad.yaml:3:21: sensor.optics.coating_albedo: value '[0.5, 0.5]' has 2 items; "
+          "allowed: list of 3 numbers, each in [0, 1]");
+    CHECK(error_of(head + "    inner_marker_absorption_per_mm: [1, 2, 3, 4]\n") ==
+          "bad.yaml:3:37: sensor.optics.inner_marker_absorption_per_mm: value '[1, 2, 3, 4]' "
+          "has 4 items; allowed: list of 3 numbers, each in [0, 100] (1/mm)");
+    CHECK(error_of(head + "    coating_albedo: 0.5\n") ==
+          "bad.yaml:3:21: sensor.optics.coating_albedo: value '0.5' is a single value, not a "
+          "list; allowed: list of 3 numbers, each in [0, 1]");
+    CHECK(error_of(head + "    outer_marker_albedo: [0.1, 1.5, 0.2]\n") ==
+          "bad.yaml:3:32: sensor.optics.outer_marker_albedo[1]: value '1.5' is out of range; "
+          "allowed: list of 3 numbers, each in [0, 1]");
+    CHECK(error_of(head + "    outer_marker_albedo: [0.1, red, 0.2]\n") ==
+          "bad.yaml:3:32: sensor.optics.outer_marker_albedo[1]: value 'red' is not a number; "
+          "allowed: list of 3 numbers, each in [0, 1]");
+}
+
+TEST_CASE("an empty spec or a top level that is not a mapping is rejected", "[generators][spec]") {
+    const std::string allowed = "allowed: a mapping with keys at the top level: name, seed, "
+                                "sensor, object, protocol, render, outputs";
+    CHECK(error_of("") == "bad.yaml:1:1: spec is empty; " + allowed);
+    CHECK(error_of("# only a comment\n\n") == "bad.yaml:1:1: spec is empty; " + allowed);
+    CHECK(error_of("- name\n- seed\n") ==
+          "bad.yaml:1:1: (top level): value '[name, seed]' is a list, not a mapping; " + allowed);
+    CHECK_THAT(error_of("seed: 1\n---\nseed: 2\n"),
+               StartsWith("bad.yaml:3:1: a second YAML document"));
+}
+
+TEST_CASE("a spec that enables no output is rejected", "[generators][spec]") {
+    CHECK(error_of("name: x\noutputs:\n  images: false\n  labels: false\n  markers: false\n") ==
+          "bad.yaml:2:1: outputs: value '{images: false, labels: false, markers: false}' "
+          "enables no output; allowed: at least one of outputs.images, outputs.labels, "
+          "outputs.markers is true");
+    CHECK_FALSE(parse_spec("outputs: {images: false, labels: false}\n", "ok.yaml").outputs.images);
+}
+
+TEST_CASE("a spec file that cannot be read names its path", "[generators][spec]") {
+    const std::filesystem::path missing = repo_file("datasets_spec/does_not_exist.yaml");
+    try {
+        load_spec(missing);
+        FAIL("no SpecError");
+    } catch (const SpecError& e) {
+        CHECK(std::string(e.what()) ==
+              missing.string() + ": cannot read spec file: No such file or directory");
+    }
+    CHECK_THROWS_WITH(load_spec(repo_file("datasets_spec")), Contains("is a directory"));
+}
+
+TEST_CASE("the resolved YAML parses back to the same spec", "[generators][spec]") {
+    const Spec spec = load_spec(repo_file("datasets_spec/quickstart.yaml"));
+    const Spec again = parse_spec(spec.resolved_yaml, "resolved.yaml");
+    require_same_values(spec, again);
+    CHECK(again.resolved_yaml == spec.resolved_yaml);
+
+    // Values that only survive with shortest-round-trip printing and careful quoting.
+    const Spec odd = parse_spec("name: \"a: b # \\\"c\\\" \\\\ \\t\"\n"
+                                "sensor:\n  materials: {coating: {E_MPa: 0.30000000000000004}}\n"
+                                "render: {exposure: 1e-300}\nprotocol:\n  pull: "
+                                "{direction_deg: -0.1}\n",
+                                "odd.yaml");
+    CHECK(odd.name == "a: b # \"c\" \\ \t");
+    const Spec odd_again = parse_spec(odd.resolved_yaml, "resolved.yaml");
+    require_same_values(odd, odd_again);
+    CHECK(odd_again.sensor.coating.E_MPa == 0.30000000000000004);
+    CHECK(odd_again.resolved_yaml == odd.resolved_yaml);
+}
+
+TEST_CASE("the resolved YAML ignores key order and comments", "[generators][spec]") {
+    const Spec a = load_spec(repo_file("datasets_spec/quickstart.yaml"));
+    const Spec b = parse_spec(quickstart_reordered, "reordered.yaml");
+    CHECK(b.resolved_yaml == a.resolved_yaml);
+    CHECK_THAT(a.resolved_yaml, Contains("\nprotocol:\n  press:\n    normal_force_N: 1.5\n"));
+    const Spec c = parse_spec(std::string(quickstart_reordered) + "  led: {count: 5}\n", "c.yaml");
+    CHECK(c.resolved_yaml != a.resolved_yaml);
+}
+
+TEST_CASE("numbers print in the shortest text that reads back exactly", "[generators][spec]") {
+    CHECK(format_number(35.0) == "35.0");
+    CHECK(format_number(-1.0) == "-1.0");
+    CHECK(format_number(0.8) == "0.8");
+    CHECK(format_number(0.1 + 0.2) == "0.30000000000000004");
+    CHECK(format_number(1e-7) == "1e-07");
+}
+
+TEST_CASE("edit distance counts a swap of neighbours as one edit", "[generators][spec]") {
+    CHECK(edit_distance("coating", "coating") == 0);
+    CHECK(edit_distance("coatng", "coating") == 1);
+    CHECK(edit_distance("cotaing", "coating") == 1);
+    CHECK(edit_distance("", "abc") == 3);
+    CHECK(closest_match("widht_px", {"width_px", "height_px"}) == "width_px");
+    CHECK(closest_match("x", {"nu", "mu"}).empty()); // nothing in common is no suggestion
+    CHECK(closest_match("colour", {"count", "z_mm"}).empty());
+}
+
+TEST_CASE("docs/SPEC_REFERENCE.md holds the current schema table", "[generators][spec]") {
+    std::ifstream in(repo_file("docs/SPEC_REFERENCE.md"));
+    REQUIRE(in);
+    std::ostringstream doc;
+    doc << in.rdbuf();
+    // On failure: chromasim schema > docs/SPEC_REFERENCE.md
+    CHECK_THAT(doc.str(), Contains(schema_markdown()));
+}
