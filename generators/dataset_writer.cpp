@@ -28,6 +28,16 @@ std::string utc_now() {
     return buf;
 }
 
+/// A YAML double-quoted scalar.
+std::string quoted(const std::string& text) {
+    std::string out = "\"";
+    for (char c : text) {
+        if (c == '"' || c == '\\') out += '\\';
+        out += c;
+    }
+    return out + '"';
+}
+
 std::ofstream open_csv(const fs::path& p, const char* header) {
     std::ofstream out(p);
     if (!out) throw std::runtime_error("cannot write " + p.string());
@@ -96,12 +106,11 @@ fs::path DatasetWriter::image_path(int frame, std::string* relative) {
 void DatasetWriter::write_label(const LabelRow& r) {
     if (!m_labels.is_open()) return;
     const double ft = std::hypot(r.tangential_x_N, r.tangential_y_N);
-    m_labels << r.frame << ',' << r.phase << ',' << r.image << ',' << r.normal_force_N << ','
-             << ft << ',' << r.tangential_x_N << ',' << r.tangential_y_N << ','
-             << r.requested_tangential_N << ',' << r.mu << ',' << r.gamma << ','
-             << int(r.sliding) << ',' << r.indentation_mm << ',' << r.contact_area_mm2 << ','
-             << r.contact_nodes << ',' << r.solver_iterations << ',' << int(r.converged) << ','
-             << r.status << '\n';
+    m_labels << r.frame << ',' << r.phase << ',' << r.image << ',' << r.normal_force_N << ',' << ft
+             << ',' << r.tangential_x_N << ',' << r.tangential_y_N << ','
+             << r.requested_tangential_N << ',' << r.mu << ',' << r.gamma << ',' << int(r.sliding)
+             << ',' << r.indentation_mm << ',' << r.contact_area_mm2 << ',' << r.contact_nodes
+             << ',' << r.solver_iterations << ',' << int(r.converged) << ',' << r.status << '\n';
     ++m_label_rows;
 }
 
@@ -121,17 +130,18 @@ void DatasetWriter::commit(const std::string& manifest_extra) {
     std::ofstream(m_staging / "spec.resolved.yaml", std::ios::binary) << stored_spec_text(m_spec);
     std::ofstream manifest(m_staging / "manifest.yaml");
     manifest << "# chromasim dataset manifest (docs/DATASET_FORMAT.md)\n"
-             << "name: " << m_spec.name << "\nchromasim_version: " CHROMASIM_VERSION "\n"
-             << "created_utc: " << utc_now() << "\nspec_source: " << m_spec.source_path.string()
-             << "\nimages: " << m_images << "\nlabel_rows: " << m_label_rows << '\n'
+             << "name: " << quoted(m_spec.name) << "\nchromasim_version: " CHROMASIM_VERSION "\n"
+             << "created_utc: " << utc_now()
+             << "\nspec_source: " << quoted(m_spec.source_path.string()) << "\nimages: " << m_images
+             << "\nlabel_rows: " << m_label_rows << '\n'
              << manifest_extra;
     manifest.close();
     if (!manifest) throw std::runtime_error("write error in " + m_staging.string());
     // Swap into place: the old dataset (if replacing) is removed only after the rename.
     fs::path old;
     if (fs::exists(m_out)) {
-        old = m_staging.parent_path() / (m_out.filename().string() + ".old-" +
-                                         std::to_string(::getpid()));
+        old = m_staging.parent_path() /
+              (m_out.filename().string() + ".old-" + std::to_string(::getpid()));
         fs::rename(m_out, old);
     }
     fs::rename(m_staging, m_out);

@@ -85,8 +85,8 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
         << report.precompute_s << " s\n";
 
     // 3. Frames: mechanics, then (only if images are asked for) render, then writers.
-    const mechanics::FrameRequest request{spec.outputs.images, spec.outputs.images ||
-                                                                   spec.outputs.markers};
+    const mechanics::FrameRequest request{spec.outputs.images,
+                                          spec.outputs.images || spec.outputs.markers};
     render::SensorFrame sensor_frame;
     const render::RenderSettings settings{spec.render.samples_per_pixel, spec.seed};
     for (const FramePlan& f : plan.frames) {
@@ -117,8 +117,8 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
         if (!options.quiet)
             log << "  frame " << f.index + 1 << "/" << plan.frames.size() << " " << f.phase
                 << "  Fn " << row.normal_force_N << " N  Ft "
-                << std::hypot(row.tangential_x_N, row.tangential_y_N) << " N  Gamma "
-                << row.gamma << '\n';
+                << std::hypot(row.tangential_x_N, row.tangential_y_N) << " N  Gamma " << row.gamma
+                << '\n';
     }
     report.frames = int(plan.frames.size());
     report.total_s = since(t_start);

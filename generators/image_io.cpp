@@ -18,8 +18,9 @@ void write_png(const std::filesystem::path& path, const render::Image& image) {
     for (std::size_t i = 0; i < bytes.size(); ++i)
         bytes[i] = std::uint8_t(std::lround(255.0 * srgb_encode(image.rgb[i])));
     auto out = OIIO::ImageOutput::create(path.string());
-    if (!out) throw std::runtime_error("cannot create image writer for " + path.string() + ": " +
-                                       OIIO::geterror());
+    if (!out)
+        throw std::runtime_error("cannot create image writer for " + path.string() + ": " +
+                                 OIIO::geterror());
     OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT8);
     spec.attribute("oiio:ColorSpace", "sRGB");
     spec.attribute("Software", "chromasim " CHROMASIM_VERSION);
@@ -30,8 +31,8 @@ void write_png(const std::filesystem::path& path, const render::Image& image) {
 
 Image8 read_image8(const std::filesystem::path& path) {
     auto in = OIIO::ImageInput::open(path.string());
-    if (!in) throw std::runtime_error("cannot open image " + path.string() + ": " +
-                                      OIIO::geterror());
+    if (!in)
+        throw std::runtime_error("cannot open image " + path.string() + ": " + OIIO::geterror());
     const OIIO::ImageSpec& spec = in->spec();
     Image8 img{spec.width, spec.height, spec.nchannels, {}};
     img.data.resize(std::size_t(img.width) * img.height * img.channels);

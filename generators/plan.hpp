@@ -11,9 +11,9 @@ namespace chromasim::generators {
 
 struct FramePlan {
     int index = 0;
-    std::string phase;                           ///< "press" or "pull"
-    double normal_force_N = 0.0;                 ///< grip force of this frame
-    Eigen::Vector2d tangential_force_N{0, 0};    ///< requested pull (x, y)
+    std::string phase;                        ///< "press" or "pull"
+    double normal_force_N = 0.0;              ///< grip force of this frame
+    Eigen::Vector2d tangential_force_N{0, 0}; ///< requested pull (x, y)
     double mu = 0.0;
 };
 

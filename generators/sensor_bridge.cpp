@@ -5,8 +5,12 @@
 namespace chromasim::generators {
 
 namespace {
-mechanics::Material material(const LayerMaterial& m) { return {m.E_MPa, m.nu}; }
-render::Vec3 vec(const Rgb& c) { return {c[0], c[1], c[2]}; }
+mechanics::Material material(const LayerMaterial& m) {
+    return {m.E_MPa, m.nu};
+}
+render::Vec3 vec(const Rgb& c) {
+    return {c[0], c[1], c[2]};
+}
 
 /// Marker discs as triangle fans (centre, rim k, rim k+1), layer `layer` (0 inner, 1 outer).
 void fill_fans(const mechanics::Points& points, int markers, int per_marker, int layer,
@@ -47,6 +51,8 @@ render::OpticsParams optics_params(const Spec& spec) {
     o.led_count = spec.sensor.led_count;
     o.led_ring_radius_mm = spec.sensor.led_ring_radius_mm;
     o.led_z_mm = spec.sensor.led_z_mm;
+    o.led_rgb = vec(spec.sensor.led_rgb);
+    o.marker_thickness_mm = spec.sensor.marker_thickness_mm;
     o.exposure = spec.render.exposure;
     return o;
 }

@@ -12,7 +12,8 @@ namespace chromasim::generators {
 
 /// A user's mistake in a spec file or argument. The message already names the file,
 /// line:column, the key, the bad value and what is allowed, e.g.
-/// `spec.yaml:12:5: render.width_px: value '-3' is out of range; allowed: integer in [16, 4096] (px)`.
+/// `spec.yaml:12:5: render.width_px: value '-3' is out of range; allowed: integer in [16, 4096]
+/// (px)`.
 class SpecError : public std::runtime_error {
 public:
     using std::runtime_error::runtime_error;
@@ -41,6 +42,8 @@ struct Spec {
         int led_count = 6;
         double led_ring_radius_mm = 10.0;
         double led_z_mm = -1.0;
+        Rgb led_rgb{1.0, 1.0, 1.0};
+        double marker_thickness_mm = 0.5;
         Rgb coating_albedo{0.85, 0.85, 0.85};
         Rgb inner_marker_absorption_per_mm{0.2, 3.0, 0.3};
         Rgb outer_marker_absorption_per_mm{3.0, 0.3, 0.2};
@@ -49,13 +52,14 @@ struct Spec {
     } sensor;
 
     struct Object {
-        std::string shape = "flat"; ///< flat (rigid plane); more shapes come with the mechanics issue
-        double mu = 0.8;            ///< Coulomb friction coefficient
+        std::string shape =
+            "flat";      ///< flat (rigid plane); more shapes come with the mechanics issue
+        double mu = 0.8; ///< Coulomb friction coefficient
     } object;
 
     struct Press {
         double normal_force_N = 1.5; ///< grip force reached at the end of the press
-        int frames = 2;              ///< frames of the linear normal-force ramp (last one at full force)
+        int frames = 2; ///< frames of the linear normal-force ramp (last one at full force)
     } press;
 
     struct Pull {

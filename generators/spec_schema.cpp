@@ -165,6 +165,13 @@ void add_sensor_optics(std::vector<SchemaEntry>& out) {
     out.push_back(number("sensor.led.z_mm", -1, closed(-10, 10), "mm",
                          "Height of the LED ring; the dome rim plane is z = 0 [G].",
                          CHROMASIM_FIELD(sensor.led_z_mm)));
+    out.push_back(rgb("sensor.led.rgb", {1.0, 1.0, 1.0}, closed(0, 100), "",
+                      "Relative emission of each LED, linear RGB (white) [G].",
+                      CHROMASIM_FIELD(sensor.led_rgb)));
+    out.push_back(number("sensor.optics.marker_thickness_mm", 0.5, left_open(0, 2), "mm",
+                         "Thickness of the marker discs, the Beer-Lambert path at normal "
+                         "incidence [K].",
+                         CHROMASIM_FIELD(sensor.marker_thickness_mm)));
     out.push_back(rgb("sensor.optics.coating_albedo", {0.85, 0.85, 0.85}, closed(0, 1), "",
                       "Diffuse albedo of the white coating, linear RGB [G].",
                       CHROMASIM_FIELD(sensor.coating_albedo)));

@@ -38,7 +38,8 @@ bool solve_directed(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, const 
     if (!lu.isInvertible()) return false;
     const Eigen::VectorXd x = lu.solve(rhs);
     F.setZero();
-    for (int j = 0; j < m; ++j) F.row(A[j]) << x(j) * t.x(), x(j) * t.y(), -x(j);
+    for (int j = 0; j < m; ++j)
+        F.row(A[j]) << x(j) * t.x(), x(j) * t.y(), -x(j);
     d = x(m);
     return true;
 }
@@ -55,7 +56,8 @@ bool solve_tied(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, const std:
         for (int k = 0; k < 3; ++k) {
             const int row = 3 * i + k;
             for (int j = 0; j < m; ++j)
-                for (int l = 0; l < 3; ++l) M(row, 3 * j + l) = C(3 * A[i] + k, 3 * A[j] + l);
+                for (int l = 0; l < 3; ++l)
+                    M(row, 3 * j + l) = C(3 * A[i] + k, 3 * A[j] + l);
             M(row, 3 * m + k) = k == 2 ? 1.0 : -1.0;
             rhs(row) = k == 2 ? gap(A[i]) : u0(3 * A[i] + k);
             M(3 * m + k, row) = 1.0;
@@ -67,7 +69,8 @@ bool solve_tied(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, const std:
     if (!lu.isInvertible()) return false;
     const Eigen::VectorXd x = lu.solve(rhs);
     F.setZero();
-    for (int j = 0; j < m; ++j) F.row(A[j]) = x.segment<3>(3 * j).transpose();
+    for (int j = 0; j < m; ++j)
+        F.row(A[j]) = x.segment<3>(3 * j).transpose();
     d = x(3 * m + 2);
     return true;
 }
@@ -152,9 +155,9 @@ ContactSolution solve_flat_contact(const Eigen::MatrixXd& C, const Eigen::Vector
     sol.active = A;
     sol.normal_force_N = -sol.forces_N.col(2).sum();
     sol.tangential_force_N = sol.forces_N.leftCols<2>().colwise().sum().transpose();
-    sol.gamma = sol.sliding ? 0.0
-                            : safety_margin(load.mu, sol.normal_force_N,
-                                            sol.tangential_force_N.norm());
+    sol.gamma = sol.sliding
+                    ? 0.0
+                    : safety_margin(load.mu, sol.normal_force_N, sol.tangential_force_N.norm());
     return sol;
 }
 

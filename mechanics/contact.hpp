@@ -19,23 +19,23 @@ namespace chromasim::mechanics {
 
 /// Loads of one quasi-static frame.
 struct ContactLoad {
-    double normal_force_N = 1.0;                 ///< P > 0, pressing the object onto the dome
+    double normal_force_N = 1.0;                  ///< P > 0, pressing the object onto the dome
     Eigen::Vector2d tangential_force_N{0.0, 0.0}; ///< Q, requested pull in the x-y plane
-    double mu = 0.8;                             ///< Coulomb friction coefficient
+    double mu = 0.8;                              ///< Coulomb friction coefficient
 };
 
 /// Solution of the contact problem on the candidate nodes.
 struct ContactSolution {
     Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> forces_N; ///< on each candidate
-    std::vector<int> active;       ///< candidate indices in contact
-    double indentation_mm = 0.0;   ///< rigid approach d of the object
+    std::vector<int> active;                      ///< candidate indices in contact
+    double indentation_mm = 0.0;                  ///< rigid approach d of the object
     Eigen::Vector2d tangential_force_N{0.0, 0.0}; ///< transmitted (= Q when sticking)
-    double normal_force_N = 0.0;   ///< sum of nodal normal forces (= P when converged)
+    double normal_force_N = 0.0; ///< sum of nodal normal forces (= P when converged)
     bool sliding = false;
-    double gamma = 1.0;            ///< safety margin, clamped to [0, 1]
-    int iterations = 0;            ///< active-set iterations (all phases)
+    double gamma = 1.0; ///< safety margin, clamped to [0, 1]
+    int iterations = 0; ///< active-set iterations (all phases)
     bool converged = false;
-    std::string status = "ok";     ///< ok | max_iterations | singular
+    std::string status = "ok"; ///< ok | max_iterations | singular
 };
 
 /// Safety margin (mu P - |f_t|) / (mu P), clamped at 0 while sliding; 0 when mu P = 0.

@@ -11,12 +11,14 @@ namespace chromasim::mechanics {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-double deg(double d) { return d * kPi / 180.0; }
+double deg(double d) {
+    return d * kPi / 180.0;
+}
 
 /// The angular grid shared by all five hemispheres. Ring i = 1..n-1 at polar angle
-/// (i - 1/2) * step, ring n the rim (pi/2). The top is a small flat polygon with an odd vertex count rather than a
-/// pole vertex, so that no mesh edge runs along the axis through the apex markers; the
-/// azimuths are offset by an arbitrary angle for the same reason.
+/// (i - 1/2) * step, ring n the rim (pi/2). The top is a small flat polygon with an odd vertex
+/// count rather than a pole vertex, so that no mesh edge runs along the axis through the apex
+/// markers; the azimuths are offset by an arbitrary angle for the same reason.
 struct AngularGrid {
     std::vector<std::vector<Eigen::Vector3d>> rings; ///< unit directions per ring
 };
@@ -28,8 +30,8 @@ AngularGrid angular_grid(double outer_radius_mm, double edge_mm) {
     AngularGrid grid;
     for (int i = 1; i <= n; ++i) {
         const double theta = i == n ? 0.5 * kPi : step * (i - 0.5);
-        int m = std::max(5, int(std::lround(2 * kPi * std::sin(theta) * outer_radius_mm /
-                                            edge_mm)));
+        int m =
+            std::max(5, int(std::lround(2 * kPi * std::sin(theta) * outer_radius_mm / edge_mm)));
         if (i == 1) m |= 1; // odd: no chord of the top polygon passes through the axis
         std::vector<Eigen::Vector3d> ring;
         const double phase = (i % 2) * 0.5; // stagger alternate rings for better triangles
@@ -78,8 +80,7 @@ MeshLevel mesh_level(const std::string& name) {
     if (name == "coarse") return {name, 1.2, 0.30};
     if (name == "medium") return {name, 0.8, 0.09};
     if (name == "fine") return {name, 0.5, 0.025};
-    throw std::invalid_argument("unknown mesh level '" + name +
-                                "'; allowed: coarse, medium, fine");
+    throw std::invalid_argument("unknown mesh level '" + name + "'; allowed: coarse, medium, fine");
 }
 
 std::vector<Eigen::Vector3d> marker_directions(const DomeParams& dome) {
@@ -137,17 +138,20 @@ Plc dome_plc(const DomeParams& dome, double edge_mm) {
         }
     }
     std::vector<std::array<int, 3>> cap; // triangles in direction indices
-    for (std::size_t i = 0; i + 1 < ring_ids.size(); ++i) zip_rings(ring_ids[i], ring_ids[i + 1], dirs, cap);
+    for (std::size_t i = 0; i + 1 < ring_ids.size(); ++i)
+        zip_rings(ring_ids[i], ring_ids[i + 1], dirs, cap);
 
     const int nd = int(dirs.size());
     const int ns = kLayerCount + 1;
     Plc plc;
     plc.points.resize(std::size_t(nd) * ns, 3);
     for (int s = 0; s < ns; ++s)
-        for (int d = 0; d < nd; ++d) plc.points.row(s * nd + d) = dome.radii_mm[s] * dirs[d];
+        for (int d = 0; d < nd; ++d)
+            plc.points.row(s * nd + d) = dome.radii_mm[s] * dirs[d];
     for (int s = 0; s < ns; ++s) {
         std::vector<int> top; // the flat top polygon (first ring) closing the cap
-        for (int d : ring_ids.front()) top.push_back(s * nd + d);
+        for (int d : ring_ids.front())
+            top.push_back(s * nd + d);
         plc.facets.push_back(top);
         plc.facet_markers.push_back(s + 1);
         for (const auto& tri : cap) {

@@ -21,8 +21,8 @@ struct DomeParams {
     /// Marker rings: polar angle step and number of rings (apex marker not counted) [K].
     double ring_step_deg = 12.5;
     int ring_count = 5;
-    double marker_radius_mm = 0.5;    ///< disc radius (diameter 1.0 mm) [K]
-    int marker_rim_points = 12;       ///< polygon resolution of each disc's rim
+    double marker_radius_mm = 0.5; ///< disc radius (diameter 1.0 mm) [K]
+    int marker_rim_points = 12;    ///< polygon resolution of each disc's rim
 };
 
 /// Mesh resolution: named levels map to a target surface edge length and a tet volume bound.

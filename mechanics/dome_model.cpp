@@ -66,10 +66,10 @@ struct DomeModel::Impl {
     SurfacePatch coating;
     std::vector<int> free_of_dof; ///< free-dof index per mesh dof, -1 where clamped
     Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
-    std::vector<int> candidates;     ///< mesh nodes that may touch
+    std::vector<int> candidates; ///< mesh nodes that may touch
     std::vector<double> candidate_area_mm2;
     std::vector<bool> candidate_edge; ///< in the outermost band of the candidate cap
-    Eigen::MatrixXd compliance;      ///< 3n x 3n (mm/N)
+    Eigen::MatrixXd compliance;       ///< 3n x 3n (mm/N)
     Eigen::VectorXd gap_mm;
     PrecomputeStats stats;
 
@@ -103,7 +103,8 @@ void DomeModel::Impl::factorize() {
     int n_free = 0;
     for (int v = 0; v < mesh.V.rows(); ++v)
         if (mesh.V(v, 2) > 1e-9)
-            for (int k = 0; k < 3; ++k) free_of_dof[3 * v + k] = n_free++;
+            for (int k = 0; k < 3; ++k)
+                free_of_dof[3 * v + k] = n_free++;
     std::vector<Eigen::Triplet<double>> trips;
     trips.reserve(std::size_t(K.nonZeros()));
     for (int c = 0; c < K.outerSize(); ++c)
@@ -138,7 +139,8 @@ void DomeModel::Impl::find_candidates() {
             std::abs(c.norm() - R) > 1e-6)
             continue;
         const double third = (b - a).cross(c - a).norm() / 6.0;
-        for (int k = 0; k < 3; ++k) area[outer(f, k)] += third;
+        for (int k = 0; k < 3; ++k)
+            area[outer(f, k)] += third;
     }
     for (int v = 0; v < mesh.V.rows(); ++v) {
         const double cz = mesh.V(v, 2) / R;
@@ -151,7 +153,8 @@ void DomeModel::Impl::find_candidates() {
     if (candidates.empty()) throw std::runtime_error("no contact candidate nodes on the dome");
     stats.candidates = int(candidates.size());
     gap_mm.resize(Eigen::Index(candidates.size()));
-    for (std::size_t i = 0; i < candidates.size(); ++i) gap_mm(i) = R - mesh.V(candidates[i], 2);
+    for (std::size_t i = 0; i < candidates.size(); ++i)
+        gap_mm(i) = R - mesh.V(candidates[i], 2);
 }
 
 void DomeModel::Impl::compute_compliance() {
@@ -162,7 +165,8 @@ void DomeModel::Impl::compute_compliance() {
     tbb::parallel_for(0, (nc + kBlock - 1) / kBlock, [&](int block) {
         const int c0 = block * kBlock, c1 = std::min(nc, c0 + kBlock);
         Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(stats.free_dofs, c1 - c0);
-        for (int c = c0; c < c1; ++c) rhs(free_of_dof[3 * candidates[c / 3] + c % 3], c - c0) = 1;
+        for (int c = c0; c < c1; ++c)
+            rhs(free_of_dof[3 * candidates[c / 3] + c % 3], c - c0) = 1;
         const Eigen::MatrixXd u = solver.solve(rhs);
         for (int r = 0; r < nc; ++r)
             compliance.row(r).segment(c0, c1 - c0) =
@@ -175,7 +179,8 @@ void DomeModel::Impl::compute_compliance() {
 Eigen::VectorXd DomeModel::Impl::solve_field(const ContactSolution& contact) const {
     Eigen::VectorXd f = Eigen::VectorXd::Zero(stats.free_dofs);
     for (int j : contact.active)
-        for (int k = 0; k < 3; ++k) f(free_of_dof[3 * candidates[j] + k]) = contact.forces_N(j, k);
+        for (int k = 0; k < 3; ++k)
+            f(free_of_dof[3 * candidates[j] + k]) = contact.forces_N(j, k);
     const Eigen::VectorXd u_free = solver.solve(f);
     Eigen::VectorXd u = Eigen::VectorXd::Zero(3 * mesh.V.rows());
     for (std::size_t d = 0; d < free_of_dof.size(); ++d)
@@ -217,9 +222,17 @@ FrameResult DomeModel::solve(const ContactLoad& load, const FrameRequest& reques
     return r;
 }
 
-const TetMesh& DomeModel::mesh() const { return m_impl->mesh; }
-const MarkerDiscs& DomeModel::markers() const { return m_impl->markers; }
-const SurfacePatch& DomeModel::coating_surface() const { return m_impl->coating; }
-const PrecomputeStats& DomeModel::stats() const { return m_impl->stats; }
+const TetMesh& DomeModel::mesh() const {
+    return m_impl->mesh;
+}
+const MarkerDiscs& DomeModel::markers() const {
+    return m_impl->markers;
+}
+const SurfacePatch& DomeModel::coating_surface() const {
+    return m_impl->coating;
+}
+const PrecomputeStats& DomeModel::stats() const {
+    return m_impl->stats;
+}
 
 } // namespace chromasim::mechanics

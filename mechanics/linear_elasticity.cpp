@@ -25,7 +25,8 @@ Eigen::Matrix<double, 6, 6> elasticity_matrix(const Material& m) {
 Matrix12d tet_stiffness(const Eigen::Matrix<double, 4, 3>& X, const Material& material) {
     // Shape function gradients: grad N_k for k = 1..3 are the rows of inv(E), E = [x1-x0 ...].
     Eigen::Matrix3d E;
-    for (int k = 0; k < 3; ++k) E.col(k) = (X.row(k + 1) - X.row(0)).transpose();
+    for (int k = 0; k < 3; ++k)
+        E.col(k) = (X.row(k + 1) - X.row(0)).transpose();
     const double volume = E.determinant() / 6.0;
     if (!(volume > 0)) throw std::runtime_error("tet_stiffness: degenerate or inverted tet");
     const Eigen::Matrix3d Einv = E.inverse();
@@ -61,7 +62,8 @@ Eigen::SparseMatrix<double> assemble_stiffness(const TetMesh& mesh,
             if (region < 1 || region > int(materials.size()))
                 throw std::runtime_error("assemble_stiffness: tet region without material");
             Eigen::Matrix<double, 4, 3> X;
-            for (int k = 0; k < 4; ++k) X.row(k) = mesh.V.row(mesh.T(t, k));
+            for (int k = 0; k < 4; ++k)
+                X.row(k) = mesh.V.row(mesh.T(t, k));
             const Matrix12d Ke = tet_stiffness(X, materials[std::size_t(region - 1)]);
             for (int a = 0; a < 4; ++a)
                 for (int b = 0; b < 4; ++b)
@@ -72,7 +74,8 @@ Eigen::SparseMatrix<double> assemble_stiffness(const TetMesh& mesh,
         }
     });
     std::vector<Triplet> all;
-    for (auto& part : local) all.insert(all.end(), part.begin(), part.end());
+    for (auto& part : local)
+        all.insert(all.end(), part.begin(), part.end());
     const Eigen::Index n = 3 * mesh.V.rows();
     Eigen::SparseMatrix<double> K(n, n);
     K.setFromTriplets(all.begin(), all.end());

@@ -27,7 +27,8 @@ double mesh_volume(const TetMesh& mesh, int region) {
 Eigen::Vector4d barycentric(const TetMesh& mesh, int t, const Eigen::Vector3d& p) {
     const Eigen::Vector3d a = mesh.V.row(mesh.T(t, 0));
     Eigen::Matrix3d E;
-    for (int k = 0; k < 3; ++k) E.col(k) = mesh.V.row(mesh.T(t, k + 1)).transpose() - a;
+    for (int k = 0; k < 3; ++k)
+        E.col(k) = mesh.V.row(mesh.T(t, k + 1)).transpose() - a;
     const Eigen::Vector3d l = E.partialPivLu().solve(p - a);
     return {1.0 - l.sum(), l(0), l(1), l(2)};
 }
@@ -55,16 +56,17 @@ Triangles interface_faces(const TetMesh& mesh, int a, int b) {
             if (mesh.region(o.tet) == a) in_a = &o;
         if (!in_a) continue;
         const bool is_boundary = owners.size() == 1;
-        const bool is_interface = owners.size() == 2 && b >= 0 &&
-                                  mesh.region(owners[0].tet) + mesh.region(owners[1].tet) == a + b &&
-                                  a != b;
+        const bool is_interface =
+            owners.size() == 2 && b >= 0 &&
+            mesh.region(owners[0].tet) + mesh.region(owners[1].tet) == a + b && a != b;
         if ((b < 0 && !is_boundary) || (b >= 0 && !is_interface)) continue;
         const int* lf = kFace[in_a->local];
         out.emplace_back(mesh.T(in_a->tet, lf[0]), mesh.T(in_a->tet, lf[1]),
                          mesh.T(in_a->tet, lf[2]));
     }
     Triangles F(out.size(), 3);
-    for (std::size_t i = 0; i < out.size(); ++i) F.row(i) = out[i].transpose();
+    for (std::size_t i = 0; i < out.size(); ++i)
+        F.row(i) = out[i].transpose();
     return F;
 }
 
@@ -72,7 +74,8 @@ TetLocator::TetLocator(const TetMesh& mesh, double cell_mm) : m_mesh(mesh), m_ce
     const Eigen::Vector3d lo = mesh.V.colwise().minCoeff().transpose();
     const Eigen::Vector3d hi = mesh.V.colwise().maxCoeff().transpose();
     m_origin = lo.array() - 1e-6;
-    for (int k = 0; k < 3; ++k) m_dims(k) = int((hi(k) - m_origin(k)) / m_cell) + 1;
+    for (int k = 0; k < 3; ++k)
+        m_dims(k) = int((hi(k) - m_origin(k)) / m_cell) + 1;
     m_cells.resize(std::size_t(m_dims.prod()));
     for (int t = 0; t < mesh.T.rows(); ++t) {
         Eigen::Vector3d tlo = mesh.V.row(mesh.T(t, 0)), thi = tlo;

@@ -30,7 +30,8 @@ void fill_input(const Plc& plc, tetgenio& in) {
     in.numberofpoints = int(plc.points.rows());
     in.pointlist = new REAL[plc.points.size()];
     for (int i = 0; i < plc.points.rows(); ++i)
-        for (int k = 0; k < 3; ++k) in.pointlist[3 * i + k] = plc.points(i, k);
+        for (int k = 0; k < 3; ++k)
+            in.pointlist[3 * i + k] = plc.points(i, k);
 
     in.numberoffacets = int(plc.facets.size());
     in.facetlist = new tetgenio::facet[plc.facets.size()];
@@ -44,14 +45,16 @@ void fill_input(const Plc& plc, tetgenio& in) {
         const auto& poly = plc.facets[f];
         facet.polygonlist[0].numberofvertices = int(poly.size());
         facet.polygonlist[0].vertexlist = new int[poly.size()];
-        for (std::size_t k = 0; k < poly.size(); ++k) facet.polygonlist[0].vertexlist[k] = poly[k];
+        for (std::size_t k = 0; k < poly.size(); ++k)
+            facet.polygonlist[0].vertexlist[k] = poly[k];
         in.facetmarkerlist[f] = f < plc.facet_markers.size() ? plc.facet_markers[f] : 0;
     }
 
     in.numberofregions = int(plc.regions.size());
     in.regionlist = new REAL[5 * plc.regions.size()];
     for (std::size_t r = 0; r < plc.regions.size(); ++r) {
-        for (int k = 0; k < 3; ++k) in.regionlist[5 * r + k] = plc.regions[r].seed_mm(k);
+        for (int k = 0; k < 3; ++k)
+            in.regionlist[5 * r + k] = plc.regions[r].seed_mm(k);
         in.regionlist[5 * r + 3] = plc.regions[r].attribute;
         in.regionlist[5 * r + 4] = -1.0; // no regional volume bound (the global -a applies)
     }
@@ -65,11 +68,13 @@ TetMesh read_output(const tetgenio& out) {
     TetMesh mesh;
     mesh.V.resize(out.numberofpoints, 3);
     for (int i = 0; i < out.numberofpoints; ++i)
-        for (int k = 0; k < 3; ++k) mesh.V(i, k) = out.pointlist[3 * i + k];
+        for (int k = 0; k < 3; ++k)
+            mesh.V(i, k) = out.pointlist[3 * i + k];
     mesh.T.resize(out.numberoftetrahedra, 4);
     mesh.region.resize(out.numberoftetrahedra);
     for (int t = 0; t < out.numberoftetrahedra; ++t) {
-        for (int k = 0; k < 4; ++k) mesh.T(t, k) = out.tetrahedronlist[4 * t + k];
+        for (int k = 0; k < 4; ++k)
+            mesh.T(t, k) = out.tetrahedronlist[4 * t + k];
         mesh.region(t) = int(out.tetrahedronattributelist[t * out.numberoftetrahedronattributes]);
     }
     return mesh;

@@ -19,8 +19,8 @@ int run_generate(const std::string& spec_path, const gen::GenerateOptions& optio
     if (r.up_to_date) return 0;
     std::cout << "chromasim: wrote " << r.frames << " frames (" << r.images << " images) to "
               << options.out_dir.string() << " in " << r.total_s << " s (precompute "
-              << r.precompute_s << " s, mechanics " << r.mechanics_s << " s, render "
-              << r.render_s << " s, write " << r.write_s << " s)\n"
+              << r.precompute_s << " s, mechanics " << r.mechanics_s << " s, render " << r.render_s
+              << " s, write " << r.write_s << " s)\n"
               << "  images: " << (options.out_dir / "images").string() << "/frame_*.png\n"
               << "  labels: " << (options.out_dir / "labels.csv").string() << "\n"
               << "  markers: " << (options.out_dir / "markers.csv").string() << "\n";
@@ -60,16 +60,18 @@ int main(int argc, char** argv) {
     CLI11_PARSE(app, argc, argv);
     std::unique_ptr<tbb::global_control> limit;
     if (threads > 0)
-        limit = std::make_unique<tbb::global_control>(
-            tbb::global_control::max_allowed_parallelism, std::size_t(threads));
+        limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                      std::size_t(threads));
     try {
         if (*generate) {
             options.out_dir = out_dir;
             return run_generate(spec_path, options);
         }
         if (*validate) {
-            for (const auto& p : validate_paths) gen::load_spec(p);
-            for (const auto& p : validate_paths) std::cout << p << ": ok\n";
+            for (const auto& p : validate_paths)
+                gen::load_spec(p);
+            for (const auto& p : validate_paths)
+                std::cout << p << ": ok\n";
             return 0;
         }
         if (*schema) {

@@ -31,7 +31,8 @@ std::vector<CsvRow> read_csv(const fs::path& p) {
     std::getline(in, line);
     std::vector<std::string> header;
     std::stringstream hs(line);
-    for (std::string h; std::getline(hs, h, ',');) header.push_back(h);
+    for (std::string h; std::getline(hs, h, ',');)
+        header.push_back(h);
     std::vector<CsvRow> rows;
     while (std::getline(in, line)) {
         std::stringstream ls(line);
@@ -123,7 +124,8 @@ TEST_CASE("quickstart markers: 164 per frame, apex pushed in", "[generators][e2e
     const int frames = q.spec.press.frames + q.spec.pull.frames;
     REQUIRE(rows.size() == std::size_t(164 * frames));
     for (const auto& r : rows)
-        for (const char* k : {"x0_mm", "y0_mm", "z0_mm", "ux_mm", "uy_mm", "uz_mm"}) num(r, k);
+        for (const char* k : {"x0_mm", "y0_mm", "z0_mm", "ux_mm", "uy_mm", "uz_mm"})
+            num(r, k);
     // Last frame, apex marker of each layer (marker 0) moved down, and along the pull (+x).
     const auto& inner = rows[std::size_t(164 * (frames - 1))];
     const auto& outer = rows[std::size_t(164 * (frames - 1) + 82)];
@@ -141,7 +143,8 @@ TEST_CASE("quickstart images: right size, not blank, markers visible", "[generat
     REQUIRE(img.height == h);
     REQUIRE(img.channels == 3);
     // Outside the image circle: black. Inside: lit and not uniform.
-    for (int c = 0; c < 3; ++c) CHECK(img.at(0, 0, c) == 0);
+    for (int c = 0; c < 3; ++c)
+        CHECK(img.at(0, 0, c) == 0);
     double sum = 0, sum2 = 0;
     for (auto v : img.data) {
         sum += v;

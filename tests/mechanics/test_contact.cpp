@@ -57,7 +57,8 @@ TEST_CASE("dome under a flat: force balance, no penetration, tensionless contact
         CHECK_FALSE(r.at_candidate_edge);
         CHECK(r.contact.normal_force_N == Approx(P).epsilon(1e-9));
         CHECK(r.contact.gamma == 1.0);
-        for (int j : r.contact.active) CHECK(-r.contact.forces_N(j, 2) >= 0.0);
+        for (int j : r.contact.active)
+            CHECK(-r.contact.forces_N(j, 2) >= 0.0);
         // No node of the outer surface ends above the plane z = R - d.
         const double plane = 13.2 - r.contact.indentation_mm;
         for (int v = 0; v < model.mesh().V.rows(); ++v)

@@ -16,7 +16,8 @@ TetMesh box_mesh() {
     const double L[3] = {2.0, 1.0, 1.5};
     for (int i = 0; i < 8; ++i)
         plc.points.row(i) << (i & 1) * L[0], ((i >> 1) & 1) * L[1], ((i >> 2) & 1) * L[2];
-    plc.facets = {{0, 1, 3, 2}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 3, 7, 5}};
+    plc.facets = {{0, 1, 3, 2}, {4, 5, 7, 6}, {0, 1, 5, 4},
+                  {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 3, 7, 5}};
     plc.regions.push_back({Eigen::Vector3d(1.0, 0.5, 0.7), 1});
     TetgenOptions options;
     options.max_volume_mm3 = 0.01;
@@ -43,18 +44,22 @@ TEST_CASE("single tet stiffness: symmetric, rigid modes free, uniaxial strain en
     // Rigid translations and an infinitesimal rotation produce no force.
     for (int k = 0; k < 3; ++k) {
         Eigen::Matrix<double, 12, 1> u = Eigen::Matrix<double, 12, 1>::Zero();
-        for (int a = 0; a < 4; ++a) u(3 * a + k) = 1.0;
+        for (int a = 0; a < 4; ++a)
+            u(3 * a + k) = 1.0;
         CHECK((K * u).norm() < 1e-12 * K.norm());
     }
     Eigen::Matrix<double, 12, 1> rot;
-    for (int a = 0; a < 4; ++a) rot.segment<3>(3 * a) = Eigen::Vector3d(0, 0, 1).cross(X.row(a).transpose());
+    for (int a = 0; a < 4; ++a)
+        rot.segment<3>(3 * a) = Eigen::Vector3d(0, 0, 1).cross(X.row(a).transpose());
     CHECK((K * rot).norm() < 1e-12 * K.norm());
     // u = eps * x e_x: energy density = 1/2 (lambda + 2 mu) eps^2 times the volume.
     const double eps = 1e-3;
     Eigen::Matrix<double, 12, 1> u = Eigen::Matrix<double, 12, 1>::Zero();
-    for (int a = 0; a < 4; ++a) u(3 * a) = eps * X(a, 0);
+    for (int a = 0; a < 4; ++a)
+        u(3 * a) = eps * X(a, 0);
     Eigen::Matrix3d E;
-    for (int k = 0; k < 3; ++k) E.col(k) = (X.row(k + 1) - X.row(0)).transpose();
+    for (int k = 0; k < 3; ++k)
+        E.col(k) = (X.row(k + 1) - X.row(0)).transpose();
     const double vol = E.determinant() / 6;
     const double lambda = m.E_MPa * m.nu / ((1 + m.nu) * (1 - 2 * m.nu));
     const double mu = m.E_MPa / (2 * (1 + m.nu));
@@ -76,7 +81,8 @@ TEST_CASE("patch test: a linear displacement field is reproduced to 1e-9", "[mec
         const Eigen::Vector3d x = mesh.V.row(v);
         u_exact.segment<3>(3 * v) = A * x + b;
         if (on_box_boundary(x)) {
-            for (int k = 0; k < 3; ++k) fixed[3 * v + k] = true;
+            for (int k = 0; k < 3; ++k)
+                fixed[3 * v + k] = true;
             u.segment<3>(3 * v) = u_exact.segment<3>(3 * v);
         } else {
             interior.push_back(v);
@@ -107,5 +113,6 @@ TEST_CASE("patch test: a linear displacement field is reproduced to 1e-9", "[mec
     CHECK((u - u_exact).cwiseAbs().maxCoeff() < 1e-9);
     // And the residual force at interior nodes vanishes for the exact field.
     const Eigen::VectorXd f = K * u_exact;
-    for (int v : interior) CHECK(f.segment<3>(3 * v).norm() < 1e-9);
+    for (int v : interior)
+        CHECK(f.segment<3>(3 * v).norm() < 1e-9);
 }

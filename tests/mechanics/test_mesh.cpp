@@ -29,7 +29,8 @@ TEST_CASE("marker pattern has 82 markers per layer in rings of 6, 12, 17, 21, 25
         REQUIRE(d.norm() == Approx(1.0).epsilon(1e-12));
         ++per_ring[std::lround(std::acos(d.z()) * 1800 / M_PI)];
     }
-    const std::map<long, int> expected{{0, 1}, {125, 6}, {250, 12}, {375, 17}, {500, 21}, {625, 25}};
+    const std::map<long, int> expected{{0, 1},    {125, 6},  {250, 12},
+                                       {375, 17}, {500, 21}, {625, 25}};
     CHECK(per_ring == expected);
 }
 
@@ -44,7 +45,8 @@ TEST_CASE("meshed shell volume is within 1% of the analytic hemispherical shell"
         INFO("layer " << layer);
         CHECK(mesh_volume(mesh, layer) == Approx(dome_layer_volume(dome, layer)).epsilon(0.02));
     }
-    for (int t = 0; t < mesh.T.rows(); ++t) REQUIRE(tet_volume(mesh, t) > 0);
+    for (int t = 0; t < mesh.T.rows(); ++t)
+        REQUIRE(tet_volume(mesh, t) > 0);
 }
 
 TEST_CASE("hollow interior: no node inside the inner radius, none below the rim plane",
@@ -80,8 +82,10 @@ TEST_CASE("coating interface is the 12.7 mm sphere, facing the centre", "[mechan
     REQUIRE(F.rows() > 100);
     double area = 0;
     for (int f = 0; f < F.rows(); ++f) {
-        const Eigen::Vector3d a = mesh.V.row(F(f, 0)), b = mesh.V.row(F(f, 1)), c = mesh.V.row(F(f, 2));
-        for (const auto& p : {a, b, c}) REQUIRE(p.norm() == Approx(12.7).epsilon(1e-9));
+        const Eigen::Vector3d a = mesh.V.row(F(f, 0)), b = mesh.V.row(F(f, 1)),
+                              c = mesh.V.row(F(f, 2));
+        for (const auto& p : {a, b, c})
+            REQUIRE(p.norm() == Approx(12.7).epsilon(1e-9));
         const Eigen::Vector3d n = (b - a).cross(c - a);
         REQUIRE(n.dot(a + b + c) < 0); // points inwards
         area += 0.5 * n.norm();

@@ -1,0 +1,239 @@
+#include "render/embree_scene.hpp"
+
+#include <embree3/rtcore.h>
+
+#include <array>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+namespace chromasim::render::detail {
+
+namespace {
+
+constexpr std::array<SurfaceKind, 3> kKinds = {SurfaceKind::coating, SurfaceKind::inner_marker,
+                                               SurfaceKind::outer_marker};
+
+unsigned geometry_id(SurfaceKind kind) {
+    return unsigned(kind) - 1;
+}
+
+const char* kind_name(SurfaceKind kind) {
+    switch (kind) {
+    case SurfaceKind::coating:
+        return "coating";
+    case SurfaceKind::inner_marker:
+        return "inner_markers";
+    case SurfaceKind::outer_marker:
+        return "outer_markers";
+    case SurfaceKind::none:
+        break;
+    }
+    return "none";
+}
+
+const char* error_name(RTCError code) {
+    switch (code) {
+    case RTC_ERROR_NONE:
+        return "RTC_ERROR_NONE";
+    case RTC_ERROR_UNKNOWN:
+        return "RTC_ERROR_UNKNOWN";
+    case RTC_ERROR_INVALID_ARGUMENT:
+        return "RTC_ERROR_INVALID_ARGUMENT";
+    case RTC_ERROR_INVALID_OPERATION:
+        return "RTC_ERROR_INVALID_OPERATION";
+    case RTC_ERROR_OUT_OF_MEMORY:
+        return "RTC_ERROR_OUT_OF_MEMORY";
+    case RTC_ERROR_UNSUPPORTED_CPU:
+        return "RTC_ERROR_UNSUPPORTED_CPU";
+    case RTC_ERROR_CANCELLED:
+        return "RTC_ERROR_CANCELLED";
+    }
+    return "unrecognised RTCError";
+}
+
+/// Embree's text for the last error raised on this thread. The callback only records it:
+/// throwing through Embree's C interface is not allowed, so `check` throws afterwards.
+thread_local std::string t_last_error_message;
+
+void record_error(void* /*user*/, RTCError /*code*/, const char* message) {
+    t_last_error_message = message ? message : "";
+}
+
+/// Throws std::runtime_error if Embree reported an error since the previous check.
+void check(RTCDevice device, const std::string& call) {
+    const RTCError code = rtcGetDeviceError(device);
+    if (code == RTC_ERROR_NONE) return;
+    std::string message = "Embree error in " + call + ": " + error_name(code);
+    if (!t_last_error_message.empty()) message += " (" + t_last_error_message + ")";
+    t_last_error_message.clear();
+    throw std::runtime_error(message);
+}
+
+/// Throws std::invalid_argument if a triangle indexes past the vertex array or a vertex is
+/// not finite (Embree would read out of bounds or build a broken BVH).
+void validate(const SurfaceMesh& mesh, SurfaceKind kind) {
+    const std::string where = std::string("SensorFrame::") + kind_name(kind);
+    if (mesh.F.size() > 0 && mesh.F.maxCoeff() >= std::uint64_t(mesh.V.rows())) {
+        throw std::invalid_argument(where + ": vertex index " + std::to_string(mesh.F.maxCoeff()) +
+                                    " is out of range; allowed: [0, " +
+                                    std::to_string(mesh.V.rows()) + ")");
+    }
+    if (!mesh.V.allFinite()) {
+        throw std::invalid_argument(where + ": vertex positions must be finite (found NaN/inf)");
+    }
+}
+
+/// One Embree triangle geometry and the arrays it shares with Embree.
+struct MeshSlot {
+    RTCGeometry geometry = nullptr;
+    VertexArray V;   ///< (#V + 1) x 3: the last row pads Embree's 16-byte vertex loads
+    TriangleArray F; ///< #F x 3
+    Eigen::Index vertex_count = 0;
+
+    bool has_topology_of(const SurfaceMesh& mesh) const {
+        return geometry && vertex_count == mesh.V.rows() && F.rows() == mesh.F.rows() &&
+               F == mesh.F;
+    }
+};
+
+} // namespace
+
+struct EmbreeScene::Impl {
+    RTCDevice device = nullptr;
+    RTCScene scene = nullptr;
+    std::array<MeshSlot, 3> slots; ///< indexed by Embree geometry ID
+    bool has_frame = false;
+
+    explicit Impl(const std::string& device_config);
+    ~Impl();
+    void release(MeshSlot& slot, unsigned id);
+    void create(MeshSlot& slot, const SurfaceMesh& mesh, unsigned id);
+    void refit(MeshSlot& slot, const SurfaceMesh& mesh);
+};
+
+EmbreeScene::Impl::Impl(const std::string& device_config) {
+    device = rtcNewDevice(device_config.c_str());
+    if (!device) {
+        throw std::runtime_error("Embree error in rtcNewDevice(\"" + device_config +
+                                 "\"): " + error_name(rtcGetDeviceError(nullptr)) +
+                                 " (check the device configuration string)");
+    }
+    rtcSetDeviceErrorFunction(device, record_error, nullptr);
+    scene = rtcNewScene(device);
+    // Two-level BVH (LOW) so that each geometry keeps its own BVH and honours the per-geometry
+    // REFIT quality; ROBUST keeps rays through shared vertices and edges (marker fan centres)
+    // from slipping through.
+    rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_LOW);
+    rtcSetSceneFlags(scene, RTC_SCENE_FLAG_DYNAMIC | RTC_SCENE_FLAG_ROBUST);
+    rtcCommitScene(scene); // an empty but valid scene: queries before set_frame miss
+    check(device, "creating the scene");
+}
+
+EmbreeScene::Impl::~Impl() {
+    for (MeshSlot& slot : slots) {
+        if (slot.geometry) rtcReleaseGeometry(slot.geometry);
+    }
+    if (scene) rtcReleaseScene(scene);
+    if (device) rtcReleaseDevice(device);
+}
+
+void EmbreeScene::Impl::release(MeshSlot& slot, unsigned id) {
+    if (!slot.geometry) return;
+    rtcDetachGeometry(scene, id);
+    rtcReleaseGeometry(slot.geometry);
+    slot.geometry = nullptr;
+    slot.vertex_count = 0;
+    check(device, "detaching geometry " + std::to_string(id));
+}
+
+void EmbreeScene::Impl::create(MeshSlot& slot, const SurfaceMesh& mesh, unsigned id) {
+    release(slot, id);
+    slot.vertex_count = mesh.V.rows();
+    slot.V.resize(slot.vertex_count + 1, 3);
+    slot.V.topRows(slot.vertex_count) = mesh.V;
+    slot.V.bottomRows(1).setZero();
+    slot.F = mesh.F;
+    slot.geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    rtcSetGeometryBuildQuality(slot.geometry, RTC_BUILD_QUALITY_REFIT);
+    rtcSetSharedGeometryBuffer(slot.geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                               slot.V.data(), 0, 3 * sizeof(float), size_t(slot.vertex_count));
+    rtcSetSharedGeometryBuffer(slot.geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                               slot.F.data(), 0, 3 * sizeof(std::uint32_t), size_t(slot.F.rows()));
+    rtcCommitGeometry(slot.geometry);
+    rtcAttachGeometryByID(scene, slot.geometry, id);
+    check(device, "creating geometry " + std::to_string(id));
+}
+
+void EmbreeScene::Impl::refit(MeshSlot& slot, const SurfaceMesh& mesh) {
+    slot.V.topRows(slot.vertex_count) = mesh.V;
+    rtcUpdateGeometryBuffer(slot.geometry, RTC_BUFFER_TYPE_VERTEX, 0);
+    rtcCommitGeometry(slot.geometry);
+    check(device, "updating vertices");
+}
+
+EmbreeScene::EmbreeScene(const std::string& device_config)
+    : m_impl(std::make_unique<Impl>(device_config)) {}
+
+EmbreeScene::~EmbreeScene() = default;
+
+bool EmbreeScene::has_frame() const {
+    return m_impl->has_frame;
+}
+
+SceneUpdate EmbreeScene::set_frame(const SensorFrame& frame) {
+    const std::array<const SurfaceMesh*, 3> meshes = {&frame.coating, &frame.inner_markers,
+                                                      &frame.outer_markers};
+    for (SurfaceKind kind : kKinds)
+        validate(*meshes[geometry_id(kind)], kind);
+
+    m_impl->has_frame = false; // until the commit below succeeds
+    SceneUpdate update = SceneUpdate::refitted;
+    for (SurfaceKind kind : kKinds) {
+        const unsigned id = geometry_id(kind);
+        MeshSlot& slot = m_impl->slots[id];
+        const SurfaceMesh& mesh = *meshes[id];
+        if (mesh.F.rows() == 0) {
+            if (slot.geometry) update = SceneUpdate::built;
+            m_impl->release(slot, id);
+        } else if (slot.has_topology_of(mesh)) {
+            m_impl->refit(slot, mesh);
+        } else {
+            m_impl->create(slot, mesh, id);
+            update = SceneUpdate::built;
+        }
+    }
+    rtcCommitScene(m_impl->scene);
+    check(m_impl->device, "rtcCommitScene");
+    m_impl->has_frame = true;
+    return update;
+}
+
+RayHit EmbreeScene::closest_hit(const Vec3& origin_mm, const Vec3& direction, double tnear_mm,
+                                double tfar_mm) const {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    RTCRayHit query{};
+    query.ray.org_x = float(origin_mm.x());
+    query.ray.org_y = float(origin_mm.y());
+    query.ray.org_z = float(origin_mm.z());
+    query.ray.dir_x = float(direction.x());
+    query.ray.dir_y = float(direction.y());
+    query.ray.dir_z = float(direction.z());
+    query.ray.tnear = float(tnear_mm);
+    query.ray.tfar = float(tfar_mm);
+    query.ray.mask = std::numeric_limits<unsigned>::max();
+    query.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    query.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(m_impl->scene, &context, &query);
+
+    RayHit hit;
+    if (query.hit.geomID == RTC_INVALID_GEOMETRY_ID) return hit;
+    hit.t_mm = query.ray.tfar;
+    hit.kind = SurfaceKind(query.hit.geomID + 1);
+    hit.prim_id = query.hit.primID;
+    hit.normal = Vec3(query.hit.Ng_x, query.hit.Ng_y, query.hit.Ng_z).normalized();
+    return hit;
+}
+
+} // namespace chromasim::render::detail

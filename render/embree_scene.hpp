@@ -1,0 +1,66 @@
+#pragma once
+/// The Embree adapter: the only part of chromasim that sees Embree types (STYLE.md). It holds
+/// the device, the scene and one triangle geometry per surface kind, and answers plain ray
+/// queries.
+#include "render/scene_data.hpp"
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+namespace chromasim::render::detail {
+
+/// What a ray hit. The values double as Embree geometry IDs plus one.
+enum class SurfaceKind : std::uint8_t { none = 0, coating = 1, inner_marker = 2, outer_marker = 3 };
+
+/// The closest intersection along a ray segment.
+struct RayHit {
+    double t_mm = 0.0;                    ///< distance along the (unit) ray direction
+    SurfaceKind kind = SurfaceKind::none; ///< none: the segment hit nothing
+    std::uint32_t prim_id = 0;            ///< triangle index within its SurfaceMesh
+    Vec3 normal{0.0, 0.0, 0.0};           ///< unit geometric normal (winding order decides the
+                                          ///< sign); zero for a degenerate triangle
+    bool hit() const { return kind != SurfaceKind::none; }
+};
+
+/// How `EmbreeScene::set_frame` brought the scene up to date.
+enum class SceneUpdate : std::uint8_t {
+    built,    ///< at least one geometry was (re)created: new topology, BVH built from scratch
+    refitted, ///< same topology everywhere: vertices copied in place, BVHs refitted
+};
+
+/// Embree device + scene with the coating, inner-marker and outer-marker triangle meshes.
+/// Vertex and index arrays are owned here (Eigen, row-major, the vertex array padded by one
+/// row as Embree requires) and shared with Embree without further copies. Ray queries are
+/// thread-safe once `set_frame` has returned; `set_frame` itself must not run concurrently
+/// with queries. Embree errors become std::runtime_error naming the call and Embree's message.
+class EmbreeScene {
+public:
+    /// `device_config` is Embree's device configuration string ("" = defaults, e.g.
+    /// "threads=4"). Throws std::runtime_error if Embree cannot create the device.
+    explicit EmbreeScene(const std::string& device_config = "");
+    ~EmbreeScene();
+    EmbreeScene(const EmbreeScene&) = delete;
+    EmbreeScene& operator=(const EmbreeScene&) = delete;
+
+    /// Loads the frame. A mesh whose vertex count and triangle array equal the previous
+    /// frame's is updated in place and refitted; any other mesh is rebuilt. Empty meshes
+    /// are left out of the scene. Throws std::invalid_argument on out-of-range vertex
+    /// indices or non-finite vertices (checked first: the previous frame stays loaded), and
+    /// std::runtime_error on Embree errors.
+    SceneUpdate set_frame(const SensorFrame& frame);
+
+    /// True once a frame is loaded.
+    bool has_frame() const;
+
+    /// Closest hit of the ray origin + t * direction with t in [tnear_mm, tfar_mm].
+    /// `direction` must be unit length so that t is in mm. Pre-condition: has_frame().
+    RayHit closest_hit(const Vec3& origin_mm, const Vec3& direction, double tnear_mm,
+                       double tfar_mm) const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> m_impl;
+};
+
+} // namespace chromasim::render::detail

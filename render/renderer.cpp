@@ -1,0 +1,201 @@
+// The coarse render stage: every pixel value comes from Embree rays through the deformed
+// sensor; no texture or analytic shortcut stands in for geometry.
+//
+// Shading model (linear RGB per channel; a full spectral path tracer comes later)
+// -------------------------------------------------------------------------------
+// Camera. Equidistant fisheye at the origin looking along +z (FisheyeCamera). Each pixel
+// averages `samples_per_pixel` jittered samples, one per stratum of an nx x ny grid (nx the
+// largest divisor of the count not above its square root). Samples outside the image circle
+// are black. The sample positions come from a SplitMix64 stream seeded with
+// (settings.seed, pixel index), so an image depends on neither the thread count nor the
+// order in which TBB runs the rows.
+//
+// Camera ray. Traced from the origin through the scene, surface after surface (closest hit,
+// then again from kHitGap_mm past it, at most kMaxHits surfaces), with an RGB throughput that
+// starts at 1. Normals are the triangles' geometric normals turned to face the camera ray,
+// so triangle winding never matters; cos is the cosine between ray and that normal.
+//   - inner marker (magenta, translucent filter): throughput *= exp(-a_in * L),
+//     L = marker_thickness_mm / |cos|, at most kMaxMarkerPath_mm (2 mm) for grazing rays.
+//   - outer marker (cyan, dyed scatterer): radiance += throughput * s * albedo_out / pi * E(p);
+//     then throughput *= (1 - s) * exp(-a_out * L). s = outer_marker_scatter_fraction.
+//   - coating (white, Lambertian): radiance += throughput * albedo_coat / pi * E(p); stop.
+//   - miss: stop (black).
+// Markers are thin discs (triangle fans), so one hit stands for the whole disc thickness.
+//
+// Irradiance. E(p) = sum over the led_count point LEDs (evenly on a ring of radius
+// led_ring_radius_mm at height led_z_mm, the first on +x, each emitting led_rgb with a
+// Lambertian (cosine) pattern about +z):
+//     I * max(0, cos_emit) * max(0, cos_surface) / d^2 * T(LED -> p),
+// where T multiplies, along the shadow segment (iterated Embree hits, stopping kHitGap_mm
+// before p), exp(-a_in * L) for each inner marker crossed, (1 - s) * exp(-a_out * L) for each
+// outer marker, and 0 if the coating is in the way (a deep indentation shadowing itself).
+// Light scattered between surfaces (coating -> marker -> coating) is left out.
+//
+// Exposure. Computed once per Renderer from OpticsParams and the undeformed geometry: the
+// radiance of the Lambertian coating at the apex (0, 0, kCoatingInnerRadius_mm) facing the
+// camera, lit by all LEDs with no markers, L_ref = max over channels of
+// albedo_coat / pi * E(apex). Image = radiance * exposure * 0.8 / L_ref, the same scale for
+// every frame so that frames of a sequence stay comparable.
+#include "render/renderer.hpp"
+
+#include "render/embree_scene.hpp"
+#include "render/fisheye_camera.hpp"
+#include "render/shading.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <numbers>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace chromasim::render {
+
+namespace detail {
+
+namespace {
+
+/// Inner radius of the white coating, mm [K] (SENSOR.md section 1): the undeformed surface
+/// the camera sees, so the apex used for auto exposure is (0, 0, 12.7).
+constexpr double kCoatingInnerRadius_mm = 12.7;
+/// Image value of the undeformed apex at exposure 1, headroom for brighter spots.
+constexpr double kApexImageValue = 0.8;
+
+std::uint64_t mix64(std::uint64_t z) {
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+}
+
+/// SplitMix64 stream for one pixel: cheap, statistically sound for jitter, and seeded from
+/// (seed, pixel) alone, which makes images independent of thread scheduling.
+class PixelRng {
+public:
+    PixelRng(std::uint64_t seed, std::uint64_t pixel_index)
+        : m_state(mix64(seed) ^ mix64(pixel_index + 0x9E3779B97F4A7C15ull)) {}
+
+    /// Uniform in [0, 1) with 53 random bits.
+    double uniform() {
+        m_state += 0x9E3779B97F4A7C15ull;
+        return double(mix64(m_state) >> 11) * 0x1.0p-53;
+    }
+
+private:
+    std::uint64_t m_state;
+};
+
+/// Stratum grid nx x ny == samples: nx is the largest divisor of samples not above
+/// sqrt(samples), so every count gives equal strata that tile the pixel (7 -> 1 x 7).
+std::pair<int, int> strata_grid(int samples) {
+    int nx = 1;
+    for (int d = 1; d * d <= samples; ++d) {
+        if (samples % d == 0) nx = d;
+    }
+    return {nx, samples / nx};
+}
+
+/// exposure * 0.8 / L_ref (see the model at the top of this file).
+double exposure_scale(const ShadingModel& shading) {
+    const Vec3 apex_mm(0.0, 0.0, kCoatingInnerRadius_mm);
+    const Vec3 normal(0.0, 0.0, -1.0);
+    const Rgb radiance = shading.optics().coating_albedo.array() / std::numbers::pi *
+                         shading.unoccluded_irradiance(apex_mm, normal);
+    const double reference = radiance.maxCoeff();
+    if (!(reference > 0.0)) {
+        throw std::invalid_argument(
+            "OpticsParams: the LEDs leave the undeformed apex (0, 0, 12.7) mm dark, so auto "
+            "exposure is undefined; allowed: led_rgb and coating_albedo not all zero, and "
+            "led_z_mm below the apex so that the LEDs shine on it");
+    }
+    return shading.optics().exposure * kApexImageValue / reference;
+}
+
+/// Throws std::invalid_argument unless the marker meshes split into whole fans.
+void validate_marker_layout(const SensorFrame& frame) {
+    const Eigen::Index tpm = frame.triangles_per_marker;
+    for (const auto* mesh : {&frame.inner_markers, &frame.outer_markers}) {
+        const Eigen::Index n = mesh->F.rows();
+        if (n == 0) continue;
+        if (tpm < 1 || n % tpm != 0) {
+            throw std::invalid_argument(
+                "SensorFrame: triangles_per_marker = " + std::to_string(tpm) +
+                " does not divide the " + std::to_string(n) +
+                " marker triangles; allowed: an integer >= 1 that divides each marker mesh's "
+                "triangle count");
+        }
+    }
+}
+
+} // namespace
+
+} // namespace detail
+
+struct Renderer::Impl {
+    FisheyeCamera camera;
+    detail::ShadingModel shading;
+    detail::EmbreeScene scene;
+    double scale; ///< image value per unit radiance
+
+    Impl(const CameraParams& camera_params, const OpticsParams& optics)
+        : camera(camera_params), shading(optics), scale(detail::exposure_scale(shading)) {}
+
+    /// Mean radiance over the pixel's jittered samples, times `scale`.
+    detail::Rgb render_pixel(int x, int y, const RenderSettings& settings) const {
+        const auto [nx, ny] = detail::strata_grid(settings.samples_per_pixel);
+        const std::uint64_t index = std::uint64_t(y) * std::uint64_t(camera.width_px()) + x;
+        detail::PixelRng rng(settings.seed, index);
+        detail::Rgb sum = detail::Rgb::Zero();
+        for (int sy = 0; sy < ny; ++sy) {
+            for (int sx = 0; sx < nx; ++sx) {
+                const double u = (sx + rng.uniform()) / nx;
+                const double v = (sy + rng.uniform()) / ny;
+                const auto direction = camera.direction(Eigen::Vector2d(x + u, y + v));
+                if (direction) sum += shading.radiance(scene, Vec3::Zero(), *direction);
+            }
+        }
+        return sum * (scale / settings.samples_per_pixel);
+    }
+};
+
+Renderer::Renderer(const CameraParams& camera, const OpticsParams& optics)
+    : m_impl(std::make_unique<Impl>(camera, optics)) {}
+
+Renderer::~Renderer() = default;
+
+void Renderer::set_frame(const SensorFrame& frame) {
+    detail::validate_marker_layout(frame);
+    m_impl->scene.set_frame(frame);
+}
+
+Image Renderer::render(const RenderSettings& settings) const {
+    if (settings.samples_per_pixel < 1) {
+        throw std::invalid_argument(
+            "RenderSettings: samples_per_pixel = " + std::to_string(settings.samples_per_pixel) +
+            " is invalid; allowed: integer >= 1");
+    }
+    if (!m_impl->scene.has_frame()) {
+        throw std::logic_error("Renderer::render called before set_frame");
+    }
+    Image image;
+    image.width = m_impl->camera.width_px();
+    image.height = m_impl->camera.height_px();
+    image.rgb.assign(3 * std::size_t(image.width) * image.height, 0.0f);
+    tbb::parallel_for(tbb::blocked_range<int>(0, image.height), [&](const auto& rows) {
+        for (int y = rows.begin(); y != rows.end(); ++y) {
+            for (int x = 0; x < image.width; ++x) {
+                const detail::Rgb value = m_impl->render_pixel(x, y, settings);
+                float* out = image.pixel(x, y);
+                for (int c = 0; c < 3; ++c)
+                    out[c] = float(value[c]);
+            }
+        }
+    });
+    return image;
+}
+
+std::optional<Eigen::Vector2d> Renderer::project(const Vec3& p_mm) const {
+    return m_impl->camera.project(p_mm);
+}
+
+} // namespace chromasim::render

@@ -1,0 +1,447 @@
+// Tests of chromasim::render against analytic answers on a small synthetic sensor: a UV
+// hemisphere of radius 12.7 mm as the coating and 12-triangle marker discs (radius 0.5 mm).
+#include "render/embree_scene.hpp"
+#include "render/fisheye_camera.hpp"
+#include "render/renderer.hpp"
+#include "render/shading.hpp"
+
+#include <Eigen/Geometry>
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+#include <vector>
+
+using namespace chromasim::render;
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+constexpr double kDeg = kPi / 180.0;
+constexpr int kTrianglesPerMarker = 12;
+constexpr double kMarkerRadius_mm = 0.5;
+constexpr double kInnerMarkerZ_mm = 10.75;
+constexpr double kOuterMarkerRadius_mm = 12.45;
+
+Vec3 unit_from_angles(double polar_deg, double azimuth_deg) {
+    const double theta = polar_deg * kDeg;
+    const double phi = azimuth_deg * kDeg;
+    return {std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta)};
+}
+
+/// Growable triangle soup that becomes a SurfaceMesh.
+struct MeshBuilder {
+    std::vector<Vec3> vertices;
+    std::vector<std::array<std::uint32_t, 3>> triangles;
+
+    std::uint32_t add_vertex(const Vec3& v) {
+        vertices.push_back(v);
+        return std::uint32_t(vertices.size() - 1);
+    }
+    SurfaceMesh build() const {
+        SurfaceMesh mesh;
+        mesh.V.resize(Eigen::Index(vertices.size()), 3);
+        mesh.F.resize(Eigen::Index(triangles.size()), 3);
+        for (std::size_t i = 0; i < vertices.size(); ++i)
+            mesh.V.row(i) = vertices[i].cast<float>();
+        for (std::size_t i = 0; i < triangles.size(); ++i) {
+            for (int k = 0; k < 3; ++k)
+                mesh.F(Eigen::Index(i), k) = triangles[i][k];
+        }
+        return mesh;
+    }
+};
+
+/// UV hemisphere z >= 0 with its pole on +z, rings every 90/rings degrees, normals inwards.
+SurfaceMesh hemisphere(double radius_mm, int rings, int segments) {
+    MeshBuilder mesh;
+    const std::uint32_t pole = mesh.add_vertex(Vec3(0.0, 0.0, radius_mm));
+    for (int i = 1; i <= rings; ++i) {
+        for (int j = 0; j < segments; ++j) {
+            mesh.add_vertex(radius_mm * unit_from_angles(90.0 * i / rings, 360.0 * j / segments));
+        }
+    }
+    auto ring_vertex = [&](int i, int j) {
+        return std::uint32_t(1 + (i - 1) * segments + j % segments);
+    };
+    for (int j = 0; j < segments; ++j)
+        mesh.triangles.push_back({pole, ring_vertex(1, j + 1), ring_vertex(1, j)});
+    for (int i = 1; i < rings; ++i) {
+        for (int j = 0; j < segments; ++j) {
+            const std::uint32_t a = ring_vertex(i, j), b = ring_vertex(i, j + 1);
+            const std::uint32_t c = ring_vertex(i + 1, j), d = ring_vertex(i + 1, j + 1);
+            mesh.triangles.push_back({a, b, c});
+            mesh.triangles.push_back({b, d, c});
+        }
+    }
+    return mesh.build();
+}
+
+/// Appends a disc of `kTrianglesPerMarker` fan triangles centred at `centre_mm`.
+void add_disc(MeshBuilder& mesh, const Vec3& centre_mm, const Vec3& normal,
+              double radius_mm = kMarkerRadius_mm) {
+    const Vec3 n = normal.normalized();
+    const Vec3 u = n.unitOrthogonal();
+    const Vec3 v = n.cross(u);
+    const std::uint32_t centre = mesh.add_vertex(centre_mm);
+    for (int k = 0; k < kTrianglesPerMarker; ++k) {
+        const double phi = 2.0 * kPi * k / kTrianglesPerMarker;
+        mesh.add_vertex(centre_mm + radius_mm * (std::cos(phi) * u + std::sin(phi) * v));
+    }
+    for (std::uint32_t k = 0; k < kTrianglesPerMarker; ++k) {
+        mesh.triangles.push_back(
+            {centre, centre + 1 + k, centre + 1 + (k + 1) % kTrianglesPerMarker});
+    }
+}
+
+SurfaceMesh discs(const std::vector<std::pair<Vec3, Vec3>>& centres_and_normals) {
+    MeshBuilder mesh;
+    for (const auto& [centre, normal] : centres_and_normals)
+        add_disc(mesh, centre, normal);
+    return mesh.build();
+}
+
+/// Coating only; markers get added by the tests.
+SensorFrame bare_frame() {
+    SensorFrame frame;
+    frame.coating = hemisphere(12.7, 90, 96);
+    frame.triangles_per_marker = kTrianglesPerMarker;
+    return frame;
+}
+
+const Vec3 kOuterMarkerDirection = unit_from_angles(25.0, 90.0);
+
+/// Inner marker at the apex, outer marker at polar 25 deg, azimuth 90 deg (SensorFrame docs).
+SensorFrame marker_frame() {
+    SensorFrame frame = bare_frame();
+    frame.inner_markers = discs({{Vec3(0.0, 0.0, kInnerMarkerZ_mm), Vec3::UnitZ()}});
+    frame.outer_markers =
+        discs({{kOuterMarkerRadius_mm * kOuterMarkerDirection, kOuterMarkerDirection}});
+    return frame;
+}
+
+/// Direct irradiance of the LED ring at p (normal facing the light), written independently
+/// of the renderer; `transmission(led, w)` gives the shadow transmittance per LED.
+template <class Transmission>
+Eigen::Array3d analytic_irradiance(const OpticsParams& o, const Vec3& p, const Vec3& normal,
+                                   Transmission transmission) {
+    Eigen::Array3d total = Eigen::Array3d::Zero();
+    for (int k = 0; k < o.led_count; ++k) {
+        const double phi = 2.0 * kPi * k / o.led_count;
+        const Vec3 led(o.led_ring_radius_mm * std::cos(phi), o.led_ring_radius_mm * std::sin(phi),
+                       o.led_z_mm);
+        const Vec3 w = (p - led).normalized();
+        const double geometry =
+            std::max(0.0, w.z()) * std::max(0.0, -w.dot(normal)) / (p - led).squaredNorm();
+        total += o.led_rgb.array() * geometry * transmission(led, w);
+    }
+    return total;
+}
+
+Eigen::Array3d unshadowed(const Vec3&, const Vec3&) {
+    return Eigen::Array3d::Ones();
+}
+
+Eigen::Array3d pixel(const Image& image, int x, int y) {
+    const float* p = image.pixel(x, y);
+    return {p[0], p[1], p[2]};
+}
+
+/// Pixel containing the projection of p.
+Eigen::Array3d pixel_at(const Renderer& renderer, const Image& image, const Vec3& p) {
+    const auto xy = renderer.project(p);
+    REQUIRE(xy);
+    return pixel(image, int(std::floor(xy->x())), int(std::floor(xy->y())));
+}
+
+Image render_frame(const CameraParams& camera, const OpticsParams& optics, const SensorFrame& frame,
+                   int spp = 2, std::uint64_t seed = 1) {
+    Renderer renderer(camera, optics);
+    renderer.set_frame(frame);
+    return renderer.render({spp, seed});
+}
+
+/// 33 x 33 px over +-8 deg: the centre pixel sees only the apex region (+-0.25 deg).
+const CameraParams kNarrowCamera{33, 33, 8.0};
+const CameraParams kWideCamera{128, 128, 84.0};
+
+bool all_finite(const Image& image) {
+    return std::all_of(image.rgb.begin(), image.rgb.end(),
+                       [](float v) { return std::isfinite(v); });
+}
+
+} // namespace
+
+TEST_CASE("fisheye projection is equidistant about the image centre", "[render]") {
+    const CameraParams params{80, 60, 84.0}; // min(w, h) = 60: circle radius 30 px
+    const Renderer renderer(params, OpticsParams{});
+    const Eigen::Vector2d centre(40.0, 30.0);
+    for (double polar : {0.0, 10.0, 42.0, 84.0}) {
+        for (double azimuth : {0.0, 30.0, 135.0, -100.0}) {
+            const Vec3 p = 7.0 * unit_from_angles(polar, azimuth);
+            const auto xy = renderer.project(p);
+            REQUIRE(xy);
+            const Eigen::Vector2d expected =
+                centre + polar / 84.0 * 30.0 *
+                             Eigen::Vector2d(std::cos(azimuth * kDeg), std::sin(azimuth * kDeg));
+            CHECK((*xy - expected).norm() < 1e-9);
+        }
+    }
+    CHECK_FALSE(renderer.project(unit_from_angles(84.5, 10.0)));
+    CHECK_FALSE(renderer.project(Vec3::Zero()));
+
+    const FisheyeCamera camera(params);
+    for (const Eigen::Vector2d& px : {Eigen::Vector2d(40.0, 30.0), Eigen::Vector2d(22.3, 40.6),
+                                      Eigen::Vector2d(55.5, 20.25), Eigen::Vector2d(40.0, 0.5)}) {
+        const auto direction = camera.direction(px);
+        REQUIRE(direction);
+        CHECK(std::abs(direction->norm() - 1.0) < 1e-12);
+        const auto back = camera.project(12.7 * *direction);
+        REQUIRE(back);
+        CHECK((*back - px).norm() < 1e-9);
+    }
+    CHECK_FALSE(camera.direction(Eigen::Vector2d(0.5, 0.5))); // a corner: outside the circle
+    CHECK_THROWS_AS(FisheyeCamera(CameraParams{0, 10, 84.0}), std::invalid_argument);
+    CHECK_THROWS_AS(FisheyeCamera(CameraParams{10, 10, 190.0}), std::invalid_argument);
+}
+
+TEST_CASE("apex pixels equal analytic products of irradiance and transmittances", "[render]") {
+    OpticsParams optics;
+    optics.exposure = 1.3;
+    const double white = 0.8 * optics.exposure;
+    const Eigen::Array3d a_in = optics.inner_marker_absorption_per_mm.array();
+    const Eigen::Array3d a_out = optics.outer_marker_absorption_per_mm.array();
+    const double s = optics.outer_marker_scatter_fraction;
+    const int c = kNarrowCamera.width_px / 2; // the centre pixel looks along +z
+
+    const Image bare = render_frame(kNarrowCamera, optics, bare_frame());
+    const Eigen::Array3d background = pixel(bare, c, c);
+    SECTION("white coating at the apex: auto exposure and the LED irradiance sum") {
+        for (int k = 0; k < 3; ++k)
+            CHECK(background[k] == Approx(white).epsilon(1e-3));
+    }
+    SECTION("inner marker at the apex: one Beer-Lambert factor exp(-a * 0.5 mm)") {
+        // The shadow segments LED -> apex cross z = 10.75 mm at 10 * 1.95 / 13.7 = 1.42 mm
+        // from the axis, outside the 0.5 mm disc: only the view ray is filtered.
+        SensorFrame frame = bare_frame();
+        frame.inner_markers = discs({{Vec3(0.0, 0.0, kInnerMarkerZ_mm), Vec3::UnitZ()}});
+        const Eigen::Array3d value = pixel(render_frame(kNarrowCamera, optics, frame), c, c);
+        const Eigen::Array3d expected = (-a_in * optics.marker_thickness_mm).exp();
+        for (int k = 0; k < 3; ++k) {
+            // 1e-4: the pixel's rays tilt up to 0.35 deg, lengthening the path by 2e-5.
+            CHECK(value[k] / background[k] == Approx(expected[k]).epsilon(1e-4));
+            CHECK(value[k] == Approx(white * expected[k]).epsilon(1e-3));
+        }
+    }
+    SECTION("inner marker just below the apex: filtered on the view and on every LED path") {
+        // At z = 12.2 mm each LED -> apex segment crosses the disc 10 * 0.5 / 13.7 = 0.36 mm
+        // from the axis, inside the 12-gon; all six LEDs see the apex at the same angle.
+        SensorFrame frame = bare_frame();
+        frame.inner_markers = discs({{Vec3(0.0, 0.0, 12.2), Vec3::UnitZ()}});
+        const Eigen::Array3d value = pixel(render_frame(kNarrowCamera, optics, frame), c, c);
+        const Vec3 led_to_apex = (Vec3(0.0, 0.0, 12.7) - Vec3(10.0, 0.0, -1.0)).normalized();
+        const double t = optics.marker_thickness_mm;
+        const Eigen::Array3d expected =
+            white * (-a_in * t).exp() * (-a_in * t / led_to_apex.z()).exp();
+        for (int k = 0; k < 3; ++k)
+            CHECK(value[k] == Approx(expected[k]).epsilon(1e-3));
+    }
+    SECTION("outer marker at the apex: scattered part plus doubly filtered coating") {
+        SensorFrame frame = bare_frame();
+        const Vec3 centre(0.0, 0.0, kOuterMarkerRadius_mm);
+        frame.outer_markers = discs({{centre, Vec3::UnitZ()}});
+        const Eigen::Array3d value = pixel(render_frame(kNarrowCamera, optics, frame), c, c);
+
+        const Vec3 apex(0.0, 0.0, 12.7);
+        const Vec3 down(0.0, 0.0, -1.0);
+        auto through_disc = [&](const Vec3& led, const Vec3& w) {
+            // Every LED -> apex segment crosses the disc plane inside the 12-gon's incircle.
+            const Vec3 crossing = led + (centre.z() - led.z()) / w.z() * w;
+            REQUIRE(crossing.head<2>().norm() < kMarkerRadius_mm * std::cos(kPi / 12.0));
+            const double path = std::min(optics.marker_thickness_mm / std::abs(w.z()), 2.0);
+            return Eigen::Array3d((1.0 - s) * (-a_out * path).exp());
+        };
+        const Eigen::Array3d albedo_c = optics.coating_albedo.array();
+        const double scale =
+            white /
+            (albedo_c / kPi * analytic_irradiance(optics, apex, down, unshadowed)).maxCoeff();
+        const Eigen::Array3d scattered = s * optics.outer_marker_albedo.array() / kPi *
+                                         analytic_irradiance(optics, centre, down, unshadowed);
+        const Eigen::Array3d behind = (1.0 - s) * (-a_out * optics.marker_thickness_mm).exp() *
+                                      albedo_c / kPi *
+                                      analytic_irradiance(optics, apex, down, through_disc);
+        const Eigen::Array3d expected = scale * (scattered + behind);
+        for (int k = 0; k < 3; ++k)
+            CHECK(value[k] == Approx(expected[k]).epsilon(1e-3));
+    }
+}
+
+TEST_CASE("the image has structure, a black surround and coloured markers", "[render]") {
+    const OpticsParams optics;
+    Renderer renderer(kWideCamera, optics);
+    renderer.set_frame(marker_frame());
+    const Image image = renderer.render({2, 1});
+    REQUIRE(all_finite(image));
+
+    const auto [lo, hi] = std::minmax_element(image.rgb.begin(), image.rgb.end());
+    CHECK(*hi - *lo > 0.3f);
+
+    // Pixels whose every corner lies outside the image circle are exactly black.
+    const double radius = 64.0;
+    int outside = 0;
+    for (int y = 0; y < image.height; ++y) {
+        for (int x = 0; x < image.width; ++x) {
+            const double dx = std::min(std::abs(x - 64.0), std::abs(x + 1 - 64.0));
+            const double dy = std::min(std::abs(y - 64.0), std::abs(y + 1 - 64.0));
+            if (std::hypot(dx, dy) <= radius) continue;
+            ++outside;
+            CHECK(pixel(image, x, y).isZero(0.0));
+        }
+    }
+    CHECK(outside > 1000);
+
+    // Inner marker: magenta (green absorbed); outer marker: cyan (red absorbed). The
+    // background pixel sits at the outer marker's polar angle, away from both markers.
+    const Eigen::Array3d background = pixel_at(renderer, image, unit_from_angles(25.0, 200.0));
+    const Eigen::Array3d inner = pixel_at(renderer, image, Vec3(0.0, 0.0, kInnerMarkerZ_mm));
+    const Eigen::Array3d outer = pixel_at(renderer, image, kOuterMarkerDirection);
+    CHECK(background[0] == Approx(background[1]).epsilon(1e-6)); // white coating, white LEDs
+    CHECK(inner[1] / inner[0] < 0.5 * background[1] / background[0]);
+    CHECK(inner[2] / inner[1] > 2.0 * background[2] / background[1]);
+    CHECK(outer[0] / outer[1] < 0.5 * background[0] / background[1]);
+    CHECK(outer[2] / outer[1] == Approx(1.0).margin(0.25));
+}
+
+TEST_CASE("rendering is deterministic and refitting equals a fresh build", "[render]") {
+    const OpticsParams optics;
+    const CameraParams camera{64, 64, 84.0};
+    const SensorFrame frame = marker_frame();
+
+    Renderer renderer(camera, optics);
+    renderer.set_frame(frame);
+    const Image first = renderer.render({2, 7});
+    CHECK(renderer.render({2, 7}).rgb == first.rgb);
+    CHECK(renderer.render({2, 8}).rgb != first.rgb); // the seed drives the jitter
+
+    // Press the apex region in by up to 1 mm and shift the markers: same topology.
+    SensorFrame moved = frame;
+    for (Eigen::Index i = 0; i < moved.coating.V.rows(); ++i) {
+        const Eigen::Vector3f v = moved.coating.V.row(i);
+        const float weight = std::max(0.0f, v.z() / 12.7f - 0.9f) * 10.0f;
+        moved.coating.V.row(i) = v * (1.0f - weight / 12.7f);
+    }
+    moved.inner_markers.V.rowwise() += Eigen::RowVector3f(0.3f, -0.2f, 0.1f);
+    moved.outer_markers.V.rowwise() += Eigen::RowVector3f(-0.1f, 0.4f, 0.0f);
+
+    renderer.set_frame(moved); // refit
+    const Image refitted = renderer.render({2, 7});
+    CHECK(refitted.rgb != first.rgb);
+    CHECK(render_frame(camera, optics, moved, 2, 7).rgb == refitted.rgb);
+}
+
+TEST_CASE("EmbreeScene refits in place when the topology is unchanged", "[render]") {
+    detail::EmbreeScene scene;
+    CHECK_FALSE(scene.closest_hit(Vec3::Zero(), Vec3::UnitZ(), 0.0, 100.0).hit());
+
+    SensorFrame frame = marker_frame();
+    CHECK(scene.set_frame(frame) == detail::SceneUpdate::built);
+    const Vec3 axis = Vec3(0.01, 0.02, 1.0).normalized(); // off the fan's centre vertex
+    auto first = scene.closest_hit(Vec3::Zero(), axis, 0.0, 100.0);
+    CHECK(first.kind == detail::SurfaceKind::inner_marker);
+    CHECK(first.t_mm == Approx(kInnerMarkerZ_mm / axis.z()).epsilon(1e-6));
+    CHECK(std::abs(first.normal.z()) == Approx(1.0).epsilon(1e-6));
+
+    frame.inner_markers.V.col(2).array() += 0.5f;
+    CHECK(scene.set_frame(frame) == detail::SceneUpdate::refitted);
+    const auto moved = scene.closest_hit(Vec3::Zero(), axis, 0.0, 100.0);
+    CHECK(moved.t_mm == Approx((kInnerMarkerZ_mm + 0.5) / axis.z()).epsilon(1e-6));
+    const auto behind = scene.closest_hit(Vec3::Zero(), axis, moved.t_mm + 1e-3, 100.0);
+    CHECK(behind.kind == detail::SurfaceKind::coating);
+
+    frame.inner_markers = SurfaceMesh{}; // topology change: rebuild
+    CHECK(scene.set_frame(frame) == detail::SceneUpdate::built);
+    CHECK(scene.closest_hit(Vec3::Zero(), axis, 0.0, 100.0).kind == detail::SurfaceKind::coating);
+}
+
+TEST_CASE("shadow transmittance multiplies marker transmissions, the coating blocks", "[render]") {
+    const OpticsParams optics;
+    const detail::ShadingModel shading(optics);
+    SensorFrame frame = marker_frame();
+    frame.outer_markers = discs({{Vec3(0.0, 0.0, kOuterMarkerRadius_mm), Vec3::UnitZ()}});
+    detail::EmbreeScene scene;
+    scene.set_frame(frame);
+    const Vec3 from(0.0, 0.0, 1.0);
+    const detail::Rgb inner = (-optics.inner_marker_absorption_per_mm.array() * 0.5).exp();
+    const detail::Rgb outer = (1.0 - optics.outer_marker_scatter_fraction) *
+                              (-optics.outer_marker_absorption_per_mm.array() * 0.5).exp();
+    const detail::Rgb clear = shading.transmittance(scene, from, Vec3(0.0, 0.0, 10.0));
+    const detail::Rgb one = shading.transmittance(scene, from, Vec3(0.0, 0.0, 12.0));
+    const detail::Rgb two = shading.transmittance(scene, from, Vec3(0.0, 0.0, 12.6));
+    const detail::Rgb blocked = shading.transmittance(scene, from, Vec3(0.0, 0.0, 14.0));
+    for (int k = 0; k < 3; ++k) {
+        CHECK(clear[k] == 1.0);
+        CHECK(one[k] == Approx(inner[k]).epsilon(1e-12));
+        CHECK(two[k] == Approx(inner[k] * outer[k]).epsilon(1e-12));
+        CHECK(blocked[k] == 0.0);
+    }
+}
+
+TEST_CASE("grazing rays through markers stay finite and clamp the path", "[render]") {
+    CHECK(detail::marker_path_mm(0.5, 1.0) == 0.5);
+    CHECK(detail::marker_path_mm(0.5, -0.5) == 1.0);
+    CHECK(detail::marker_path_mm(0.5, 0.0) == detail::kMaxMarkerPath_mm);
+    CHECK(detail::marker_path_mm(0.5, 1e-300) == detail::kMaxMarkerPath_mm);
+
+    // A ray along (almost) +z through an inner disc tilted 85 deg: |cos| = 0.087, so the
+    // path is clamped to 2 mm (unclamped it would be 5.7 mm).
+    const OpticsParams optics;
+    const detail::ShadingModel shading(optics);
+    SensorFrame frame = bare_frame();
+    const Vec3 tilted_normal = unit_from_angles(85.0, 0.0);
+    frame.inner_markers = discs({{Vec3(0.0, 0.0, kInnerMarkerZ_mm), tilted_normal}});
+    detail::EmbreeScene with_disc, without_disc;
+    with_disc.set_frame(frame);
+    without_disc.set_frame(bare_frame());
+    const Vec3 ray = Vec3(0.0, 0.001, 1.0).normalized();
+    const detail::Rgb seen = shading.radiance(with_disc, Vec3::Zero(), ray);
+    const detail::Rgb reference = shading.radiance(without_disc, Vec3::Zero(), ray);
+    const detail::Rgb expected = (-optics.inner_marker_absorption_per_mm.array() * 2.0).exp();
+    for (int k = 0; k < 3; ++k)
+        CHECK(seen[k] / reference[k] == Approx(expected[k]).epsilon(1e-9));
+
+    // Whole images with discs seen edge-on and nearly edge-on, one absorption channel zero
+    // (an infinite path would turn 0 * inf into NaN).
+    OpticsParams clear_red = optics;
+    clear_red.inner_marker_absorption_per_mm.x() = 0.0;
+    frame.inner_markers = discs({{Vec3(0.0, 0.0, kInnerMarkerZ_mm), Vec3::UnitX()},
+                                 {Vec3(2.0, 0.0, 10.5), unit_from_angles(89.99, 180.0)},
+                                 {Vec3(0.0, 3.0, 10.3), unit_from_angles(90.0, 90.0)}});
+    frame.outer_markers = discs({{Vec3(-3.0, 0.0, 12.0), Vec3::UnitX()}});
+    CHECK(all_finite(render_frame(CameraParams{64, 64, 84.0}, clear_red, frame)));
+}
+
+TEST_CASE("bad input is reported, not rendered", "[render]") {
+    OpticsParams optics;
+    optics.outer_marker_scatter_fraction = 1.5;
+    CHECK_THROWS_AS(Renderer(CameraParams{}, optics), std::invalid_argument);
+    optics = OpticsParams{};
+    optics.led_z_mm = 20.0; // above the dome: the apex is dark, no auto exposure
+    CHECK_THROWS_AS(Renderer(CameraParams{}, optics), std::invalid_argument);
+
+    Renderer renderer(CameraParams{16, 16, 84.0}, OpticsParams{});
+    CHECK_THROWS_AS(renderer.render({1, 1}), std::logic_error);
+    SensorFrame frame = marker_frame();
+    frame.triangles_per_marker = 5;
+    CHECK_THROWS_AS(renderer.set_frame(frame), std::invalid_argument);
+    frame = marker_frame();
+    frame.coating.F(0, 1) = std::uint32_t(frame.coating.V.rows());
+    CHECK_THROWS_AS(renderer.set_frame(frame), std::invalid_argument);
+    renderer.set_frame(marker_frame());
+    CHECK_THROWS_AS(renderer.render({0, 1}), std::invalid_argument);
+
+    CHECK_THROWS_WITH(detail::EmbreeScene("threads=abc"),
+                      Catch::Contains("Embree error in rtcNewDevice"));
+}
