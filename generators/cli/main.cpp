@@ -1,4 +1,5 @@
 // chromasim: the command line. Parses arguments and calls the libraries; nothing else.
+#include "generators/bench.hpp"
 #include "generators/generate.hpp"
 #include "generators/spec.hpp"
 
@@ -57,6 +58,27 @@ int main(int argc, char** argv) {
 
     auto* schema = app.add_subcommand("schema", "print every spec key (Markdown table)");
 
+    auto* bench = app.add_subcommand("bench", "print speed and accuracy tables (medians)");
+    bench->require_subcommand(1);
+    gen::DomeBenchOptions dome_bench;
+    auto* bench_dome = bench->add_subcommand("dome", "mesh level vs accuracy and time");
+    bench_dome->add_option("--levels", dome_bench.levels, "mesh levels; the last is the reference")
+        ->delimiter(',')
+        ->check(CLI::IsMember({"coarse", "medium", "fine"}));
+    bench_dome->add_option("--repeat", dome_bench.repeats, "timed frames per level")
+        ->check(CLI::Range(1, 1000));
+    gen::RenderBenchOptions render_bench;
+    auto* bench_render = bench->add_subcommand("render", "samples per pixel vs error and time");
+    bench_render->add_option("--spp", render_bench.samples_per_pixel, "samples per pixel")
+        ->delimiter(',')
+        ->check(CLI::Range(1, 4096));
+    bench_render->add_option("--reference-spp", render_bench.reference_spp, "error reference")
+        ->check(CLI::Range(1, 4096));
+    bench_render->add_option("--size", render_bench.size_px, "image width = height, px")
+        ->check(CLI::Range(16, 4096));
+    bench_render->add_option("--repeat", render_bench.repeats, "timed renders per setting")
+        ->check(CLI::Range(1, 1000));
+
     CLI11_PARSE(app, argc, argv);
     std::unique_ptr<tbb::global_control> limit;
     if (threads > 0)
@@ -72,6 +94,14 @@ int main(int argc, char** argv) {
                 gen::load_spec(p);
             for (const auto& p : validate_paths)
                 std::cout << p << ": ok\n";
+            return 0;
+        }
+        if (*bench_dome) {
+            gen::bench_dome(dome_bench, std::cout);
+            return 0;
+        }
+        if (*bench_render) {
+            gen::bench_render(render_bench, std::cout);
             return 0;
         }
         if (*schema) {

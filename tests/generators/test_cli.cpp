@@ -7,6 +7,8 @@
 #include <sstream>
 #include <string>
 
+#include <unistd.h>
+
 namespace fs = std::filesystem;
 
 namespace {
@@ -19,7 +21,8 @@ struct Run {
 Run run_chromasim(const std::string& args) {
     const char* exe = std::getenv("CHROMASIM_EXE");
     REQUIRE(exe != nullptr); // set by CTest (tests/CMakeLists.txt)
-    const fs::path log = fs::temp_directory_path() / "chromasim_cli_test.log";
+    const fs::path log = fs::temp_directory_path() /
+                         ("chromasim_cli_test_" + std::to_string(::getpid()) + ".log");
     const std::string cmd = std::string(exe) + " " + args + " >" + log.string() + " 2>&1";
     const int status = std::system(cmd.c_str());
     std::ifstream in(log);
@@ -29,7 +32,7 @@ Run run_chromasim(const std::string& args) {
 }
 
 fs::path write_spec(const std::string& name, const std::string& text) {
-    const fs::path p = fs::temp_directory_path() / name;
+    const fs::path p = fs::temp_directory_path() / (std::to_string(::getpid()) + "_" + name);
     std::ofstream(p) << text;
     return p;
 }
@@ -44,7 +47,8 @@ TEST_CASE("validate accepts the quickstart spec", "[generators][cli]") {
 
 TEST_CASE("a bad spec stops generate before any work and writes nothing", "[generators][cli]") {
     const fs::path spec = write_spec("chromasim_bad.yaml", "name: bad\nrender:\n  width_px: -3\n");
-    const fs::path out = fs::temp_directory_path() / "chromasim_cli_bad_out";
+    const fs::path out =
+        fs::temp_directory_path() / ("chromasim_cli_bad_out_" + std::to_string(::getpid()));
     fs::remove_all(out);
     const Run r = run_chromasim("generate " + spec.string() + " -o " + out.string());
     INFO(r.output);

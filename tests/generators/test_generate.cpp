@@ -13,13 +13,17 @@
 #include <sstream>
 #include <vector>
 
+#include <unistd.h>
+
 namespace fs = std::filesystem;
 using namespace chromasim::generators;
 
 namespace {
 
 fs::path fresh_dir(const std::string& name) {
-    const fs::path p = fs::temp_directory_path() / ("chromasim_test_" + name);
+    // One folder per process: CTest may run test cases in parallel processes.
+    const fs::path p = fs::temp_directory_path() /
+                       ("chromasim_test_" + name + "_" + std::to_string(::getpid()));
     fs::remove_all(p);
     return p;
 }
@@ -68,6 +72,10 @@ struct Quickstart {
         std::ostringstream log;
         report = generate(spec, {out, false, true}, log);
     }
+    ~Quickstart() {
+        std::error_code ec;
+        fs::remove_all(out, ec);
+    }
 };
 const Quickstart& quickstart() {
     static const Quickstart q;
@@ -88,7 +96,7 @@ TEST_CASE("quickstart writes a complete dataset and nothing else", "[generators]
         pngs += e.path().extension() == ".png";
     CHECK(pngs == frames);
     for (const auto& e : fs::directory_iterator(q.out.parent_path()))
-        CHECK(e.path().filename().string().find("chromasim_test_quickstart.partial") ==
+        CHECK(e.path().filename().string().find(q.out.filename().string() + ".partial") ==
               std::string::npos);
 }
 

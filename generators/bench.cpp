@@ -1,0 +1,127 @@
+#include "generators/bench.hpp"
+
+#include "generators/sensor_bridge.hpp"
+#include "mechanics/dome_model.hpp"
+#include "render/renderer.hpp"
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <iomanip>
+#include <ostream>
+
+namespace chromasim::generators {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double median(std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    const std::size_t n = v.size();
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/// Median wall time (s) of `repeats` calls of f.
+template <class F> double time_median(int repeats, F&& f) {
+    std::vector<double> t;
+    for (int i = 0; i < repeats; ++i) {
+        const auto t0 = Clock::now();
+        f();
+        t.push_back(std::chrono::duration<double>(Clock::now() - t0).count());
+    }
+    return median(t);
+}
+
+double peak_rss_mib() {
+    rusage usage{};
+    getrusage(RUSAGE_SELF, &usage);
+    return usage.ru_maxrss / 1024.0; // Linux reports KiB
+}
+
+struct LevelRow {
+    std::string level;
+    mechanics::PrecomputeStats stats;
+    double volume_error = 0, frame_labels_ms = 0, frame_fields_ms = 0;
+    double indentation_mm = 0, apex_uz_mm = 0, rss_mib = 0;
+};
+
+LevelRow bench_level(const std::string& level, const DomeBenchOptions& o) {
+    mechanics::DomeModelOptions options;
+    options.mesh_level = level;
+    const mechanics::DomeModel model(options);
+    LevelRow row{level, model.stats()};
+    row.volume_error =
+        mechanics::mesh_volume(model.mesh()) / mechanics::dome_layer_volume(options.dome) - 1.0;
+    const mechanics::ContactLoad load{o.normal_force_N, {o.tangential_force_N, 0.0}, o.mu};
+    row.frame_labels_ms = 1e3 * time_median(o.repeats, [&] { model.solve(load, {}); });
+    row.frame_fields_ms = 1e3 * time_median(o.repeats, [&] { model.solve(load, {true, true}); });
+    const mechanics::FrameResult r = model.solve(load, {false, true});
+    row.indentation_mm = r.contact.indentation_mm;
+    row.apex_uz_mm = r.marker_points_mm(0, 2) - model.markers().points(0, 2);
+    row.rss_mib = peak_rss_mib();
+    return row;
+}
+
+} // namespace
+
+void bench_dome(const DomeBenchOptions& o, std::ostream& out) {
+    std::vector<LevelRow> rows;
+    for (const auto& level : o.levels)
+        rows.push_back(bench_level(level, o));
+    const LevelRow& ref = rows.back();
+    out << "dome under a flat, P = " << o.normal_force_N << " N, Q = " << o.tangential_force_N
+        << " N, mu = " << o.mu << "; reference level: " << ref.level << "; frame times are "
+        << "medians of " << o.repeats << "\n\n"
+        << "| level | nodes | tets | volume err | mesh s | assemble s | factorize s | "
+           "compliance s | frame ms (labels) | frame ms (+fields) | indentation mm | vs ref | "
+           "apex u_z mm | vs ref | peak RSS MiB |\n"
+        << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
+        << std::fixed;
+    for (const LevelRow& r : rows) {
+        const auto& s = r.stats;
+        out << "| " << r.level << " | " << s.nodes << " | " << s.tets << " | "
+            << std::setprecision(3) << 100 * r.volume_error << " % | " << std::setprecision(2)
+            << s.mesh_s << " | " << s.assemble_s << " | " << s.factorize_s << " | "
+            << s.compliance_s << " | " << r.frame_labels_ms << " | " << r.frame_fields_ms << " | "
+            << std::setprecision(4) << r.indentation_mm << " | " << std::setprecision(1)
+            << 100 * (r.indentation_mm / ref.indentation_mm - 1) << " % | " << std::setprecision(4)
+            << r.apex_uz_mm << " | " << std::setprecision(1)
+            << 100 * (r.apex_uz_mm / ref.apex_uz_mm - 1) << " % | " << std::setprecision(0)
+            << r.rss_mib << " |\n";
+    }
+    out << "\npeak RSS is cumulative over the levels run so far in this process\n";
+}
+
+void bench_render(const RenderBenchOptions& o, std::ostream& out) {
+    mechanics::DomeModelOptions options;
+    const mechanics::DomeModel model(options);
+    const mechanics::FrameResult frame = model.solve({1.5, {0.6, 0.0}, 0.8}, {true, true});
+    render::SensorFrame sensor;
+    fill_sensor_frame(model, frame, sensor);
+    render::Renderer renderer({o.size_px, o.size_px, 84.0}, render::OpticsParams{});
+    renderer.set_frame(sensor);
+    const render::Image ref = renderer.render({o.reference_spp, 1});
+    out << "render " << o.size_px << " x " << o.size_px << ", coarse dome at 1.5 N + 0.6 N "
+        << "pull, error against " << o.reference_spp << " spp (linear RGB, image scale 0.8 = "
+        << "undeformed apex); times are medians of " << o.repeats << "\n\n"
+        << "| spp | render ms | RMS error | max error |\n|---|---|---|---|\n"
+        << std::fixed;
+    for (int spp : o.samples_per_pixel) {
+        render::Image img;
+        const double t = time_median(o.repeats, [&] { img = renderer.render({spp, 7}); });
+        double sum2 = 0, max_err = 0;
+        for (std::size_t i = 0; i < img.rgb.size(); ++i) {
+            const double e = std::abs(double(img.rgb[i]) - ref.rgb[i]);
+            sum2 += e * e;
+            max_err = std::max(max_err, e);
+        }
+        out << "| " << spp << " | " << std::setprecision(1) << 1e3 * t << " | "
+            << std::setprecision(5) << std::sqrt(sum2 / img.rgb.size()) << " | " << max_err
+            << " |\n";
+    }
+}
+
+} // namespace chromasim::generators

@@ -1,0 +1,34 @@
+#pragma once
+/// Benchmarks that print numbers (medians of repeated runs), never pass/fail: the machine is
+/// shared and noisy. Each prints a Markdown table that docs/VALIDATION.md quotes.
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+namespace chromasim::generators {
+
+struct DomeBenchOptions {
+    std::vector<std::string> levels{"coarse", "medium"}; ///< the last one is the reference
+    int repeats = 7;             ///< frames timed per level (median reported)
+    double normal_force_N = 1.5; ///< load of the timed frame
+    double tangential_force_N = 0.6;
+    double mu = 0.8;
+};
+
+/// Mesh level vs accuracy and time: nodes, tets, meshed volume error, precompute breakdown,
+/// median frame time (labels only, and with displacement fields), indentation and apex
+/// marker displacement with their difference to the reference (last) level, peak memory.
+void bench_dome(const DomeBenchOptions& options, std::ostream& out);
+
+struct RenderBenchOptions {
+    std::vector<int> samples_per_pixel{1, 2, 4, 16};
+    int reference_spp = 64; ///< the error reference
+    int size_px = 256;
+    int repeats = 5;
+};
+
+/// Samples per pixel vs image error and time on the quickstart's loaded frame (coarse mesh,
+/// 1.5 N, 0.6 N pull): median render time, RMS and max error against `reference_spp`.
+void bench_render(const RenderBenchOptions& options, std::ostream& out);
+
+} // namespace chromasim::generators
