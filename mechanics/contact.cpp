@@ -17,18 +17,15 @@ namespace {
 
 using RowForces = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 
-/// Normal-direction system with prescribed force direction per unit normal force:
-/// F_j = lambda_j * (tx, ty, -1). Unknowns (lambda_A, d). tx = ty = 0 is frictionless.
-bool solve_directed(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, const std::vector<int>& A,
-                    const Eigen::Vector2d& t, double P, RowForces& F, double& d) {
+/// Frictionless normal system: F_j = (0, 0, -lambda_j). Unknowns (lambda_A, d).
+bool solve_normal(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, const std::vector<int>& A,
+                  double P, RowForces& F, double& d) {
     const int m = int(A.size());
     Eigen::MatrixXd M = Eigen::MatrixXd::Zero(m + 1, m + 1);
     Eigen::VectorXd rhs(m + 1);
     for (int i = 0; i < m; ++i) {
-        for (int j = 0; j < m; ++j) {
-            const int zi = 3 * A[i] + 2, cj = 3 * A[j];
-            M(i, j) = C(zi, cj) * t.x() + C(zi, cj + 1) * t.y() - C(zi, cj + 2);
-        }
+        for (int j = 0; j < m; ++j)
+            M(i, j) = -C(3 * A[i] + 2, 3 * A[j] + 2);
         M(i, m) = 1.0;
         rhs(i) = gap(A[i]);
         M(m, i) = 1.0;
@@ -39,39 +36,34 @@ bool solve_directed(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, const 
     const Eigen::VectorXd x = lu.solve(rhs);
     F.setZero();
     for (int j = 0; j < m; ++j)
-        F.row(A[j]) << x(j) * t.x(), x(j) * t.y(), -x(j);
+        F(A[j], 2) = -x(j);
     d = x(m);
     return true;
 }
 
-/// Tied tangential system: u_t,i - u0_t,i = s for i in A, normal as above, sum F_t = Q.
-/// Unknowns (F_A (3m), s_x, s_y, d).
-bool solve_tied(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, const std::vector<int>& A,
-                const Eigen::VectorXd& u0, const Eigen::Vector2d& Q, double P, RowForces& F,
-                double& d) {
-    const int m = int(A.size()), n = 3 * m + 3;
+/// Tied tangential tractions on the contact set A: C_tt t = s on every node of A (the same
+/// tangential offset), sum t = Q. Unknowns (t_A (2m), s_x, s_y); writes F's x, y columns.
+bool solve_tied(const Eigen::MatrixXd& C, const std::vector<int>& A, const Eigen::Vector2d& Q,
+                RowForces& F) {
+    const int m = int(A.size()), n = 2 * m + 2;
     Eigen::MatrixXd M = Eigen::MatrixXd::Zero(n, n);
     Eigen::VectorXd rhs = Eigen::VectorXd::Zero(n);
     for (int i = 0; i < m; ++i)
-        for (int k = 0; k < 3; ++k) {
-            const int row = 3 * i + k;
+        for (int k = 0; k < 2; ++k) {
+            const int row = 2 * i + k;
             for (int j = 0; j < m; ++j)
-                for (int l = 0; l < 3; ++l)
-                    M(row, 3 * j + l) = C(3 * A[i] + k, 3 * A[j] + l);
-            M(row, 3 * m + k) = k == 2 ? 1.0 : -1.0;
-            rhs(row) = k == 2 ? gap(A[i]) : u0(3 * A[i] + k);
-            M(3 * m + k, row) = 1.0;
+                for (int l = 0; l < 2; ++l)
+                    M(row, 2 * j + l) = C(3 * A[i] + k, 3 * A[j] + l);
+            M(row, 2 * m + k) = -1.0;
+            M(2 * m + k, row) = 1.0;
         }
-    rhs(3 * m + 0) = Q.x();
-    rhs(3 * m + 1) = Q.y();
-    rhs(3 * m + 2) = -P;
+    rhs(2 * m + 0) = Q.x();
+    rhs(2 * m + 1) = Q.y();
     const Eigen::FullPivLU<Eigen::MatrixXd> lu(M);
     if (!lu.isInvertible()) return false;
     const Eigen::VectorXd x = lu.solve(rhs);
-    F.setZero();
     for (int j = 0; j < m; ++j)
-        F.row(A[j]) = x.segment<3>(3 * j).transpose();
-    d = x(3 * m + 2);
+        F.row(A[j]).head<2>() = x.segment<2>(2 * j).transpose();
     return true;
 }
 
@@ -123,36 +115,27 @@ ContactSolution solve_flat_contact(const Eigen::MatrixXd& C, const Eigen::Vector
     std::vector<int> A{int(first)};
     const double P = load.normal_force_N;
 
-    // 1. Frictionless normal problem (also the reference state of the tangential step).
-    auto frictionless = [&](const std::vector<int>& act, RowForces& F, double& d) {
-        return solve_directed(C, gap_mm, act, Eigen::Vector2d::Zero(), P, F, d);
+    // 1. Frictionless normal problem: contact set, normal forces, indentation.
+    auto normal = [&](const std::vector<int>& act, RowForces& F, double& d) {
+        return solve_normal(C, gap_mm, act, P, F, d);
     };
-    sol.converged = active_set(C, gap_mm, A, frictionless, sol.forces_N, sol.indentation_mm,
+    sol.converged = active_set(C, gap_mm, A, normal, sol.forces_N, sol.indentation_mm,
                                max_iterations, sol.iterations, sol.status);
+    sol.active = A;
+
+    // 2. Tangential tractions on that contact set: tied below mu P, full slip at or above.
     const double Q = load.tangential_force_N.norm();
     if (sol.converged && Q > 0) {
-        const Eigen::Vector2d dir = load.tangential_force_N / Q;
         sol.sliding = Q >= load.mu * P;
         if (sol.sliding) {
-            // 2a. Full slip: every contact force leans by mu along the pull.
-            const Eigen::Vector2d t = load.mu * dir;
-            auto slide = [&](const std::vector<int>& act, RowForces& F, double& d) {
-                return solve_directed(C, gap_mm, act, t, P, F, d);
-            };
-            sol.converged = active_set(C, gap_mm, A, slide, sol.forces_N, sol.indentation_mm,
-                                       max_iterations, sol.iterations, sol.status);
-        } else {
-            // 2b. Stick: the patch moves as one relative to the frictionless state.
-            const Eigen::VectorXd u0 =
-                C * Eigen::Map<const Eigen::VectorXd>(sol.forces_N.data(), 3 * n);
-            auto tied = [&](const std::vector<int>& act, RowForces& F, double& d) {
-                return solve_tied(C, gap_mm, act, u0, load.tangential_force_N, P, F, d);
-            };
-            sol.converged = active_set(C, gap_mm, A, tied, sol.forces_N, sol.indentation_mm,
-                                       max_iterations, sol.iterations, sol.status);
+            const Eigen::Vector2d t = load.mu * load.tangential_force_N / Q;
+            for (int j : A)
+                sol.forces_N.row(j).head<2>() = -sol.forces_N(j, 2) * t.transpose();
+        } else if (!solve_tied(C, A, load.tangential_force_N, sol.forces_N)) {
+            sol.converged = false;
+            sol.status = "singular";
         }
     }
-    sol.active = A;
     sol.normal_force_N = -sol.forces_N.col(2).sum();
     sol.tangential_force_N = sol.forces_N.leftCols<2>().colwise().sum().transpose();
     sol.gamma = sol.sliding

@@ -2,14 +2,17 @@
 /// Contact of a rigid flat object with the candidate surface nodes of a linear elastic body,
 /// solved on the precomputed compliance of those nodes (no full FE solve per iteration).
 ///
-/// Model (foundation level, see docs/ARCHITECTURE.md "What is coarse"):
+/// Model (foundation level, see docs/ARCHITECTURE.md "What is deliberately coarse"):
 /// - normal: frictionless, unilateral, force controlled: the indentation d is found so that
-///   the nodal reactions sum to the requested normal force;
-/// - tangential, |Q| < mu P: the contact patch sticks as a whole (tied), displaced by s
-///   relative to the frictionless state at the same normal force (normal load first, then
-///   the tangential load, as Mindlin assumes); no partial slip yet;
-/// - tangential, |Q| >= mu P: full slip, every contact node carries mu times its normal force
-///   along the pull, the transmitted tangential force is mu P and Gamma = 0.
+///   the nodal reactions sum to the requested normal force (active set);
+/// - tangential tractions act on that contact set with its normal forces unchanged (Goodman's
+///   approximation, which Mindlin's solution makes too: the tangential load does not alter
+///   the normal contact; the displacement field still includes every coupling);
+/// - |Q| < mu P: the contact patch sticks as a whole (tied): every contact node moves by the
+///   same tangential offset s from the frictionless state and the tractions sum to Q; no
+///   partial slip yet;
+/// - |Q| >= mu P: full slip, every contact node carries mu times its normal force along the
+///   pull, the transmitted tangential force is mu P and Gamma = 0.
 #include <Eigen/Core>
 
 #include <string>

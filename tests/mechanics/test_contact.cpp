@@ -105,3 +105,22 @@ TEST_CASE("tangential pull: stick below mu P, full slip beyond, Gamma as defined
     CHECK(slip.contact.tangential_force_N.norm() == Approx(mu * P));
     CHECK(slip.contact.tangential_force_N.y() == Approx(mu * P)); // along the pull
 }
+
+TEST_CASE("every load of the grip range converges, sticking or sliding", "[mechanics][contact]") {
+    const DomeModel& model = coarse_model();
+    for (double P : {0.05, 0.25, 1.0, 2.5, 3.2})
+        for (double ratio : {0.0, 0.1, 0.5, 0.9, 0.99, 1.0, 2.0})
+            for (double mu : {0.0, 0.5, 1.1, 5.0}) {
+                const ContactLoad load{P, {ratio * mu * P, 0.3 * ratio * mu * P}, mu};
+                const FrameResult r = model.solve(load, {});
+                INFO("P " << P << " ratio " << ratio << " mu " << mu);
+                REQUIRE(r.contact.converged);
+                CHECK_FALSE(r.at_candidate_edge);
+                CHECK(r.contact.normal_force_N == Approx(P));
+                CHECK(std::isfinite(r.contact.gamma));
+                const double q = load.tangential_force_N.norm();
+                const double ft = r.contact.tangential_force_N.norm();
+                CHECK(r.contact.sliding == (q > 0 && q >= mu * P));
+                CHECK(ft == Approx(r.contact.sliding ? mu * P : q).margin(1e-12));
+            }
+}
