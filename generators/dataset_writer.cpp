@@ -76,6 +76,16 @@ DatasetWriter::DatasetWriter(fs::path out_dir, const Spec& spec, bool overwrite)
     m_staging = parent / (m_out.filename().string() + ".partial-" + std::to_string(::getpid()));
     fs::remove_all(m_staging);
     fs::create_directories(m_staging);
+    try {
+        open_outputs();
+    } catch (...) {
+        std::error_code ec;
+        fs::remove_all(m_staging, ec); // the destructor does not run for a failed constructor
+        throw;
+    }
+}
+
+void DatasetWriter::open_outputs() {
     if (m_spec.outputs.images) fs::create_directories(m_staging / "images");
     if (m_spec.outputs.labels)
         m_labels = open_csv(m_staging / "labels.csv",

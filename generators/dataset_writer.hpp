@@ -56,6 +56,7 @@ public:
     const std::filesystem::path& staging() const { return m_staging; }
 
 private:
+    void open_outputs();
     std::filesystem::path m_out, m_staging;
     const Spec& m_spec;
     bool m_overwrite = false, m_committed = false;

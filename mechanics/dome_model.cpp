@@ -105,14 +105,7 @@ void DomeModel::Impl::factorize() {
         if (mesh.V(v, 2) > 1e-9)
             for (int k = 0; k < 3; ++k)
                 free_of_dof[3 * v + k] = n_free++;
-    std::vector<Eigen::Triplet<double>> trips;
-    trips.reserve(std::size_t(K.nonZeros()));
-    for (int c = 0; c < K.outerSize(); ++c)
-        for (Eigen::SparseMatrix<double>::InnerIterator it(K, c); it; ++it)
-            if (free_of_dof[it.row()] >= 0 && free_of_dof[it.col()] >= 0)
-                trips.emplace_back(free_of_dof[it.row()], free_of_dof[it.col()], it.value());
-    Eigen::SparseMatrix<double> Kff(n_free, n_free);
-    Kff.setFromTriplets(trips.begin(), trips.end());
+    const Eigen::SparseMatrix<double> Kff = restrict_dofs(K, free_of_dof, n_free);
     stats.assemble_s = seconds_since(t0);
     stats.free_dofs = n_free;
 

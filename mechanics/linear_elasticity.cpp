@@ -82,6 +82,19 @@ Eigen::SparseMatrix<double> assemble_stiffness(const TetMesh& mesh,
     return K;
 }
 
+Eigen::SparseMatrix<double> restrict_dofs(const Eigen::SparseMatrix<double>& K,
+                                          const std::vector<int>& index_of_dof, int kept) {
+    std::vector<Eigen::Triplet<double>> trips;
+    trips.reserve(std::size_t(K.nonZeros()));
+    for (int c = 0; c < K.outerSize(); ++c)
+        for (Eigen::SparseMatrix<double>::InnerIterator it(K, c); it; ++it)
+            if (index_of_dof[it.row()] >= 0 && index_of_dof[it.col()] >= 0)
+                trips.emplace_back(index_of_dof[it.row()], index_of_dof[it.col()], it.value());
+    Eigen::SparseMatrix<double> R(kept, kept);
+    R.setFromTriplets(trips.begin(), trips.end());
+    return R;
+}
+
 double elastic_energy(const Eigen::SparseMatrix<double>& K, const Eigen::VectorXd& u) {
     return 0.5 * u.dot(K * u);
 }

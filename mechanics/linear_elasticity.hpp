@@ -26,6 +26,11 @@ Matrix12d tet_stiffness(const Eigen::Matrix<double, 4, 3>& X, const Material& ma
 Eigen::SparseMatrix<double> assemble_stiffness(const TetMesh& mesh,
                                                const std::vector<Material>& materials);
 
+/// The rows and columns of K whose dofs are kept: `index_of_dof[d]` is the new index of dof d,
+/// -1 where dof d is removed (clamped); `kept` is the number of kept dofs.
+Eigen::SparseMatrix<double> restrict_dofs(const Eigen::SparseMatrix<double>& K,
+                                          const std::vector<int>& index_of_dof, int kept);
+
 /// Elastic energy 1/2 u^T K u (N mm) of a displacement field (3 #V, mm): for tests.
 double elastic_energy(const Eigen::SparseMatrix<double>& K, const Eigen::VectorXd& u);
 

@@ -21,10 +21,12 @@ int run_generate(const std::string& spec_path, const gen::GenerateOptions& optio
     std::cout << "chromasim: wrote " << r.frames << " frames (" << r.images << " images) to "
               << options.out_dir.string() << " in " << r.total_s << " s (precompute "
               << r.precompute_s << " s, mechanics " << r.mechanics_s << " s, render " << r.render_s
-              << " s, write " << r.write_s << " s)\n"
-              << "  images: " << (options.out_dir / "images").string() << "/frame_*.png\n"
-              << "  labels: " << (options.out_dir / "labels.csv").string() << "\n"
-              << "  markers: " << (options.out_dir / "markers.csv").string() << "\n";
+              << " s, write " << r.write_s << " s)\n";
+    const auto& out = options.out_dir;
+    if (spec.outputs.images)
+        std::cout << "  images: " << (out / "images").string() << "/frame_*.png\n";
+    if (spec.outputs.labels) std::cout << "  labels: " << (out / "labels.csv").string() << "\n";
+    if (spec.outputs.markers) std::cout << "  markers: " << (out / "markers.csv").string() << "\n";
     if (r.flagged_frames > 0)
         std::cerr << "chromasim: " << r.flagged_frames
                   << " frame(s) flagged as not converged (labels.csv: converged = 0)\n";

@@ -95,13 +95,7 @@ TEST_CASE("patch test: a linear displacement field is reproduced to 1e-9", "[mec
     for (int d = 0; d < 3 * n; ++d)
         if (!fixed[d]) idx[d] = m++;
     Eigen::VectorXd rhs = -(K * u);
-    std::vector<Eigen::Triplet<double>> trips;
-    for (int c = 0; c < K.outerSize(); ++c)
-        for (Eigen::SparseMatrix<double>::InnerIterator it(K, c); it; ++it)
-            if (idx[it.row()] >= 0 && idx[it.col()] >= 0)
-                trips.emplace_back(idx[it.row()], idx[it.col()], it.value());
-    Eigen::SparseMatrix<double> Kii(m, m);
-    Kii.setFromTriplets(trips.begin(), trips.end());
+    const Eigen::SparseMatrix<double> Kii = restrict_dofs(K, idx, m);
     Eigen::VectorXd r(m);
     for (int d = 0; d < 3 * n; ++d)
         if (idx[d] >= 0) r(idx[d]) = rhs(d);
