@@ -57,8 +57,10 @@ LevelRow bench_level(const std::string& level, const DomeBenchOptions& o) {
         mechanics::mesh_volume(model.mesh()) / mechanics::dome_layer_volume(options.dome) - 1.0;
     const mechanics::ContactLoad load{o.normal_force_N, {o.tangential_force_N, 0.0}, o.mu};
     row.frame_labels_ms = 1e3 * time_median(o.repeats, [&] { model.solve(load, {}); });
-    row.frame_fields_ms = 1e3 * time_median(o.repeats, [&] { model.solve(load, {true, true}); });
-    const mechanics::FrameResult r = model.solve(load, {false, true});
+    row.frame_fields_ms = 1e3 * time_median(o.repeats, [&] {
+                              model.solve(load, {true, true, false});
+                          });
+    const mechanics::FrameResult r = model.solve(load, {false, true, false});
     row.indentation_mm = r.contact.indentation_mm;
     row.apex_uz_mm = r.marker_points_mm(0, 2) - model.markers().points(0, 2);
     row.rss_mib = peak_rss_mib();
@@ -98,7 +100,7 @@ void bench_dome(const DomeBenchOptions& o, std::ostream& out) {
 void bench_render(const RenderBenchOptions& o, std::ostream& out) {
     mechanics::DomeModelOptions options;
     const mechanics::DomeModel model(options);
-    const mechanics::FrameResult frame = model.solve({1.5, {0.6, 0.0}, 0.8}, {true, true});
+    const mechanics::FrameResult frame = model.solve({1.5, {0.6, 0.0}, 0.8}, {true, true, false});
     render::SensorFrame sensor;
     fill_sensor_frame(model, frame, sensor);
     render::Renderer renderer({o.size_px, o.size_px, 84.0}, render::OpticsParams{});

@@ -85,8 +85,9 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
         << report.precompute_s << " s\n";
 
     // 3. Frames: mechanics, then (only if images are asked for) render, then writers.
-    const mechanics::FrameRequest request{spec.outputs.images,
-                                          spec.outputs.images || spec.outputs.markers};
+    mechanics::FrameRequest request;
+    request.coating = spec.outputs.images;
+    request.markers = spec.outputs.images || spec.outputs.markers;
     render::SensorFrame sensor_frame;
     const render::RenderSettings settings{spec.render.samples_per_pixel, spec.seed};
     for (const FramePlan& f : plan.frames) {

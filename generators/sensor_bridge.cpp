@@ -59,7 +59,7 @@ render::OpticsParams optics_params(const Spec& spec) {
 
 void fill_sensor_frame(const mechanics::DomeModel& model, const mechanics::FrameResult& frame,
                        render::SensorFrame& out) {
-    if (frame.node_displacement_mm.rows() == 0 || frame.marker_points_mm.rows() == 0)
+    if (frame.coating_displacement_mm.rows() == 0 || frame.marker_points_mm.rows() == 0)
         throw std::logic_error("fill_sensor_frame: frame solved without displacement fields");
     const mechanics::SurfacePatch& coating = model.coating_surface();
     const mechanics::TetMesh& mesh = model.mesh();
@@ -67,7 +67,7 @@ void fill_sensor_frame(const mechanics::DomeModel& model, const mechanics::Frame
     for (std::size_t i = 0; i < coating.nodes.size(); ++i) {
         const int n = coating.nodes[i];
         out.coating.V.row(Eigen::Index(i)) =
-            (mesh.V.row(n) + frame.node_displacement_mm.row(n)).cast<float>();
+            (mesh.V.row(n) + frame.coating_displacement_mm.row(Eigen::Index(i))).cast<float>();
     }
     if (out.coating.F.rows() != coating.F.rows()) out.coating.F = coating.F.cast<std::uint32_t>();
     const mechanics::MarkerDiscs& discs = model.markers();

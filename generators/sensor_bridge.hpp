@@ -11,8 +11,8 @@ mechanics::DomeModelOptions dome_options(const Spec& spec);
 render::CameraParams camera_params(const Spec& spec);
 render::OpticsParams optics_params(const Spec& spec);
 
-/// Fills `out` with the deformed coating and marker discs of `frame`, which must carry node
-/// displacements and marker points. Reuses `out`'s buffers (same sizes every frame).
+/// Fills `out` with the deformed coating and marker discs of `frame`, which must carry the coating
+/// displacement and marker points. Reuses `out`'s buffers (same sizes every frame).
 void fill_sensor_frame(const mechanics::DomeModel& model, const mechanics::FrameResult& frame,
                        render::SensorFrame& out);
 

@@ -2,12 +2,12 @@
 
 #include "mechanics/tetgen_adapter.hpp"
 
+#include <Eigen/CholmodSupport>
 #include <Eigen/Geometry>
-#include <Eigen/SparseCholesky>
-#include <tbb/parallel_for.h>
 
 #include <chrono>
 #include <cmath>
+#include <mutex>
 #include <numbers>
 #include <stdexcept>
 
@@ -65,11 +65,15 @@ struct DomeModel::Impl {
     Embedding marker_embedding;
     SurfacePatch coating;
     std::vector<int> free_of_dof; ///< free-dof index per mesh dof, -1 where clamped
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
+    Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> solver;
     std::vector<int> candidates; ///< mesh nodes that may touch
     std::vector<double> candidate_area_mm2;
     std::vector<bool> candidate_edge; ///< in the outermost band of the candidate cap
     Eigen::MatrixXd compliance;       ///< 3n x 3n (mm/N)
+    /// Response (mm/N) of the observed points to unit forces on the candidates: rows 3i..3i+2
+    /// for coating vertex i, then for marker point p (rows 3 (#coating + p) ..). 3n columns.
+    Eigen::MatrixXd observed_response;
+    mutable std::mutex solver_mutex; ///< CHOLMOD's solve shares one workspace
     Eigen::VectorXd gap_mm;
     PrecomputeStats stats;
 
@@ -78,6 +82,8 @@ struct DomeModel::Impl {
     void find_candidates();
     void compute_compliance();
     Eigen::VectorXd solve_field(const ContactSolution& contact) const;
+    void fill_observed(int c0, const Eigen::MatrixXd& u);
+    Eigen::VectorXd observed_field(const ContactSolution& contact) const;
 };
 
 void DomeModel::Impl::build_mesh() {
@@ -150,13 +156,40 @@ void DomeModel::Impl::find_candidates() {
         gap_mm(i) = R - mesh.V(candidates[i], 2);
 }
 
+void DomeModel::Impl::fill_observed(int c0, const Eigen::MatrixXd& u) {
+    // u: free-dof responses to the unit forces of columns c0.. (clamped dofs do not move).
+    auto node_response = [&](int node, int k) -> Eigen::RowVectorXd {
+        const int d = free_of_dof[3 * node + k];
+        return d < 0 ? Eigen::RowVectorXd::Zero(u.cols()) : Eigen::RowVectorXd(u.row(d));
+    };
+    const int nc = int(coating.nodes.size());
+    for (int i = 0; i < nc; ++i)
+        for (int k = 0; k < 3; ++k)
+            observed_response.row(3 * i + k).segment(c0, u.cols()) =
+                node_response(coating.nodes[i], k);
+    for (std::size_t p = 0; p < marker_embedding.tet.size(); ++p) {
+        const int t = marker_embedding.tet[p];
+        for (int k = 0; k < 3; ++k) {
+            Eigen::RowVectorXd row = Eigen::RowVectorXd::Zero(u.cols());
+            for (int a = 0; a < 4; ++a)
+                row += marker_embedding.weights[p](a) * node_response(mesh.T(t, a), k);
+            observed_response.row(3 * (nc + int(p)) + k).segment(c0, u.cols()) = row;
+        }
+    }
+}
+
 void DomeModel::Impl::compute_compliance() {
     const auto t0 = std::chrono::steady_clock::now();
     const int n = int(candidates.size()), nc = 3 * n;
     compliance.resize(nc, nc);
-    constexpr int kBlock = 32;
-    tbb::parallel_for(0, (nc + kBlock - 1) / kBlock, [&](int block) {
-        const int c0 = block * kBlock, c1 = std::min(nc, c0 + kBlock);
+    // CHOLMOD's solve is not re-entrant (one workspace): blocks of right-hand sides in turn,
+    // each solved with BLAS-3 supernodal triangular solves. The same solves give the response
+    // of the observed points (coating, markers), so frames need no sparse solve.
+    observed_response.resize(3 * Eigen::Index(coating.nodes.size() + marker_embedding.tet.size()),
+                             nc);
+    constexpr int kBlock = 256;
+    for (int c0 = 0; c0 < nc; c0 += kBlock) {
+        const int c1 = std::min(nc, c0 + kBlock);
         Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(stats.free_dofs, c1 - c0);
         for (int c = c0; c < c1; ++c)
             rhs(free_of_dof[3 * candidates[c / 3] + c % 3], c - c0) = 1;
@@ -164,7 +197,8 @@ void DomeModel::Impl::compute_compliance() {
         for (int r = 0; r < nc; ++r)
             compliance.row(r).segment(c0, c1 - c0) =
                 u.row(free_of_dof[3 * candidates[r / 3] + r % 3]);
-    });
+        fill_observed(c0, u);
+    }
     compliance = 0.5 * (compliance + compliance.transpose()).eval(); // exact symmetry
     stats.compliance_s = seconds_since(t0);
 }
@@ -174,10 +208,21 @@ Eigen::VectorXd DomeModel::Impl::solve_field(const ContactSolution& contact) con
     for (int j : contact.active)
         for (int k = 0; k < 3; ++k)
             f(free_of_dof[3 * candidates[j] + k]) = contact.forces_N(j, k);
-    const Eigen::VectorXd u_free = solver.solve(f);
+    Eigen::VectorXd u_free;
+    {
+        const std::lock_guard<std::mutex> lock(solver_mutex);
+        u_free = solver.solve(f);
+    }
     Eigen::VectorXd u = Eigen::VectorXd::Zero(3 * mesh.V.rows());
     for (std::size_t d = 0; d < free_of_dof.size(); ++d)
         if (free_of_dof[d] >= 0) u(Eigen::Index(d)) = u_free(free_of_dof[d]);
+    return u;
+}
+
+Eigen::VectorXd DomeModel::Impl::observed_field(const ContactSolution& contact) const {
+    Eigen::VectorXd u = Eigen::VectorXd::Zero(observed_response.rows());
+    for (int j : contact.active)
+        u += observed_response.middleCols<3>(3 * j) * contact.forces_N.row(j).transpose();
     return u;
 }
 
@@ -199,19 +244,19 @@ FrameResult DomeModel::solve(const ContactLoad& load, const FrameRequest& reques
         r.contact_area_mm2 += m.candidate_area_mm2[j];
         r.at_candidate_edge = r.at_candidate_edge || m.candidate_edge[j];
     }
-    if (!request.displacements && !request.markers) return r;
-    const Eigen::VectorXd u = m.solve_field(r.contact);
-    if (request.displacements)
+    if (request.full_field) {
+        const Eigen::VectorXd u = m.solve_field(r.contact);
         r.node_displacement_mm = Eigen::Map<const Points>(u.data(), m.mesh.V.rows(), 3);
-    if (request.markers) {
-        r.marker_points_mm = m.markers.points;
-        for (int i = 0; i < r.marker_points_mm.rows(); ++i) {
-            const int t = m.marker_embedding.tet[i];
-            for (int k = 0; k < 4; ++k)
-                r.marker_points_mm.row(i) +=
-                    m.marker_embedding.weights[i](k) * u.segment<3>(3 * m.mesh.T(t, k)).transpose();
-        }
     }
+    if (!request.coating && !request.markers) return r;
+    const Eigen::VectorXd u = m.observed_field(r.contact);
+    const Eigen::Index n_coating = Eigen::Index(m.coating.nodes.size());
+    if (request.coating)
+        r.coating_displacement_mm = Eigen::Map<const Points>(u.data(), n_coating, 3);
+    if (request.markers)
+        r.marker_points_mm =
+            m.markers.points +
+            Eigen::Map<const Points>(u.data() + 3 * n_coating, m.markers.points.rows(), 3);
     return r;
 }
 

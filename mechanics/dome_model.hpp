@@ -40,13 +40,18 @@ struct FrameResult {
     ContactSolution contact;
     double contact_area_mm2 = 0.0;  ///< tributary area of the nodes in contact
     bool at_candidate_edge = false; ///< contact reached the rim of the candidate cap
-    Points node_displacement_mm;    ///< #V x 3 (empty unless requested)
+    Points coating_displacement_mm; ///< per coating_surface() vertex (empty unless requested)
     Points marker_points_mm;        ///< deformed MarkerDiscs::points (empty unless requested)
+    Points node_displacement_mm;    ///< #V x 3, every node (empty unless requested)
 };
 
+/// Which fields a frame computes. The coating and the markers come from the precomputed
+/// response of the observed nodes to the contact forces (a small dense product); the full
+/// field costs one sparse back-substitution.
 struct FrameRequest {
-    bool displacements = false; ///< node displacements (needed by images)
-    bool markers = false;       ///< deformed marker discs (images, markers.csv)
+    bool coating = false;    ///< coating displacement (images)
+    bool markers = false;    ///< deformed marker discs (images, markers.csv)
+    bool full_field = false; ///< every node's displacement (tests, tools)
 };
 
 class DomeModel {
@@ -56,7 +61,7 @@ public:
     explicit DomeModel(const DomeModelOptions& options);
     ~DomeModel();
 
-    /// Solves one quasi-static frame under `load`.
+    /// Solves one quasi-static frame under `load`. Safe to call from several threads.
     FrameResult solve(const ContactLoad& load, const FrameRequest& request) const;
 
     const TetMesh& mesh() const;

@@ -52,7 +52,7 @@ TEST_CASE("dome under a flat: force balance, no penetration, tensionless contact
     const DomeModel& model = coarse_model();
     for (double P : {0.05, 0.5, 2.5}) {
         INFO("P = " << P);
-        const FrameResult r = model.solve({P, {0, 0}, 0.8}, {true, true});
+        const FrameResult r = model.solve({P, {0, 0}, 0.8}, {true, true, true});
         REQUIRE(r.contact.converged);
         CHECK_FALSE(r.at_candidate_edge);
         CHECK(r.contact.normal_force_N == Approx(P).epsilon(1e-9));
@@ -123,4 +123,32 @@ TEST_CASE("every load of the grip range converges, sticking or sliding", "[mecha
                 CHECK(r.contact.sliding == (q > 0 && q >= mu * P));
                 CHECK(ft == Approx(r.contact.sliding ? mu * P : q).margin(1e-12));
             }
+}
+
+TEST_CASE("precomputed responses of coating and markers equal the full FE solve",
+          "[mechanics][contact]") {
+    const DomeModel& model = coarse_model();
+    const FrameResult r = model.solve({2.0, {0.5, -0.4}, 0.8}, {true, true, true});
+    const SurfacePatch& coating = model.coating_surface();
+    REQUIRE(r.coating_displacement_mm.rows() == Eigen::Index(coating.nodes.size()));
+    const double scale = r.node_displacement_mm.cwiseAbs().maxCoeff();
+    REQUIRE(scale > 0.1);
+    double worst = 0;
+    for (std::size_t i = 0; i < coating.nodes.size(); ++i)
+        worst = std::max(worst, (r.coating_displacement_mm.row(Eigen::Index(i)) -
+                                 r.node_displacement_mm.row(coating.nodes[i]))
+                                    .cwiseAbs()
+                                    .maxCoeff());
+    // Markers: barycentric interpolation of the full field in the tet that holds each point.
+    const TetLocator locator(model.mesh());
+    const Points& X = model.markers().points;
+    for (int p = 0; p < X.rows(); ++p) {
+        const int t = locator.locate(X.row(p).transpose());
+        const Eigen::Vector4d w = barycentric(model.mesh(), t, X.row(p).transpose());
+        Eigen::RowVector3d x = X.row(p);
+        for (int k = 0; k < 4; ++k)
+            x += w(k) * r.node_displacement_mm.row(model.mesh().T(t, k));
+        worst = std::max(worst, (r.marker_points_mm.row(p) - x).cwiseAbs().maxCoeff());
+    }
+    CHECK(worst < 1e-9 * scale);
 }
