@@ -17,69 +17,69 @@ namespace {
 
 using RowForces = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 
-/// Frictionless normal system: F_j = (0, 0, -lambda_j). Unknowns (lambda_A, d).
+/// Frictionless normal system: F_j = (0, 0, -lambda_j), C_zz lambda = d - gap on A,
+/// sum lambda = P. C_zz restricted to A is symmetric positive definite (a compliance), so
+/// eliminate d: lambda = C^-1 (d 1 - gap), d = (P + 1' C^-1 gap) / (1' C^-1 1).
 bool solve_normal(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, const std::vector<int>& A,
                   double P, RowForces& F, double& d) {
     const int m = int(A.size());
-    Eigen::MatrixXd M = Eigen::MatrixXd::Zero(m + 1, m + 1);
-    Eigen::VectorXd rhs(m + 1);
+    Eigen::MatrixXd Czz(m, m);
+    Eigen::VectorXd g(m);
     for (int i = 0; i < m; ++i) {
         for (int j = 0; j < m; ++j)
-            M(i, j) = -C(3 * A[i] + 2, 3 * A[j] + 2);
-        M(i, m) = 1.0;
-        rhs(i) = gap(A[i]);
-        M(m, i) = 1.0;
+            Czz(i, j) = C(3 * A[i] + 2, 3 * A[j] + 2);
+        g(i) = gap(A[i]);
     }
-    rhs(m) = P;
-    const Eigen::FullPivLU<Eigen::MatrixXd> lu(M);
-    if (!lu.isInvertible()) return false;
-    const Eigen::VectorXd x = lu.solve(rhs);
+    const Eigen::LLT<Eigen::MatrixXd> llt(Czz);
+    if (llt.info() != Eigen::Success) return false;
+    const Eigen::VectorXd c1 = llt.solve(Eigen::VectorXd::Ones(m));
+    const Eigen::VectorXd cg = llt.solve(g);
+    d = (P + cg.sum()) / c1.sum();
+    const Eigen::VectorXd lambda = d * c1 - cg;
     F.setZero();
     for (int j = 0; j < m; ++j)
-        F(A[j], 2) = -x(j);
-    d = x(m);
-    return true;
+        F(A[j], 2) = -lambda(j);
+    return std::isfinite(d);
 }
 
 /// Tied tangential tractions on the contact set A: C_tt t = s on every node of A (the same
-/// tangential offset), sum t = Q. Unknowns (t_A (2m), s_x, s_y); writes F's x, y columns.
+/// tangential offset s), sum t = Q. With C_tt SPD, t = C^-1 E s where E stacks identities,
+/// and s solves the 2 x 2 system (E' C^-1 E) s = Q. Writes F's x, y columns.
 bool solve_tied(const Eigen::MatrixXd& C, const std::vector<int>& A, const Eigen::Vector2d& Q,
                 RowForces& F) {
-    const int m = int(A.size()), n = 2 * m + 2;
-    Eigen::MatrixXd M = Eigen::MatrixXd::Zero(n, n);
-    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(n);
+    const int m = int(A.size());
+    Eigen::MatrixXd Ctt(2 * m, 2 * m), E = Eigen::MatrixXd::Zero(2 * m, 2);
     for (int i = 0; i < m; ++i)
         for (int k = 0; k < 2; ++k) {
-            const int row = 2 * i + k;
             for (int j = 0; j < m; ++j)
                 for (int l = 0; l < 2; ++l)
-                    M(row, 2 * j + l) = C(3 * A[i] + k, 3 * A[j] + l);
-            M(row, 2 * m + k) = -1.0;
-            M(2 * m + k, row) = 1.0;
+                    Ctt(2 * i + k, 2 * j + l) = C(3 * A[i] + k, 3 * A[j] + l);
+            E(2 * i + k, k) = 1.0;
         }
-    rhs(2 * m + 0) = Q.x();
-    rhs(2 * m + 1) = Q.y();
-    const Eigen::FullPivLU<Eigen::MatrixXd> lu(M);
-    if (!lu.isInvertible()) return false;
-    const Eigen::VectorXd x = lu.solve(rhs);
+    const Eigen::LLT<Eigen::MatrixXd> llt(Ctt);
+    if (llt.info() != Eigen::Success) return false;
+    const Eigen::MatrixXd CE = llt.solve(E);
+    const Eigen::Matrix2d S = E.transpose() * CE;
+    const Eigen::Vector2d s = S.ldlt().solve(Q);
+    const Eigen::VectorXd t = CE * s;
     for (int j = 0; j < m; ++j)
-        F.row(A[j]).head<2>() = x.segment<2>(2 * j).transpose();
-    return true;
+        F.row(A[j]).head<2>() = t.segment<2>(2 * j).transpose();
+    return t.allFinite();
 }
 
-/// One active-set loop: solve on A, drop nodes pulling on the object, add penetrating nodes.
-template <class Solve>
-bool active_set(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, std::vector<int>& A,
-                Solve&& solve, RowForces& F, double& d, int max_iterations, int& iterations,
-                std::string& status) {
+/// Active set on the frictionless normal problem: solve on A, drop nodes pulling on the
+/// object, add every node that penetrates it; until neither happens.
+bool normal_active_set(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, double P,
+                       std::vector<int>& A, RowForces& F, double& d, int max_iterations,
+                       int& iterations, std::string& status) {
     const int n = int(gap.size());
+    std::vector<bool> in_A(std::size_t(n), false);
     for (int it = 0; it < max_iterations; ++it) {
         ++iterations;
-        if (!solve(A, F, d)) {
+        if (!solve_normal(C, gap, A, P, F, d)) {
             status = "singular";
             return false;
         }
-        // Drop nodes with a tensile (negative) normal reaction.
         std::vector<int> kept;
         for (int j : A)
             if (-F(j, 2) >= 0.0) kept.push_back(j);
@@ -87,12 +87,18 @@ bool active_set(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, std::vecto
             A = std::move(kept);
             continue;
         }
-        // Add nodes that penetrate the object: z-gap after deformation below zero.
-        const Eigen::VectorXd u = C * Eigen::Map<const Eigen::VectorXd>(F.data(), 3 * n);
+        std::fill(in_A.begin(), in_A.end(), false);
+        for (int j : A)
+            in_A[std::size_t(j)] = true;
+        // Normal displacement of every candidate under the current forces (z rows only).
+        Eigen::VectorXd uz = Eigen::VectorXd::Zero(n);
+        for (int j : A)
+            for (int i = 0; i < n; ++i)
+                uz(i) += C(3 * i + 2, 3 * j + 2) * F(j, 2);
         const double tol = 1e-9 * std::max(1.0, std::abs(d));
         bool added = false;
         for (int i = 0; i < n; ++i)
-            if (std::find(A.begin(), A.end(), i) == A.end() && gap(i) - d - u(3 * i + 2) < -tol) {
+            if (!in_A[std::size_t(i)] && gap(i) - d - uz(i) < -tol) {
                 A.push_back(i);
                 added = true;
             }
@@ -116,11 +122,8 @@ ContactSolution solve_flat_contact(const Eigen::MatrixXd& C, const Eigen::Vector
     const double P = load.normal_force_N;
 
     // 1. Frictionless normal problem: contact set, normal forces, indentation.
-    auto normal = [&](const std::vector<int>& act, RowForces& F, double& d) {
-        return solve_normal(C, gap_mm, act, P, F, d);
-    };
-    sol.converged = active_set(C, gap_mm, A, normal, sol.forces_N, sol.indentation_mm,
-                               max_iterations, sol.iterations, sol.status);
+    sol.converged = normal_active_set(C, gap_mm, P, A, sol.forces_N, sol.indentation_mm,
+                                      max_iterations, sol.iterations, sol.status);
     sol.active = A;
 
     // 2. Tangential tractions on that contact set: tied below mu P, full slip at or above.
