@@ -88,12 +88,13 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     mechanics::FrameRequest request;
     request.coating = spec.outputs.images;
     request.markers = spec.outputs.images || spec.outputs.markers;
+    const mechanics::ObjectShape object = object_shape(spec);
     render::SensorFrame sensor_frame;
     const render::RenderSettings settings{spec.render.samples_per_pixel, spec.seed};
     for (const FramePlan& f : plan.frames) {
         t0 = Clock::now();
         const mechanics::FrameResult r =
-            model.solve({f.normal_force_N, f.tangential_force_N, f.mu}, request);
+            model.solve({f.normal_force_N, f.tangential_force_N, f.mu}, request, object);
         report.mechanics_s += since(t0);
         LabelRow row = label_row(f, r);
         if (renderer) {

@@ -37,6 +37,14 @@ mechanics::DomeModelOptions dome_options(const Spec& spec) {
     return o;
 }
 
+mechanics::ObjectShape object_shape(const Spec& spec) {
+    mechanics::ObjectShape o;
+    o.kind = spec.object.shape == "sphere" ? mechanics::ObjectShape::Kind::sphere
+                                           : mechanics::ObjectShape::Kind::flat;
+    o.radius_mm = spec.object.radius_mm;
+    return o;
+}
+
 render::CameraParams camera_params(const Spec& spec) {
     return {spec.render.width_px, spec.render.height_px, spec.sensor.camera_half_fov_deg};
 }

@@ -8,6 +8,7 @@
 namespace chromasim::generators {
 
 mechanics::DomeModelOptions dome_options(const Spec& spec);
+mechanics::ObjectShape object_shape(const Spec& spec);
 render::CameraParams camera_params(const Spec& spec);
 render::OpticsParams optics_params(const Spec& spec);
 

@@ -52,9 +52,9 @@ struct Spec {
     } sensor;
 
     struct Object {
-        std::string shape =
-            "flat";      ///< flat (rigid plane); more shapes come with the mechanics issue
-        double mu = 0.8; ///< Coulomb friction coefficient
+        std::string shape = "flat"; ///< flat (rigid plane) | sphere
+        double radius_mm = 45.0;    ///< sphere radius
+        double mu = 0.8;            ///< Coulomb friction coefficient
     } object;
 
     struct Press {

@@ -193,10 +193,13 @@ void add_sensor_optics(std::vector<SchemaEntry>& out) {
 }
 
 void add_object_and_protocol(std::vector<SchemaEntry>& out) {
-    out.push_back(choice("object.shape", "flat", {"flat"},
-                         "Shape of the rigid object: flat is a rigid plane (sphere and meshes "
-                         "come later).",
+    out.push_back(choice("object.shape", "flat", {"flat", "sphere"},
+                         "Shape of the rigid object, centred on the dome axis: a plane, or a "
+                         "sphere of radius object.radius_mm (meshes come later).",
                          CHROMASIM_FIELD(object.shape)));
+    out.push_back(number("object.radius_mm", 45, left_open(0, 1e4), "mm",
+                         "Sphere radius (seed 000's curved object: 45 mm); unused for a flat.",
+                         CHROMASIM_FIELD(object.radius_mm)));
     out.push_back(number("object.mu", 0.8, closed(0, 10), "",
                          "Coulomb friction coefficient between coating and object (seed 001: "
                          "1.1, 0.8, 0.5).",

@@ -13,6 +13,23 @@ double safety_margin(double mu, double normal_force_N, double tangential_force_N
     return std::clamp((strength - tangential_force_N) / strength, 0.0, 1.0);
 }
 
+Eigen::VectorXd
+object_gap(const ObjectShape& object,
+           const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& X) {
+    constexpr double kUnreachable_mm = 1e3;
+    const Eigen::Index n = X.rows();
+    Eigen::VectorXd h = Eigen::VectorXd::Zero(n); // object surface height above its lowest point
+    if (object.kind == ObjectShape::Kind::sphere) {
+        const double R = object.radius_mm;
+        for (Eigen::Index i = 0; i < n; ++i) {
+            const double r2 = X(i, 0) * X(i, 0) + X(i, 1) * X(i, 1);
+            h(i) = r2 < R * R ? R - std::sqrt(R * R - r2) : kUnreachable_mm;
+        }
+    }
+    const Eigen::VectorXd g = h - X.col(2);
+    return g.array() - g.minCoeff();
+}
+
 namespace {
 
 using RowForces = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
@@ -111,8 +128,8 @@ bool normal_active_set(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, dou
 
 } // namespace
 
-ContactSolution solve_flat_contact(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_mm,
-                                   const ContactLoad& load, int max_iterations) {
+ContactSolution solve_contact(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_mm,
+                              const ContactLoad& load, int max_iterations) {
     const int n = int(gap_mm.size());
     ContactSolution sol;
     sol.forces_N = RowForces::Zero(n, 3);

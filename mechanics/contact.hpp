@@ -1,6 +1,8 @@
 #pragma once
-/// Contact of a rigid flat object with the candidate surface nodes of a linear elastic body,
-/// solved on the precomputed compliance of those nodes (no full FE solve per iteration).
+/// Contact of a rigid object pressed along -z onto the candidate surface nodes of a linear
+/// elastic body, solved on the precomputed compliance of those nodes (no FE solve per
+/// iteration). Contact forces act along z: exact for a flat, the small-slope approximation
+/// (contact radius << object radius, as Hertz assumes) for a sphere.
 ///
 /// Model (foundation level, see docs/ARCHITECTURE.md "What is deliberately coarse"):
 /// - normal: frictionless, unilateral, force controlled: the indentation d is found so that
@@ -19,6 +21,19 @@
 #include <vector>
 
 namespace chromasim::mechanics {
+
+/// Rigid object shapes, centred on the z axis, approaching along -z.
+struct ObjectShape {
+    enum class Kind { flat, sphere };
+    Kind kind = Kind::flat;
+    double radius_mm = 45.0; ///< sphere radius (unused for a flat)
+};
+
+/// Initial gap (mm) of candidate positions X (n x 3) to the object at first touch: >= 0, the
+/// highest node at 0. Nodes beyond a sphere's silhouette (r >= R) get an unreachable gap.
+Eigen::VectorXd
+object_gap(const ObjectShape& object,
+           const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& X);
 
 /// Loads of one quasi-static frame.
 struct ContactLoad {
@@ -45,8 +60,8 @@ struct ContactSolution {
 double safety_margin(double mu, double normal_force_N, double tangential_force_N);
 
 /// Solves the frame. `C` is the 3n x 3n compliance of the n candidate nodes (mm/N, dofs x, y,
-/// z per node), `gap_mm` their initial normal gap to the object's lowest point (>= 0).
-ContactSolution solve_flat_contact(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_mm,
-                                   const ContactLoad& load, int max_iterations = 200);
+/// z per node), `gap_mm` their initial gap to the object (object_gap).
+ContactSolution solve_contact(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_mm,
+                              const ContactLoad& load, int max_iterations = 200);
 
 } // namespace chromasim::mechanics

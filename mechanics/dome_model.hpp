@@ -1,9 +1,11 @@
 #pragma once
-/// The layered dome as a linear elastic FE model under a rigid flat object: meshing,
-/// assembly, one factorization, the compliance of the surface nodes that can touch, then a
-/// cheap contact solve per frame. Plain data in, plain data out.
+/// The layered dome as a linear elastic FE model under a rigid object: meshing, then an
+/// ElasticBody (one factorization, the compliance of the surface nodes that can touch, the
+/// response of the coating and the markers), then a cheap contact solve per frame. Plain
+/// data in, plain data out.
 #include "mechanics/contact.hpp"
 #include "mechanics/dome_geometry.hpp"
+#include "mechanics/elastic_body.hpp"
 #include "mechanics/linear_elasticity.hpp"
 #include "mechanics/tet_mesh.hpp"
 
@@ -61,8 +63,10 @@ public:
     explicit DomeModel(const DomeModelOptions& options);
     ~DomeModel();
 
-    /// Solves one quasi-static frame under `load`. Safe to call from several threads.
-    FrameResult solve(const ContactLoad& load, const FrameRequest& request) const;
+    /// Solves one quasi-static frame of `object` under `load`. Safe to call from several
+    /// threads.
+    FrameResult solve(const ContactLoad& load, const FrameRequest& request,
+                      const ObjectShape& object = {}) const;
 
     const TetMesh& mesh() const;
     const MarkerDiscs& markers() const;

@@ -201,3 +201,25 @@ TEST_CASE("an output folder with other content is never overwritten silently",
     CHECK(std::distance(fs::directory_iterator(out), fs::directory_iterator{}) == 1);
     fs::remove_all(out);
 }
+
+TEST_CASE("the spec's object reaches the mechanics: a sphere indents deeper than a flat",
+          "[generators][e2e]") {
+    auto indentation = [](const std::string& object) {
+        const Spec spec = parse_spec("name: s\nobject: " + object +
+                                         "\nprotocol: {press: {frames: 1}, pull: {frames: 0}}\n"
+                                         "outputs: {images: false, markers: false}\n",
+                                     "inline.yaml");
+        const fs::path out = fresh_dir("object");
+        std::ostringstream log;
+        generate(spec, {out, false, true}, log);
+        const auto rows = read_csv(out / "labels.csv");
+        REQUIRE(rows.size() == 1);
+        CHECK_FALSE(fs::exists(out / "images"));
+        CHECK_FALSE(fs::exists(out / "markers.csv"));
+        fs::remove_all(out);
+        return num(rows[0], "indentation_mm");
+    };
+    const double flat = indentation("{shape: flat}");
+    const double sphere = indentation("{shape: sphere, radius_mm: 45}");
+    CHECK(sphere > flat * 1.01);
+}

@@ -30,14 +30,14 @@ TEST_CASE("two springs against a plane: active set and force control are exact",
     Eigen::VectorXd gap(2);
     gap << 0.0, 0.1;
     SECTION("light load: one node in contact") {
-        const ContactSolution s = solve_flat_contact(C, gap, {0.05, {0, 0}, 0.5});
+        const ContactSolution s = solve_contact(C, gap, {0.05, {0, 0}, 0.5});
         REQUIRE(s.converged);
         CHECK(s.active == std::vector<int>{0});
         CHECK(s.indentation_mm == Approx(0.05)); // d = c1 P
     }
     SECTION("heavy load: both nodes, d from c1 f1 = d, c2 f2 = d - 0.1, f1 + f2 = P") {
         const double P = 1.0;
-        const ContactSolution s = solve_flat_contact(C, gap, {P, {0, 0}, 0.5});
+        const ContactSolution s = solve_contact(C, gap, {P, {0, 0}, 0.5});
         REQUIRE(s.converged);
         CHECK(s.active.size() == 2);
         const double d = (P + 0.1 / 2) / (1.0 + 0.5); // f1 = d, f2 = (d - 0.1) / 2
@@ -151,4 +151,33 @@ TEST_CASE("precomputed responses of coating and markers equal the full FE solve"
         worst = std::max(worst, (r.marker_points_mm.row(p) - x).cwiseAbs().maxCoeff());
     }
     CHECK(worst < 1e-9 * scale);
+}
+
+TEST_CASE("object gaps: a flat touches the highest node, a sphere adds its sag",
+          "[mechanics][contact]") {
+    Points X(3, 3);
+    X << 0, 0, 5.0, 3, 4, 5.0, 1, 0, 4.5; // r = 0, 5, 1
+    const Eigen::VectorXd flat = object_gap({}, X);
+    CHECK(flat(0) == 0.0);
+    CHECK(flat(1) == 0.0);
+    CHECK(flat(2) == Approx(0.5));
+    const Eigen::VectorXd sphere = object_gap({ObjectShape::Kind::sphere, 10.0}, X);
+    CHECK(sphere(0) == 0.0);
+    CHECK(sphere(1) == Approx(10.0 - std::sqrt(75.0)));
+    CHECK(sphere(2) == Approx(0.5 + 10.0 - std::sqrt(99.0)));
+}
+
+TEST_CASE("dome under a sphere: smaller contact than a flat, flat as the radius grows",
+          "[mechanics][contact]") {
+    const DomeModel& model = coarse_model();
+    const ContactLoad load{1.5, {0, 0}, 0.8};
+    const FrameResult flat = model.solve(load, {});
+    const FrameResult r45 = model.solve(load, {}, {ObjectShape::Kind::sphere, 45.0});
+    const FrameResult huge = model.solve(load, {}, {ObjectShape::Kind::sphere, 1e6});
+    REQUIRE(r45.contact.converged);
+    CHECK(r45.contact.normal_force_N == Approx(1.5));
+    CHECK(r45.contact_area_mm2 < flat.contact_area_mm2);
+    CHECK(r45.contact.indentation_mm > flat.contact.indentation_mm);
+    CHECK(huge.contact.indentation_mm == Approx(flat.contact.indentation_mm).epsilon(1e-4));
+    CHECK(huge.contact.active == flat.contact.active);
 }

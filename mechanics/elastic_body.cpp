@@ -1,0 +1,173 @@
+#include "mechanics/elastic_body.hpp"
+
+#include <Eigen/CholmodSupport>
+
+#include <chrono>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+
+namespace chromasim::mechanics {
+
+namespace {
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+} // namespace
+
+Embedding embed(const TetMesh& mesh, const Points& P, const char* what) {
+    const TetLocator locator(mesh);
+    Embedding e;
+    for (int i = 0; i < P.rows(); ++i) {
+        const int t = locator.locate(P.row(i).transpose());
+        if (t < 0)
+            throw std::runtime_error(std::string(what) + " " + std::to_string(i) +
+                                     " lies outside the mesh");
+        e.tet.push_back(t);
+        e.weights.push_back(barycentric(mesh, t, P.row(i).transpose()));
+    }
+    return e;
+}
+
+struct ElasticBody::Impl {
+    const TetMesh& mesh;
+    std::vector<int> candidates, observed_nodes;
+    Embedding observed_points;
+    std::vector<int> free_of_dof; ///< free-dof index per mesh dof, -1 where clamped
+    Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> solver;
+    mutable std::mutex solver_mutex; ///< CHOLMOD's solve shares one workspace
+    Eigen::MatrixXd compliance;      ///< 3n x 3n (mm/N)
+    /// Response (mm/N) of the observed nodes, then points, to unit candidate forces: 3n columns.
+    Eigen::MatrixXd observed_response;
+    ElasticBodyStats stats;
+
+    explicit Impl(const TetMesh& m) : mesh(m) {}
+    void factorize(const std::vector<Material>& materials, const std::vector<bool>& clamped);
+    void precompute_responses();
+    void fill_observed(int c0, const Eigen::MatrixXd& u);
+};
+
+void ElasticBody::Impl::factorize(const std::vector<Material>& materials,
+                                  const std::vector<bool>& clamped) {
+    auto t0 = std::chrono::steady_clock::now();
+    const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, materials);
+    free_of_dof.assign(std::size_t(K.rows()), -1);
+    int n_free = 0;
+    for (int v = 0; v < mesh.V.rows(); ++v)
+        if (!clamped[std::size_t(v)])
+            for (int k = 0; k < 3; ++k)
+                free_of_dof[3 * v + k] = n_free++;
+    const Eigen::SparseMatrix<double> Kff = restrict_dofs(K, free_of_dof, n_free);
+    stats.assemble_s = seconds_since(t0);
+    stats.free_dofs = n_free;
+
+    t0 = std::chrono::steady_clock::now();
+    solver.compute(Kff);
+    if (solver.info() != Eigen::Success)
+        throw std::runtime_error("stiffness factorization failed: the body is not held "
+                                 "(no clamped node) or a material is invalid");
+    stats.factorize_s = seconds_since(t0);
+}
+
+void ElasticBody::Impl::fill_observed(int c0, const Eigen::MatrixXd& u) {
+    // u: free-dof responses to the unit forces of columns c0.. (clamped dofs do not move).
+    auto node_response = [&](int node, int k) -> Eigen::RowVectorXd {
+        const int d = free_of_dof[3 * node + k];
+        return d < 0 ? Eigen::RowVectorXd::Zero(u.cols()) : Eigen::RowVectorXd(u.row(d));
+    };
+    const int nn = int(observed_nodes.size());
+    for (int i = 0; i < nn; ++i)
+        for (int k = 0; k < 3; ++k)
+            observed_response.row(3 * i + k).segment(c0, u.cols()) =
+                node_response(observed_nodes[i], k);
+    for (std::size_t p = 0; p < observed_points.tet.size(); ++p) {
+        const int t = observed_points.tet[p];
+        for (int k = 0; k < 3; ++k) {
+            Eigen::RowVectorXd row = Eigen::RowVectorXd::Zero(u.cols());
+            for (int a = 0; a < 4; ++a)
+                row += observed_points.weights[p](a) * node_response(mesh.T(t, a), k);
+            observed_response.row(3 * (nn + int(p)) + k).segment(c0, u.cols()) = row;
+        }
+    }
+}
+
+void ElasticBody::Impl::precompute_responses() {
+    const auto t0 = std::chrono::steady_clock::now();
+    const int nc = 3 * int(candidates.size());
+    compliance.resize(nc, nc);
+    observed_response.resize(3 * Eigen::Index(observed_nodes.size() + observed_points.tet.size()),
+                             nc);
+    // CHOLMOD's solve is not re-entrant (one workspace): blocks of right-hand sides in turn,
+    // each solved with BLAS-3 supernodal triangular solves.
+    constexpr int kBlock = 256;
+    for (int c0 = 0; c0 < nc; c0 += kBlock) {
+        const int c1 = std::min(nc, c0 + kBlock);
+        Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(stats.free_dofs, c1 - c0);
+        for (int c = c0; c < c1; ++c) {
+            const int d = free_of_dof[3 * candidates[c / 3] + c % 3];
+            if (d < 0) throw std::runtime_error("a contact candidate node is clamped");
+            rhs(d, c - c0) = 1;
+        }
+        const Eigen::MatrixXd u = solver.solve(rhs);
+        for (int r = 0; r < nc; ++r)
+            compliance.row(r).segment(c0, c1 - c0) =
+                u.row(free_of_dof[3 * candidates[r / 3] + r % 3]);
+        fill_observed(c0, u);
+    }
+    compliance = 0.5 * (compliance + compliance.transpose()).eval(); // exact symmetry
+    stats.compliance_s = seconds_since(t0);
+}
+
+ElasticBody::ElasticBody(const TetMesh& mesh, const std::vector<Material>& materials,
+                         const std::vector<bool>& clamped, std::vector<int> candidates,
+                         std::vector<int> observed_nodes, Embedding observed_points)
+    : m_impl(std::make_unique<Impl>(mesh)) {
+    m_impl->candidates = std::move(candidates);
+    m_impl->observed_nodes = std::move(observed_nodes);
+    m_impl->observed_points = std::move(observed_points);
+    m_impl->stats.candidates = int(m_impl->candidates.size());
+    m_impl->factorize(materials, clamped);
+    m_impl->precompute_responses();
+}
+
+ElasticBody::~ElasticBody() = default;
+
+const Eigen::MatrixXd& ElasticBody::compliance() const {
+    return m_impl->compliance;
+}
+const std::vector<int>& ElasticBody::candidates() const {
+    return m_impl->candidates;
+}
+const ElasticBodyStats& ElasticBody::stats() const {
+    return m_impl->stats;
+}
+
+Points ElasticBody::observed_displacement(const Eigen::Ref<const Points>& forces_N,
+                                          const std::vector<int>& active) const {
+    const Eigen::MatrixXd& R = m_impl->observed_response;
+    Eigen::VectorXd u = Eigen::VectorXd::Zero(R.rows());
+    for (int j : active)
+        u += R.middleCols<3>(3 * j) * forces_N.row(j).transpose();
+    return Eigen::Map<const Points>(u.data(), R.rows() / 3, 3);
+}
+
+Points ElasticBody::full_displacement(const Eigen::Ref<const Points>& forces_N,
+                                      const std::vector<int>& active) const {
+    const Impl& m = *m_impl;
+    Eigen::VectorXd f = Eigen::VectorXd::Zero(m.stats.free_dofs);
+    for (int j : active)
+        for (int k = 0; k < 3; ++k)
+            f(m.free_of_dof[3 * m.candidates[j] + k]) = forces_N(j, k);
+    Eigen::VectorXd u_free;
+    {
+        const std::lock_guard<std::mutex> lock(m.solver_mutex);
+        u_free = m.solver.solve(f);
+    }
+    Points U = Points::Zero(m.mesh.V.rows(), 3);
+    for (std::size_t d = 0; d < m.free_of_dof.size(); ++d)
+        if (m.free_of_dof[d] >= 0)
+            U(Eigen::Index(d / 3), Eigen::Index(d % 3)) = u_free(m.free_of_dof[d]);
+    return U;
+}
+
+} // namespace chromasim::mechanics

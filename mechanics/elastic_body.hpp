@@ -1,0 +1,61 @@
+#pragma once
+/// A linear elastic tet body loaded only through forces on a set of candidate surface nodes
+/// (where an object may touch): one sparse factorization, then the compliance of the
+/// candidates and the response of chosen observed points, so that a frame costs a small
+/// contact solve and a dense product, never a sparse solve.
+#include "mechanics/contact.hpp"
+#include "mechanics/linear_elasticity.hpp"
+#include "mechanics/tet_mesh.hpp"
+
+#include <memory>
+#include <vector>
+
+namespace chromasim::mechanics {
+
+/// Points embedded in the mesh: the tet holding each point and its barycentric weights.
+struct Embedding {
+    std::vector<int> tet;
+    std::vector<Eigen::Vector4d> weights;
+};
+
+/// Embeds points (mm); throws std::runtime_error naming the first point outside the mesh.
+Embedding embed(const TetMesh& mesh, const Points& P, const char* what = "point");
+
+struct ElasticBodyStats {
+    double assemble_s = 0, factorize_s = 0, compliance_s = 0;
+    int free_dofs = 0, candidates = 0;
+};
+
+class ElasticBody {
+public:
+    /// `materials[region - 1]` per tet; `clamped[v]` fixes node v; forces may act on the
+    /// `candidates` (node ids); the response is precomputed for `observed_nodes` (first) and
+    /// the `observed_points` embedding (after). Throws std::runtime_error if K is singular.
+    ElasticBody(const TetMesh& mesh, const std::vector<Material>& materials,
+                const std::vector<bool>& clamped, std::vector<int> candidates,
+                std::vector<int> observed_nodes, Embedding observed_points);
+    ~ElasticBody();
+    ElasticBody(const ElasticBody&) = delete;
+    ElasticBody& operator=(const ElasticBody&) = delete;
+
+    /// 3n x 3n compliance of the n candidates (mm/N; dofs x, y, z per candidate), symmetric.
+    const Eigen::MatrixXd& compliance() const;
+    const std::vector<int>& candidates() const;
+
+    /// Displacements (mm, 3 per row) of the observed nodes then the observed points under the
+    /// candidate forces `forces_N` (n x 3; only rows in `active` are read).
+    Points observed_displacement(const Eigen::Ref<const Points>& forces_N,
+                                 const std::vector<int>& active) const;
+
+    /// Every node's displacement (#V x 3, mm): one sparse back-substitution. Thread safe.
+    Points full_displacement(const Eigen::Ref<const Points>& forces_N,
+                             const std::vector<int>& active) const;
+
+    const ElasticBodyStats& stats() const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> m_impl;
+};
+
+} // namespace chromasim::mechanics
