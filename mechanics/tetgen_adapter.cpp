@@ -19,7 +19,8 @@ std::string tetgen_switches(const TetgenOptions& options) {
         std::snprintf(quality, sizeof quality, "q%.4g", options.radius_edge_ratio);
     char volume[64];
     std::snprintf(volume, sizeof volume, "a%.6g", options.max_volume_mm3);
-    return std::string("p") + quality + volume + "A" + (options.preserve_surface ? "Y" : "") + "Q";
+    return std::string("p") + quality + volume + "A" + (options.preserve_surface ? "Y" : "") +
+           (options.extra_points.rows() > 0 ? "i" : "") + "Q";
 }
 
 namespace {
@@ -83,11 +84,19 @@ TetMesh read_output(const tetgenio& out) {
 } // namespace
 
 TetMesh tetrahedralize(const Plc& plc, const TetgenOptions& options) {
-    tetgenio in, out;
+    tetgenio in, out, addin;
     fill_input(plc, in);
+    if (options.extra_points.rows() > 0) {
+        addin.numberofpoints = int(options.extra_points.rows());
+        addin.pointlist = new REAL[options.extra_points.size()];
+        for (Eigen::Index i = 0; i < options.extra_points.rows(); ++i)
+            for (int k = 0; k < 3; ++k)
+                addin.pointlist[3 * i + k] = options.extra_points(i, k);
+    }
     std::string switches = tetgen_switches(options);
     try {
-        ::tetrahedralize(switches.data(), &in, &out);
+        ::tetrahedralize(switches.data(), &in, &out,
+                         options.extra_points.rows() > 0 ? &addin : nullptr);
     } catch (int code) {
         // TetGen reports errors by throwing an int (1: out of memory, 2: internal error,
         // 3: self-intersecting input, 4: very small input feature, 5: close facets, 10: ...).

@@ -13,6 +13,9 @@ struct TetgenOptions {
     double min_dihedral_deg = 0.0;  ///< -q ratio/angle: lower bound on dihedral angles (0: off)
     bool preserve_surface = true;   ///< -Y: no Steiner point on any facet (curved surfaces
                                     ///< keep every node on the true surface)
+    /// -i: extra points (mm) inserted into the mesh, e.g. a fine grid where contact happens
+    /// (local refinement). Points outside the PLC are ignored by TetGen.
+    Points extra_points;
 };
 
 /// Tetrahedralizes a PLC with quality switches on and one region attribute per tet.

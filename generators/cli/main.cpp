@@ -2,11 +2,13 @@
 #include "generators/bench.hpp"
 #include "generators/generate.hpp"
 #include "generators/spec.hpp"
+#include "generators/verify.hpp"
 
 #include <CLI/CLI.hpp>
 #include <tbb/global_control.h>
 
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <memory>
 
@@ -81,6 +83,19 @@ int main(int argc, char** argv) {
     bench_render->add_option("--repeat", render_bench.repeats, "timed renders per setting")
         ->check(CLI::Range(1, 1000));
 
+    auto* verify = app.add_subcommand("verify", "validation against analytic references");
+    verify->require_subcommand(1);
+    gen::VerifyOptions verify_options;
+    std::string verify_json;
+    auto* verify_mech = verify->add_subcommand("mechanics", "Hertz on an elastic block");
+    verify_mech->add_option("--levels", verify_options.levels, "block mesh levels")
+        ->delimiter(',')
+        ->check(CLI::IsMember({"coarse", "medium", "fine"}));
+    verify_mech->add_option("--nu", verify_options.nus, "Poisson ratios")
+        ->delimiter(',')
+        ->check(CLI::Range(0.0, 0.4999));
+    verify_mech->add_option("--json", verify_json, "also write the cases to this JSON file");
+
     CLI11_PARSE(app, argc, argv);
     std::unique_ptr<tbb::global_control> limit;
     if (threads > 0)
@@ -104,6 +119,16 @@ int main(int argc, char** argv) {
         }
         if (*bench_render) {
             gen::bench_render(render_bench, std::cout);
+            return 0;
+        }
+        if (*verify_mech) {
+            const auto cases = gen::verify_mechanics(verify_options);
+            gen::print_verify_table(cases, std::cout);
+            if (!verify_json.empty()) {
+                std::ofstream json(verify_json);
+                gen::write_verify_json(cases, json);
+                if (!json) throw std::runtime_error("cannot write " + verify_json);
+            }
             return 0;
         }
         if (*schema) {

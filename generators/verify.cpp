@@ -1,0 +1,91 @@
+#include "generators/verify.hpp"
+
+#include "mechanics/block_model.hpp"
+#include "mechanics/hertz.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <iomanip>
+#include <ostream>
+
+namespace chromasim::generators {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+VerifyCase make_case(std::string key, const std::string& level, double P, double nu,
+                     double measured, double reference, double target) {
+    VerifyCase c{std::move(key), level, P, nu, measured, reference, 0, target, 0, 0, ""};
+    c.rel_error = measured / reference - 1.0;
+    return c;
+}
+
+void hertz_cases(const std::string& level, double nu, std::vector<VerifyCase>& out) {
+    constexpr double kRadius_mm = 10.0;
+    mechanics::BlockParams params = mechanics::block_level(level);
+    params.material.nu = nu;
+    const mechanics::BlockModel block(params);
+    const mechanics::ObjectShape sphere{mechanics::ObjectShape::Kind::sphere, kRadius_mm};
+    const double E = params.material.E_MPa;
+    for (double P : {1.0, 2.5}) {
+        const auto t0 = Clock::now();
+        const mechanics::ContactSolution s = block.solve({P, {0, 0}, 0.5}, sphere);
+        const double frame_ms = 1e3 * std::chrono::duration<double>(Clock::now() - t0).count();
+        const mechanics::HertzSolution h = mechanics::hertz(P, kRadius_mm, E, nu);
+        const mechanics::ContactFit fit =
+            mechanics::fit_hertz_profile(block.candidate_positions(), block.candidate_areas(), s);
+        // The block is clamped at its base: Hertz's approach less the half-space settlement
+        // below that depth (Boussinesq) is what it can show.
+        const double delta_ref =
+            h.delta_mm - mechanics::boussinesq_axis_displacement(P, E, nu, params.depth_mm);
+        const std::size_t first = out.size();
+        out.push_back(make_case("hertz_a", level, P, nu, fit.a_mm, h.a_mm, 0.03));
+        out.push_back(make_case("hertz_delta", level, P, nu, s.indentation_mm, delta_ref, 0.03));
+        out.push_back(make_case("hertz_p0", level, P, nu, fit.p0_MPa, h.p0_MPa, 0.05));
+        for (std::size_t i = first; i < out.size(); ++i) {
+            out[i].precompute_s = block.stats().mesh_s + block.stats().precompute_s;
+            out[i].frame_ms = frame_ms;
+            out[i].note = s.converged ? "" : "contact solve: " + s.status;
+        }
+    }
+}
+
+} // namespace
+
+std::vector<VerifyCase> verify_mechanics(const VerifyOptions& options) {
+    std::vector<VerifyCase> cases;
+    for (double nu : options.nus)
+        for (const auto& level : options.levels)
+            hertz_cases(level, nu, cases);
+    return cases;
+}
+
+void print_verify_table(const std::vector<VerifyCase>& cases, std::ostream& out) {
+    out << "| case | level | P N | nu | measured | reference | error | target | within | "
+           "precompute s | frame ms |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
+    for (const VerifyCase& c : cases)
+        out << "| " << c.key << " | " << c.level << " | " << c.load_N << " | " << c.nu << " | "
+            << std::setprecision(5) << c.measured << " | " << c.reference << " | " << std::fixed
+            << std::setprecision(1) << 100 * c.rel_error << " % | " << 100 * c.target << " % | "
+            << (std::abs(c.rel_error) <= c.target ? "yes" : "no") << " | " << std::setprecision(2)
+            << c.precompute_s << " | " << c.frame_ms << " |" << std::defaultfloat
+            << (c.note.empty() ? "" : " " + c.note) << "\n";
+}
+
+void write_verify_json(const std::vector<VerifyCase>& cases, std::ostream& out) {
+    out << "{\n  \"cases\": [\n" << std::setprecision(10);
+    for (std::size_t i = 0; i < cases.size(); ++i) {
+        const VerifyCase& c = cases[i];
+        out << "    {\"key\": \"" << c.key << "\", \"level\": \"" << c.level
+            << "\", \"load_N\": " << c.load_N << ", \"nu\": " << c.nu
+            << ", \"measured\": " << c.measured << ", \"reference\": " << c.reference
+            << ", \"rel_error\": " << c.rel_error << ", \"target\": " << c.target
+            << ", \"within_target\": " << (std::abs(c.rel_error) <= c.target ? "true" : "false")
+            << ", \"precompute_s\": " << c.precompute_s << ", \"frame_ms\": " << c.frame_ms
+            << ", \"note\": \"" << c.note << "\"}" << (i + 1 < cases.size() ? "," : "") << "\n";
+    }
+    out << "  ]\n}\n";
+}
+
+} // namespace chromasim::generators

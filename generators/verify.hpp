@@ -1,0 +1,32 @@
+#pragma once
+/// `chromasim verify mechanics`: validation cases against analytic references, printed as a
+/// table and optionally written as JSON (measured, reference, relative error, mesh level,
+/// run time, target).
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+namespace chromasim::generators {
+
+struct VerifyCase {
+    std::string key;   ///< e.g. hertz_a
+    std::string level; ///< mesh level
+    double load_N = 0, nu = 0;
+    double measured = 0, reference = 0, rel_error = 0, target = 0;
+    double precompute_s = 0, frame_ms = 0;
+    std::string note;
+};
+
+struct VerifyOptions {
+    std::vector<std::string> levels{"coarse", "medium"};
+    std::vector<double> nus{0.49, 0.3};
+};
+
+/// Hertz on an elastic block (R = 10 mm, E = 1 MPa, P = 1 and 2.5 N): contact radius, approach
+/// and peak pressure per mesh level and Poisson ratio.
+std::vector<VerifyCase> verify_mechanics(const VerifyOptions& options);
+
+void print_verify_table(const std::vector<VerifyCase>& cases, std::ostream& out);
+void write_verify_json(const std::vector<VerifyCase>& cases, std::ostream& out);
+
+} // namespace chromasim::generators

@@ -1,0 +1,141 @@
+#include "mechanics/block_model.hpp"
+
+#include "mechanics/tetgen_adapter.hpp"
+
+#include <Eigen/Geometry>
+
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+namespace chromasim::mechanics {
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+Plc box_plc(double w, double h) {
+    Plc plc;
+    plc.points.resize(8, 3);
+    for (int i = 0; i < 8; ++i)
+        plc.points.row(i) << ((i & 1) ? w : -w), ((i & 2) ? w : -w), ((i & 4) ? 0.0 : -h);
+    plc.facets = {{0, 1, 3, 2}, {4, 5, 7, 6}, {0, 1, 5, 4},
+                  {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 3, 7, 5}};
+    plc.regions.push_back({Eigen::Vector3d(0.1 * w, 0.2 * w, -0.5 * h), 1});
+    return plc;
+}
+
+/// Extra mesh points grading the mesh away from the contact: a grid of spacing h in the
+/// half-ball |x| <= r0 below the top face, then spacing 2h out to 2 r0, 4h out to 4 r0, ...
+/// up to `extent` (the block's half-width).
+Points graded_points(double r0, double h, double extent) {
+    std::vector<Eigen::Vector3d> pts;
+    double inner = 0, outer = r0;
+    while (inner < extent) {
+        const double lim = std::min(outer, extent);
+        for (double x = -lim; x <= lim + 1e-12; x += h)
+            for (double y = -lim; y <= lim + 1e-12; y += h)
+                for (double z = 0; z >= -lim - 1e-12; z -= h) {
+                    const double r = std::sqrt(x * x + y * y + z * z);
+                    if (r <= lim && r > inner - 1e-12) pts.emplace_back(x, y, z);
+                }
+        inner = outer;
+        outer *= 2;
+        h *= 2;
+    }
+    Points P(Eigen::Index(pts.size()), 3);
+    for (std::size_t i = 0; i < pts.size(); ++i)
+        P.row(Eigen::Index(i)) = pts[i].transpose();
+    return P;
+}
+
+} // namespace
+
+BlockParams block_level(const std::string& name) {
+    BlockParams p;
+    if (name == "coarse")
+        p.fine_spacing_mm = 0.4;
+    else if (name == "medium")
+        p.fine_spacing_mm = 0.25;
+    else if (name == "fine")
+        p.fine_spacing_mm = 0.16;
+    else
+        throw std::invalid_argument("unknown block level '" + name +
+                                    "'; allowed: coarse, medium, fine");
+    return p;
+}
+
+struct BlockModel::Impl {
+    BlockParams params;
+    TetMesh mesh;
+    Points candidate_X;
+    std::vector<double> candidate_area;
+    std::unique_ptr<ElasticBody> body;
+    BlockStats stats;
+};
+
+BlockModel::BlockModel(const BlockParams& params) : m_impl(std::make_unique<Impl>()) {
+    Impl& m = *m_impl;
+    m.params = params;
+    auto t0 = std::chrono::steady_clock::now();
+    TetgenOptions tg;
+    tg.max_volume_mm3 = params.max_volume_mm3;
+    tg.preserve_surface = false; // the flat faces may take Steiner points
+    tg.extra_points = graded_points(params.contact_radius_mm + 2 * params.fine_spacing_mm,
+                                    params.fine_spacing_mm,
+                                    std::min(params.half_width_mm, params.depth_mm) - 1e-6);
+    m.mesh = tetrahedralize(box_plc(params.half_width_mm, params.depth_mm), tg);
+    m.stats.mesh_s = seconds_since(t0);
+    m.stats.nodes = int(m.mesh.V.rows());
+    m.stats.tets = int(m.mesh.T.rows());
+
+    // Top face: tributary areas; candidates within the contact radius. Base: clamped.
+    const Triangles boundary = interface_faces(m.mesh, 1, -1);
+    std::vector<double> area(std::size_t(m.mesh.V.rows()), 0.0);
+    for (int f = 0; f < boundary.rows(); ++f) {
+        const Eigen::Vector3d a = m.mesh.V.row(boundary(f, 0)), b = m.mesh.V.row(boundary(f, 1)),
+                              c = m.mesh.V.row(boundary(f, 2));
+        if (std::abs(a.z()) + std::abs(b.z()) + std::abs(c.z()) > 1e-9) continue;
+        for (int k = 0; k < 3; ++k)
+            area[boundary(f, k)] += (b - a).cross(c - a).norm() / 6.0;
+    }
+    std::vector<int> candidates;
+    std::vector<bool> clamped(std::size_t(m.mesh.V.rows()));
+    const double r_max = params.contact_radius_mm;
+    for (int v = 0; v < m.mesh.V.rows(); ++v) {
+        clamped[std::size_t(v)] = m.mesh.V(v, 2) <= -params.depth_mm + 1e-9;
+        const double r2 = m.mesh.V(v, 0) * m.mesh.V(v, 0) + m.mesh.V(v, 1) * m.mesh.V(v, 1);
+        if (area[v] > 0 && r2 <= r_max * r_max) {
+            candidates.push_back(v);
+            m.candidate_area.push_back(area[v]);
+        }
+    }
+    m.candidate_X.resize(Eigen::Index(candidates.size()), 3);
+    for (std::size_t i = 0; i < candidates.size(); ++i)
+        m.candidate_X.row(Eigen::Index(i)) = m.mesh.V.row(candidates[i]);
+    m.stats.candidates = int(candidates.size());
+    t0 = std::chrono::steady_clock::now();
+    m.body = std::make_unique<ElasticBody>(m.mesh, std::vector<Material>{params.material}, clamped,
+                                           candidates, std::vector<int>{}, Embedding{});
+    m.stats.precompute_s = seconds_since(t0);
+}
+
+BlockModel::~BlockModel() = default;
+
+ContactSolution BlockModel::solve(const ContactLoad& load, const ObjectShape& object) const {
+    return solve_contact(m_impl->body->compliance(), object_gap(object, m_impl->candidate_X), load);
+}
+
+const Points& BlockModel::candidate_positions() const {
+    return m_impl->candidate_X;
+}
+const std::vector<double>& BlockModel::candidate_areas() const {
+    return m_impl->candidate_area;
+}
+const BlockStats& BlockModel::stats() const {
+    return m_impl->stats;
+}
+
+} // namespace chromasim::mechanics

@@ -1,0 +1,38 @@
+// Contact against theory: Hertz on an elastic block (the half-space stand-in).
+#include "mechanics/block_model.hpp"
+#include "mechanics/hertz.hpp"
+
+#include <catch2/catch.hpp>
+
+using namespace chromasim::mechanics;
+
+TEST_CASE("Hertz formulas reproduce SENSOR.md's scale check", "[mechanics][hertz]") {
+    // R = 13.2 mm, E = 0.4 MPa, nu = 0.5: a = 2.65 mm at 1 N, 3.8 mm at 3 N.
+    CHECK(hertz(1.0, 13.2, 0.4, 0.5).a_mm == Approx(2.65).margin(0.005));
+    CHECK(hertz(3.0, 13.2, 0.4, 0.5).a_mm == Approx(3.8).margin(0.05));
+    const HertzSolution h = hertz(1.0, 10.0, 1.0, 0.3);
+    CHECK(h.delta_mm == Approx(h.a_mm * h.a_mm / 10.0));
+    CHECK(h.p0_MPa * 2.0 / 3.0 * M_PI * h.a_mm * h.a_mm == Approx(1.0)); // integral of p = P
+    CHECK(mindlin_stick_radius(2.0, 0.5, 1.0, 1.0) == Approx(2.0 * std::cbrt(0.5)));
+    CHECK(mindlin_stick_radius(2.0, 1.5, 1.0, 1.0) == 0.0);
+}
+
+TEST_CASE("sphere on a block (nu = 0.3): Hertz a, approach and p0", "[mechanics][hertz]") {
+    BlockParams params = block_level("coarse");
+    params.material.nu = 0.3;
+    const BlockModel block(params);
+    const ObjectShape sphere{ObjectShape::Kind::sphere, 10.0};
+    for (double P : {1.0, 2.5}) {
+        INFO("P = " << P);
+        const ContactSolution s = block.solve({P, {0, 0}, 0.5}, sphere);
+        REQUIRE(s.converged);
+        const HertzSolution h = hertz(P, 10.0, 1.0, 0.3);
+        const ContactFit fit =
+            fit_hertz_profile(block.candidate_positions(), block.candidate_areas(), s);
+        REQUIRE(fit.nodes_used > 20);
+        CHECK(fit.a_mm == Approx(h.a_mm).epsilon(0.03));
+        CHECK(fit.p0_MPa == Approx(h.p0_MPa).epsilon(0.05));
+        const double delta_ref = h.delta_mm - boussinesq_axis_displacement(P, 1.0, 0.3, 40.0);
+        CHECK(s.indentation_mm == Approx(delta_ref).epsilon(0.03));
+    }
+}
