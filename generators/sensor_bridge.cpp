@@ -31,6 +31,8 @@ void fill_fans(const mechanics::Points& points, int markers, int per_marker, int
 mechanics::DomeModelOptions dome_options(const Spec& spec) {
     mechanics::DomeModelOptions o;
     o.mesh_level = spec.sensor.mesh_level;
+    o.volumetric = spec.sensor.volumetric == "element" ? mechanics::Volumetric::element
+                                                       : mechanics::Volumetric::nodal_average;
     o.materials = {material(spec.sensor.inner_marker_layer), material(spec.sensor.clear_layer),
                    material(spec.sensor.outer_marker_layer), material(spec.sensor.coating)};
     o.contact_candidate_angle_deg = spec.sensor.contact_candidate_angle_deg;

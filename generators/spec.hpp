@@ -32,7 +32,8 @@ struct Spec {
     std::uint64_t seed = 1;
 
     struct Sensor {
-        std::string mesh_level = "coarse"; ///< coarse | medium | fine
+        std::string mesh_level = "coarse";        ///< coarse | medium | fine
+        std::string volumetric = "nodal_average"; ///< nodal_average | element
         LayerMaterial inner_marker_layer{0.8, 0.45};
         LayerMaterial clear_layer{0.3, 0.45};
         LayerMaterial outer_marker_layer{0.8, 0.45};

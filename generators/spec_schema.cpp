@@ -147,6 +147,11 @@ void add_sensor_mechanics(std::vector<SchemaEntry>& out) {
               CHROMASIM_FIELD(sensor.outer_marker_layer));
     add_layer(out, "coating", 1.0, "white diffusing coating (pigmented silicone: about 1 MPa)",
               CHROMASIM_FIELD(sensor.coating));
+    out.push_back(choice("sensor.volumetric", "nodal_average", {"nodal_average", "element"},
+                         "How the volumetric strain energy is integrated: nodal_average (average "
+                         "nodal pressure, no locking of nearly incompressible layers) or element "
+                         "(standard linear tets: too stiff as nu approaches 0.5; faster).",
+                         CHROMASIM_FIELD(sensor.volumetric)));
     out.push_back(number("sensor.contact_candidate_angle_deg", 35, closed(5, 80), "deg",
                          "Polar angle of the outer-surface cap whose nodes may touch the object.",
                          CHROMASIM_FIELD(sensor.contact_candidate_angle_deg)));

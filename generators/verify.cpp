@@ -14,17 +14,21 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-VerifyCase make_case(std::string key, const std::string& level, double P, double nu,
-                     double measured, double reference, double target) {
-    VerifyCase c{std::move(key), level, P, nu, measured, reference, 0, target, 0, 0, ""};
+VerifyCase make_case(std::string key, const std::string& level, const std::string& volumetric,
+                     double P, double nu, double measured, double reference, double target) {
+    VerifyCase c{std::move(key), level, volumetric, P, nu, measured,
+                 reference,      0,     target,     0, 0,  ""};
     c.rel_error = measured / reference - 1.0;
     return c;
 }
 
-void hertz_cases(const std::string& level, double nu, std::vector<VerifyCase>& out) {
+void hertz_cases(const std::string& level, const std::string& volumetric, double nu,
+                 std::vector<VerifyCase>& out) {
     constexpr double kRadius_mm = 10.0;
     mechanics::BlockParams params = mechanics::block_level(level);
     params.material.nu = nu;
+    params.volumetric = volumetric == "element" ? mechanics::Volumetric::element
+                                                : mechanics::Volumetric::nodal_average;
     const mechanics::BlockModel block(params);
     const mechanics::ObjectShape sphere{mechanics::ObjectShape::Kind::sphere, kRadius_mm};
     const double E = params.material.E_MPa;
@@ -40,9 +44,10 @@ void hertz_cases(const std::string& level, double nu, std::vector<VerifyCase>& o
         const double delta_ref =
             h.delta_mm - mechanics::boussinesq_axis_displacement(P, E, nu, params.depth_mm);
         const std::size_t first = out.size();
-        out.push_back(make_case("hertz_a", level, P, nu, fit.a_mm, h.a_mm, 0.03));
-        out.push_back(make_case("hertz_delta", level, P, nu, s.indentation_mm, delta_ref, 0.03));
-        out.push_back(make_case("hertz_p0", level, P, nu, fit.p0_MPa, h.p0_MPa, 0.05));
+        out.push_back(make_case("hertz_a", level, volumetric, P, nu, fit.a_mm, h.a_mm, 0.03));
+        out.push_back(
+            make_case("hertz_delta", level, volumetric, P, nu, s.indentation_mm, delta_ref, 0.03));
+        out.push_back(make_case("hertz_p0", level, volumetric, P, nu, fit.p0_MPa, h.p0_MPa, 0.05));
         for (std::size_t i = first; i < out.size(); ++i) {
             out[i].precompute_s = block.stats().mesh_s + block.stats().precompute_s;
             out[i].frame_ms = frame_ms;
@@ -55,32 +60,35 @@ void hertz_cases(const std::string& level, double nu, std::vector<VerifyCase>& o
 
 std::vector<VerifyCase> verify_mechanics(const VerifyOptions& options) {
     std::vector<VerifyCase> cases;
-    for (double nu : options.nus)
-        for (const auto& level : options.levels)
-            hertz_cases(level, nu, cases);
+    for (const auto& volumetric : options.volumetrics)
+        for (double nu : options.nus)
+            for (const auto& level : options.levels)
+                hertz_cases(level, volumetric, nu, cases);
     return cases;
 }
 
 void print_verify_table(const std::vector<VerifyCase>& cases, std::ostream& out) {
-    out << "| case | level | P N | nu | measured | reference | error | target | within | "
-           "precompute s | frame ms |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
+    out << "| case | volumetric | level | P N | nu | measured | reference | error | target | "
+           "within | "
+           "precompute s | frame ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for (const VerifyCase& c : cases)
-        out << "| " << c.key << " | " << c.level << " | " << c.load_N << " | " << c.nu << " | "
-            << std::setprecision(5) << c.measured << " | " << c.reference << " | " << std::fixed
-            << std::setprecision(1) << 100 * c.rel_error << " % | " << 100 * c.target << " % | "
-            << (std::abs(c.rel_error) <= c.target ? "yes" : "no") << " | " << std::setprecision(2)
-            << c.precompute_s << " | " << c.frame_ms << " |" << std::defaultfloat
-            << (c.note.empty() ? "" : " " + c.note) << "\n";
+        out << "| " << c.key << " | " << c.volumetric << " | " << c.level << " | " << c.load_N
+            << " | " << c.nu << " | " << std::setprecision(5) << c.measured << " | " << c.reference
+            << " | " << std::fixed << std::setprecision(1) << 100 * c.rel_error << " % | "
+            << 100 * c.target << " % | " << (std::abs(c.rel_error) <= c.target ? "yes" : "no")
+            << " | " << std::setprecision(2) << c.precompute_s << " | " << c.frame_ms << " |"
+            << std::defaultfloat << (c.note.empty() ? "" : " " + c.note) << "\n";
 }
 
 void write_verify_json(const std::vector<VerifyCase>& cases, std::ostream& out) {
     out << "{\n  \"cases\": [\n" << std::setprecision(10);
     for (std::size_t i = 0; i < cases.size(); ++i) {
         const VerifyCase& c = cases[i];
-        out << "    {\"key\": \"" << c.key << "\", \"level\": \"" << c.level
-            << "\", \"load_N\": " << c.load_N << ", \"nu\": " << c.nu
-            << ", \"measured\": " << c.measured << ", \"reference\": " << c.reference
-            << ", \"rel_error\": " << c.rel_error << ", \"target\": " << c.target
+        out << "    {\"key\": \"" << c.key << "\", \"volumetric\": \"" << c.volumetric
+            << "\", \"level\": \"" << c.level << "\", \"load_N\": " << c.load_N
+            << ", \"nu\": " << c.nu << ", \"measured\": " << c.measured
+            << ", \"reference\": " << c.reference << ", \"rel_error\": " << c.rel_error
+            << ", \"target\": " << c.target
             << ", \"within_target\": " << (std::abs(c.rel_error) <= c.target ? "true" : "false")
             << ", \"precompute_s\": " << c.precompute_s << ", \"frame_ms\": " << c.frame_ms
             << ", \"note\": \"" << c.note << "\"}" << (i + 1 < cases.size() ? "," : "") << "\n";

@@ -9,8 +9,9 @@
 namespace chromasim::generators {
 
 struct VerifyCase {
-    std::string key;   ///< e.g. hertz_a
-    std::string level; ///< mesh level
+    std::string key;        ///< e.g. hertz_a
+    std::string level;      ///< mesh level
+    std::string volumetric; ///< nodal_average | element
     double load_N = 0, nu = 0;
     double measured = 0, reference = 0, rel_error = 0, target = 0;
     double precompute_s = 0, frame_ms = 0;
@@ -19,11 +20,12 @@ struct VerifyCase {
 
 struct VerifyOptions {
     std::vector<std::string> levels{"coarse", "medium"};
-    std::vector<double> nus{0.49, 0.3};
+    std::vector<double> nus{0.49};
+    std::vector<std::string> volumetrics{"nodal_average", "element"};
 };
 
 /// Hertz on an elastic block (R = 10 mm, E = 1 MPa, P = 1 and 2.5 N): contact radius, approach
-/// and peak pressure per mesh level and Poisson ratio.
+/// and peak pressure per volumetric formulation, Poisson ratio and mesh level.
 std::vector<VerifyCase> verify_mechanics(const VerifyOptions& options);
 
 void print_verify_table(const std::vector<VerifyCase>& cases, std::ostream& out);

@@ -83,9 +83,9 @@ BlockModel::BlockModel(const BlockParams& params) : m_impl(std::make_unique<Impl
     TetgenOptions tg;
     tg.max_volume_mm3 = params.max_volume_mm3;
     tg.preserve_surface = false; // the flat faces may take Steiner points
-    tg.extra_points = graded_points(params.contact_radius_mm + 2 * params.fine_spacing_mm,
-                                    params.fine_spacing_mm,
-                                    std::min(params.half_width_mm, params.depth_mm) - 1e-6);
+    tg.extra_points =
+        graded_points(params.contact_radius_mm + 2 * params.fine_spacing_mm, params.fine_spacing_mm,
+                      std::min(params.half_width_mm, params.depth_mm) - 1e-6);
     m.mesh = tetrahedralize(box_plc(params.half_width_mm, params.depth_mm), tg);
     m.stats.mesh_s = seconds_since(t0);
     m.stats.nodes = int(m.mesh.V.rows());
@@ -118,7 +118,8 @@ BlockModel::BlockModel(const BlockParams& params) : m_impl(std::make_unique<Impl
     m.stats.candidates = int(candidates.size());
     t0 = std::chrono::steady_clock::now();
     m.body = std::make_unique<ElasticBody>(m.mesh, std::vector<Material>{params.material}, clamped,
-                                           candidates, std::vector<int>{}, Embedding{});
+                                           candidates, std::vector<int>{}, Embedding{},
+                                           params.volumetric);
     m.stats.precompute_s = seconds_since(t0);
 }
 

@@ -14,6 +14,7 @@ struct BlockParams {
     double half_width_mm = 40.0; ///< the block is [-w, w]^2 x [-depth, 0]
     double depth_mm = 40.0;
     Material material{1.0, 0.49};
+    Volumetric volumetric = Volumetric::nodal_average;
     double contact_radius_mm = 3.5; ///< top-face nodes within this radius may touch
     double fine_spacing_mm = 0.3;   ///< grid of extra mesh points near the contact
     double max_volume_mm3 = 40.0;   ///< TetGen -a bound far from the contact

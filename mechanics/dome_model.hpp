@@ -21,6 +21,9 @@ struct DomeModelOptions {
     /// Materials of the layers, innermost first (indexed by Layer - 1).
     std::array<Material, kLayerCount> materials{
         {{0.8, 0.45}, {0.3, 0.45}, {0.8, 0.45}, {1.0, 0.45}}};
+    /// Volumetric integration (linear_elasticity.hpp): nodal averaging relieves the locking of
+    /// nearly incompressible layers.
+    Volumetric volumetric = Volumetric::nodal_average;
     /// Outer-surface nodes up to this polar angle may touch the object.
     double contact_candidate_angle_deg = 35.0;
 };

@@ -42,15 +42,16 @@ struct ElasticBody::Impl {
     ElasticBodyStats stats;
 
     explicit Impl(const TetMesh& m) : mesh(m) {}
-    void factorize(const std::vector<Material>& materials, const std::vector<bool>& clamped);
+    void factorize(const std::vector<Material>& materials, const std::vector<bool>& clamped,
+                   Volumetric volumetric);
     void precompute_responses();
     void fill_observed(int c0, const Eigen::MatrixXd& u);
 };
 
 void ElasticBody::Impl::factorize(const std::vector<Material>& materials,
-                                  const std::vector<bool>& clamped) {
+                                  const std::vector<bool>& clamped, Volumetric volumetric) {
     auto t0 = std::chrono::steady_clock::now();
-    const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, materials);
+    const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, materials, volumetric);
     free_of_dof.assign(std::size_t(K.rows()), -1);
     int n_free = 0;
     for (int v = 0; v < mesh.V.rows(); ++v)
@@ -120,13 +121,14 @@ void ElasticBody::Impl::precompute_responses() {
 
 ElasticBody::ElasticBody(const TetMesh& mesh, const std::vector<Material>& materials,
                          const std::vector<bool>& clamped, std::vector<int> candidates,
-                         std::vector<int> observed_nodes, Embedding observed_points)
+                         std::vector<int> observed_nodes, Embedding observed_points,
+                         Volumetric volumetric)
     : m_impl(std::make_unique<Impl>(mesh)) {
     m_impl->candidates = std::move(candidates);
     m_impl->observed_nodes = std::move(observed_nodes);
     m_impl->observed_points = std::move(observed_points);
     m_impl->stats.candidates = int(m_impl->candidates.size());
-    m_impl->factorize(materials, clamped);
+    m_impl->factorize(materials, clamped, volumetric);
     m_impl->precompute_responses();
 }
 

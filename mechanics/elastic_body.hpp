@@ -33,7 +33,8 @@ public:
     /// the `observed_points` embedding (after). Throws std::runtime_error if K is singular.
     ElasticBody(const TetMesh& mesh, const std::vector<Material>& materials,
                 const std::vector<bool>& clamped, std::vector<int> candidates,
-                std::vector<int> observed_nodes, Embedding observed_points);
+                std::vector<int> observed_nodes, Embedding observed_points,
+                Volumetric volumetric = Volumetric::element);
     ~ElasticBody();
     ElasticBody(const ElasticBody&) = delete;
     ElasticBody& operator=(const ElasticBody&) = delete;

@@ -94,6 +94,9 @@ int main(int argc, char** argv) {
     verify_mech->add_option("--nu", verify_options.nus, "Poisson ratios")
         ->delimiter(',')
         ->check(CLI::Range(0.0, 0.4999));
+    verify_mech->add_option("--volumetric", verify_options.volumetrics, "formulations")
+        ->delimiter(',')
+        ->check(CLI::IsMember({"nodal_average", "element"}));
     verify_mech->add_option("--json", verify_json, "also write the cases to this JSON file");
 
     CLI11_PARSE(app, argc, argv);

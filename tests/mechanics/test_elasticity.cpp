@@ -2,6 +2,7 @@
 #include "mechanics/tetgen_adapter.hpp"
 
 #include <Eigen/Dense>
+#include <Eigen/Geometry>
 #include <Eigen/SparseCholesky>
 #include <catch2/catch.hpp>
 
@@ -68,7 +69,9 @@ TEST_CASE("single tet stiffness: symmetric, rigid modes free, uniaxial strain en
 
 TEST_CASE("patch test: a linear displacement field is reproduced to 1e-9", "[mechanics][fem]") {
     const TetMesh mesh = box_mesh();
-    const auto K = assemble_stiffness(mesh, {Material{0.8, 0.45}});
+    const Volumetric volumetric = GENERATE(Volumetric::element, Volumetric::nodal_average);
+    INFO("volumetric " << int(volumetric));
+    const auto K = assemble_stiffness(mesh, {Material{0.8, 0.4999}}, volumetric);
     const int n = int(mesh.V.rows());
     // u(x) = A x + b with a general A (stretch, shear, rotation-ish).
     Eigen::Matrix3d A;
@@ -109,4 +112,28 @@ TEST_CASE("patch test: a linear displacement field is reproduced to 1e-9", "[mec
     const Eigen::VectorXd f = K * u_exact;
     for (int v : interior)
         CHECK(f.segment<3>(3 * v).norm() < 1e-9);
+}
+
+TEST_CASE("nodal-average volumetric stiffness: same energy for uniform strain, softer in bending",
+          "[mechanics][fem]") {
+    const TetMesh mesh = box_mesh();
+    const std::vector<Material> m{Material{1.0, 0.49}};
+    const auto Ke = assemble_stiffness(mesh, m, Volumetric::element);
+    const auto Kn = assemble_stiffness(mesh, m, Volumetric::nodal_average);
+    CHECK((Eigen::MatrixXd(Kn) - Eigen::MatrixXd(Kn).transpose()).norm() < 1e-12 * Kn.norm());
+    const int n = int(mesh.V.rows());
+    Eigen::VectorXd uniform(3 * n), bend(3 * n);
+    for (int v = 0; v < n; ++v) {
+        const Eigen::Vector3d x = mesh.V.row(v);
+        uniform.segment<3>(3 * v) = Eigen::Vector3d(1e-3 * x.x(), -2e-3 * x.y(), 5e-4 * x.z());
+        // A quadratic (bending-like) field: div u varies in space.
+        bend.segment<3>(3 * v) = Eigen::Vector3d(1e-2 * x.x() * x.z(), 0, -5e-3 * x.x() * x.x());
+    }
+    CHECK(elastic_energy(Kn, uniform) == Approx(elastic_energy(Ke, uniform)).epsilon(1e-12));
+    CHECK(elastic_energy(Kn, bend) < elastic_energy(Ke, bend));
+    // Rigid motions stay free.
+    Eigen::VectorXd rot(3 * n);
+    for (int v = 0; v < n; ++v)
+        rot.segment<3>(3 * v) = Eigen::Vector3d(0.3, -0.2, 1.0).cross(mesh.V.row(v).transpose());
+    CHECK((Kn * rot).norm() < 1e-10 * Kn.norm());
 }
