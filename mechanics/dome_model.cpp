@@ -107,7 +107,7 @@ void DomeModel::Impl::build_body() {
         clamped[std::size_t(v)] = mesh.V(v, 2) <= 1e-9;
     body = std::make_unique<ElasticBody>(
         mesh, std::vector<Material>(options.materials.begin(), options.materials.end()), clamped,
-        candidates, coating.nodes, embed(mesh, markers.points, "marker point"));
+        candidates, coating.nodes, embed(mesh, markers.points, "marker point"), options.volumetric);
     const ElasticBodyStats& b = body->stats();
     stats.assemble_s = b.assemble_s;
     stats.factorize_s = b.factorize_s;
