@@ -51,6 +51,8 @@ struct LevelRow {
 LevelRow bench_level(const std::string& level, const DomeBenchOptions& o) {
     mechanics::DomeModelOptions options;
     options.mesh_level = level;
+    options.volumetric = o.volumetric == "element" ? mechanics::Volumetric::element
+                                                   : mechanics::Volumetric::nodal_average;
     const mechanics::DomeModel model(options);
     LevelRow row{level, model.stats()};
     row.volume_error =
@@ -75,7 +77,8 @@ void bench_dome(const DomeBenchOptions& o, std::ostream& out) {
         rows.push_back(bench_level(level, o));
     const LevelRow& ref = rows.back();
     out << "dome under a flat, P = " << o.normal_force_N << " N, Q = " << o.tangential_force_N
-        << " N, mu = " << o.mu << "; reference level: " << ref.level << "; frame times are "
+        << " N, mu = " << o.mu << ", volumetric " << o.volumetric
+        << "; reference level: " << ref.level << "; frame times are "
         << "medians of " << o.repeats << "\n\n"
         << "| level | nodes | tets | volume err | mesh s | assemble s | factorize s | "
            "compliance s | frame ms (labels) | frame ms (+fields) | indentation mm | vs ref | "

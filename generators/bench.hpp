@@ -13,6 +13,7 @@ struct DomeBenchOptions {
     double normal_force_N = 1.5; ///< load of the timed frame
     double tangential_force_N = 0.6;
     double mu = 0.8;
+    std::string volumetric = "nodal_average"; ///< nodal_average | element
 };
 
 /// Mesh level vs accuracy and time: nodes, tets, meshed volume error, precompute breakdown,

@@ -69,6 +69,8 @@ int main(int argc, char** argv) {
     bench_dome->add_option("--levels", dome_bench.levels, "mesh levels; the last is the reference")
         ->delimiter(',')
         ->check(CLI::IsMember({"coarse", "medium", "fine"}));
+    bench_dome->add_option("--volumetric", dome_bench.volumetric, "volumetric formulation")
+        ->check(CLI::IsMember({"nodal_average", "element"}));
     bench_dome->add_option("--repeat", dome_bench.repeats, "timed frames per level")
         ->check(CLI::Range(1, 1000));
     gen::RenderBenchOptions render_bench;
