@@ -194,3 +194,27 @@ TEST_CASE("the volumetric formulation reaches the dome: nodal averaging is softe
     const double d_element = element.solve(load, {}).contact.indentation_mm;
     CHECK(d_nodal > d_element * 1.01);
 }
+
+TEST_CASE("stiff cases: nu = 0.4999 and a 1000:1 layer stiffness ratio stay finite and converge",
+          "[mechanics][contact][extreme]") {
+    DomeModelOptions incompressible;
+    for (auto& m : incompressible.materials)
+        m.nu = 0.4999;
+    DomeModelOptions contrast;
+    contrast.materials[1].E_MPa = 0.01; // clear layer 1000 times softer than the others (10 MPa)
+    for (int k : {0, 2, 3})
+        contrast.materials[std::size_t(k)].E_MPa = 10.0;
+    for (const DomeModelOptions* options : {&incompressible, &contrast}) {
+        const DomeModel model(*options);
+        for (double P : {0.05, 1.5}) {
+            const FrameResult r = model.solve({P, {0.3 * P, 0.0}, 0.8}, {true, true, false});
+            INFO("P " << P);
+            REQUIRE(r.contact.converged);
+            CHECK(r.contact.normal_force_N == Approx(P));
+            CHECK(r.coating_displacement_mm.allFinite());
+            CHECK(r.marker_points_mm.allFinite());
+            CHECK(r.contact.indentation_mm > 0);
+            CHECK(r.contact.indentation_mm < 13.2);
+        }
+    }
+}
