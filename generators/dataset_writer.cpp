@@ -92,7 +92,8 @@ void DatasetWriter::open_outputs() {
                             "frame,phase,image,normal_force_N,tangential_force_N,"
                             "tangential_force_x_N,tangential_force_y_N,"
                             "requested_tangential_force_N,mu,gamma,sliding,indentation_mm,"
-                            "contact_area_mm2,contact_nodes,solver_iterations,converged,status");
+                            "contact_area_mm2,stick_area_mm2,contact_nodes,solver_iterations,"
+                            "converged,status");
     if (m_spec.outputs.markers)
         m_markers = open_csv(m_staging / "markers.csv",
                              "frame,layer,marker,x0_mm,y0_mm,z0_mm,ux_mm,uy_mm,uz_mm");
@@ -119,8 +120,9 @@ void DatasetWriter::write_label(const LabelRow& r) {
     m_labels << r.frame << ',' << r.phase << ',' << r.image << ',' << r.normal_force_N << ',' << ft
              << ',' << r.tangential_x_N << ',' << r.tangential_y_N << ','
              << r.requested_tangential_N << ',' << r.mu << ',' << r.gamma << ',' << int(r.sliding)
-             << ',' << r.indentation_mm << ',' << r.contact_area_mm2 << ',' << r.contact_nodes
-             << ',' << r.solver_iterations << ',' << int(r.converged) << ',' << r.status << '\n';
+             << ',' << r.indentation_mm << ',' << r.contact_area_mm2 << ',' << r.stick_area_mm2
+             << ',' << r.contact_nodes << ',' << r.solver_iterations << ',' << int(r.converged)
+             << ',' << r.status << '\n';
     ++m_label_rows;
 }
 

@@ -28,7 +28,7 @@ struct LabelRow {
     int frame = 0;
     std::string phase, image;
     double normal_force_N = 0, tangential_x_N = 0, tangential_y_N = 0, requested_tangential_N = 0;
-    double mu = 0, gamma = 0, indentation_mm = 0, contact_area_mm2 = 0;
+    double mu = 0, gamma = 0, indentation_mm = 0, contact_area_mm2 = 0, stick_area_mm2 = 0;
     bool sliding = false, converged = false;
     int contact_nodes = 0, solver_iterations = 0;
     std::string status;

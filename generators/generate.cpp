@@ -34,6 +34,7 @@ LabelRow label_row(const FramePlan& f, const mechanics::FrameResult& r) {
     row.sliding = r.contact.sliding;
     row.indentation_mm = r.contact.indentation_mm;
     row.contact_area_mm2 = r.contact_area_mm2;
+    row.stick_area_mm2 = r.stick_area_mm2;
     row.contact_nodes = int(r.contact.active.size());
     row.solver_iterations = r.contact.iterations;
     row.converged = r.contact.converged && !r.at_candidate_edge;

@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <iomanip>
 #include <ostream>
 
@@ -20,6 +21,33 @@ VerifyCase make_case(std::string key, const std::string& level, const std::strin
                  reference,      0,     target,     0, 0,  ""};
     c.rel_error = measured / reference - 1.0;
     return c;
+}
+
+/// Cattaneo-Mindlin at P = 1 N: normal load frictionless, then Q / (mu P) = 0.25, 0.5, 0.75
+/// for mu = 0.5 and 1.0; stick radius fitted to the nodal tangential tractions.
+void mindlin_cases(const mechanics::BlockModel& block, const mechanics::ObjectShape& sphere,
+                   const mechanics::ContactFit& fit, const std::string& level,
+                   const std::string& volumetric, double nu, std::vector<VerifyCase>& out) {
+    const double P = 1.0;
+    const double a = mechanics::hertz(P, sphere.radius_mm, 1.0, nu).a_mm;
+    for (double mu : {0.5, 1.0})
+        for (double ratio : {0.25, 0.5, 0.75}) {
+            const auto t0 = Clock::now();
+            const mechanics::ContactSolution s = block.solve({P, {ratio * mu * P, 0}, mu}, sphere);
+            const double ms = 1e3 * std::chrono::duration<double>(Clock::now() - t0).count();
+            const double c = mechanics::fit_mindlin_stick_radius(
+                block.candidate_positions(), block.candidate_areas(), s, fit.a_mm, fit.p0_MPa, mu);
+            char key[32];
+            std::snprintf(key, sizeof key, "mindlin_c_%03d", int(std::lround(100 * ratio)));
+            VerifyCase vc =
+                make_case(key, level, volumetric, P, nu, c,
+                          mechanics::mindlin_stick_radius(a, ratio * mu * P, mu, P), 0.05);
+            vc.frame_ms = ms;
+            vc.precompute_s = block.stats().mesh_s + block.stats().precompute_s;
+            vc.note = "mu " + std::to_string(mu).substr(0, 3) +
+                      (s.converged ? "" : ", contact solve: " + s.status);
+            out.push_back(vc);
+        }
 }
 
 void hertz_cases(const std::string& level, const std::string& volumetric, double nu,
@@ -53,6 +81,7 @@ void hertz_cases(const std::string& level, const std::string& volumetric, double
             out[i].frame_ms = frame_ms;
             out[i].note = s.converged ? "" : "contact solve: " + s.status;
         }
+        if (P == 1.0) mindlin_cases(block, sphere, fit, level, volumetric, nu, out);
     }
 }
 
@@ -70,14 +99,15 @@ std::vector<VerifyCase> verify_mechanics(const VerifyOptions& options) {
 void print_verify_table(const std::vector<VerifyCase>& cases, std::ostream& out) {
     out << "| case | volumetric | level | P N | nu | measured | reference | error | target | "
            "within | "
-           "precompute s | frame ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+           "precompute s | frame ms | note "
+           "|\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for (const VerifyCase& c : cases)
         out << "| " << c.key << " | " << c.volumetric << " | " << c.level << " | " << c.load_N
             << " | " << c.nu << " | " << std::setprecision(5) << c.measured << " | " << c.reference
             << " | " << std::fixed << std::setprecision(1) << 100 * c.rel_error << " % | "
             << 100 * c.target << " % | " << (std::abs(c.rel_error) <= c.target ? "yes" : "no")
             << " | " << std::setprecision(2) << c.precompute_s << " | " << c.frame_ms << " |"
-            << std::defaultfloat << (c.note.empty() ? "" : " " + c.note) << "\n";
+            << std::defaultfloat << " " << c.note << " |\n";
 }
 
 void write_verify_json(const std::vector<VerifyCase>& cases, std::ostream& out) {

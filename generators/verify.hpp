@@ -25,7 +25,8 @@ struct VerifyOptions {
 };
 
 /// Hertz on an elastic block (R = 10 mm, E = 1 MPa, P = 1 and 2.5 N): contact radius, approach
-/// and peak pressure per volumetric formulation, Poisson ratio and mesh level.
+/// and peak pressure; Cattaneo-Mindlin stick radius at P = 1 N, Q / (mu P) = 0.25, 0.5, 0.75,
+/// mu = 0.5 and 1; per volumetric formulation, Poisson ratio and mesh level.
 std::vector<VerifyCase> verify_mechanics(const VerifyOptions& options);
 
 void print_verify_table(const std::vector<VerifyCase>& cases, std::ostream& out);

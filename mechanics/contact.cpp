@@ -59,29 +59,79 @@ bool solve_normal(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, const st
     return std::isfinite(d);
 }
 
-/// Tied tangential tractions on the contact set A: C_tt t = s on every node of A (the same
-/// tangential offset s), sum t = Q. With C_tt SPD, t = C^-1 E s where E stacks identities,
-/// and s solves the 2 x 2 system (E' C^-1 E) s = Q. Writes F's x, y columns.
-bool solve_tied(const Eigen::MatrixXd& C, const std::vector<int>& A, const Eigen::Vector2d& Q,
-                RowForces& F) {
-    const int m = int(A.size());
-    Eigen::MatrixXd Ctt(2 * m, 2 * m), E = Eigen::MatrixXd::Zero(2 * m, 2);
-    for (int i = 0; i < m; ++i)
-        for (int k = 0; k < 2; ++k) {
-            for (int j = 0; j < m; ++j)
-                for (int l = 0; l < 2; ++l)
-                    Ctt(2 * i + k, 2 * j + l) = C(3 * A[i] + k, 3 * A[j] + l);
-            E(2 * i + k, k) = 1.0;
-        }
-    const Eigen::LLT<Eigen::MatrixXd> llt(Ctt);
+/// The tangential (x, y) block of C between candidate sets `rows` and `cols`.
+Eigen::MatrixXd tangential_block(const Eigen::MatrixXd& C, const std::vector<int>& rows,
+                                 const std::vector<int>& cols) {
+    Eigen::MatrixXd B(2 * rows.size(), 2 * cols.size());
+    for (std::size_t i = 0; i < rows.size(); ++i)
+        for (std::size_t j = 0; j < cols.size(); ++j)
+            B.block<2, 2>(2 * Eigen::Index(i), 2 * Eigen::Index(j)) =
+                C.block<2, 2>(3 * rows[i], 3 * cols[j]);
+    return B;
+}
+
+Eigen::VectorXd stacked_tangential(const RowForces& F, const std::vector<int>& nodes) {
+    Eigen::VectorXd t(2 * nodes.size());
+    for (std::size_t j = 0; j < nodes.size(); ++j)
+        t.segment<2>(2 * Eigen::Index(j)) = F.row(nodes[j]).head<2>().transpose();
+    return t;
+}
+
+/// Stick set S shares one tangential offset s from the frictionless state; slip set L carries
+/// mu lambda along q: C_SS t_S + C_SL t_L = E s, sum t_S = Q - sum t_L. With C_SS SPD,
+/// t_S = C_SS^-1 (E s - C_SL t_L) and s solves a 2 x 2 system. Writes t_S into F; returns s.
+bool solve_stick_set(const Eigen::MatrixXd& C, const std::vector<int>& S, const std::vector<int>& L,
+                     const Eigen::Vector2d& Q, RowForces& F, Eigen::Vector2d& s) {
+    const Eigen::Index m = Eigen::Index(S.size());
+    Eigen::MatrixXd E = Eigen::MatrixXd::Zero(2 * m, 2);
+    for (Eigen::Index i = 0; i < m; ++i)
+        E.block<2, 2>(2 * i, 0).setIdentity();
+    const Eigen::LLT<Eigen::MatrixXd> llt(tangential_block(C, S, S));
     if (llt.info() != Eigen::Success) return false;
+    const Eigen::VectorXd tL = stacked_tangential(F, L);
+    const Eigen::VectorXd r = L.empty()
+                                  ? Eigen::VectorXd::Zero(2 * m)
+                                  : Eigen::VectorXd(llt.solve(tangential_block(C, S, L) * tL));
     const Eigen::MatrixXd CE = llt.solve(E);
-    const Eigen::Matrix2d S = E.transpose() * CE;
-    const Eigen::Vector2d s = S.ldlt().solve(Q);
-    const Eigen::VectorXd t = CE * s;
-    for (int j = 0; j < m; ++j)
-        F.row(A[j]).head<2>() = t.segment<2>(2 * j).transpose();
-    return t.allFinite();
+    Eigen::Vector2d rhs = Q + E.transpose() * r;
+    for (std::size_t j = 0; j < L.size(); ++j)
+        rhs -= tL.segment<2>(2 * Eigen::Index(j));
+    s = (E.transpose() * CE).ldlt().solve(rhs);
+    const Eigen::VectorXd tS = CE * s - r;
+    for (Eigen::Index j = 0; j < m; ++j)
+        F.row(S[std::size_t(j)]).head<2>() = tS.segment<2>(2 * j).transpose();
+    return tS.allFinite();
+}
+
+/// Cattaneo-Mindlin partial slip under a tangential load Q < mu P, applied monotonically
+/// along q = Q / |Q| with the normal forces unchanged (Goodman). Nodes whose stick traction
+/// would exceed mu lambda slip (traction mu lambda q); the slip set only grows, as under a
+/// monotonic load, so the loop ends after at most #A rounds. `slipping` receives the nodes
+/// of A that slip.
+bool solve_partial_slip(const Eigen::MatrixXd& C, const std::vector<int>& A,
+                        const Eigen::Vector2d& Q, double mu, RowForces& F,
+                        std::vector<int>& slipping, int& iterations) {
+    const Eigen::Vector2d q = Q.normalized();
+    std::vector<bool> slip(A.size(), false);
+    for (std::size_t round = 0; round <= A.size(); ++round) {
+        ++iterations;
+        std::vector<int> S, L;
+        for (std::size_t k = 0; k < A.size(); ++k) {
+            (slip[k] ? L : S).push_back(A[k]);
+            if (slip[k]) F.row(A[k]).head<2>() = mu * -F(A[k], 2) * q.transpose();
+        }
+        Eigen::Vector2d s;
+        if (S.empty() || !solve_stick_set(C, S, L, Q, F, s)) return false;
+        bool changed = false;
+        for (std::size_t k = 0; k < A.size(); ++k)
+            if (!slip[k] && F.row(A[k]).head<2>().norm() > mu * -F(A[k], 2) * (1 + 1e-9))
+                slip[k] = changed = true;
+        if (!changed) {
+            slipping = L;
+            return true;
+        }
+    }
+    return false;
 }
 
 /// Active set on the frictionless normal problem: solve on A, drop nodes pulling on the
@@ -143,7 +193,8 @@ ContactSolution solve_contact(const Eigen::MatrixXd& C, const Eigen::VectorXd& g
                                       max_iterations, sol.iterations, sol.status);
     sol.active = A;
 
-    // 2. Tangential tractions on that contact set: tied below mu P, full slip at or above.
+    // 2. Tangential tractions on that contact set: partial slip below mu P, full slip at or
+    //    above.
     const double Q = load.tangential_force_N.norm();
     if (sol.converged && Q > 0) {
         sol.sliding = Q >= load.mu * P;
@@ -151,9 +202,11 @@ ContactSolution solve_contact(const Eigen::MatrixXd& C, const Eigen::VectorXd& g
             const Eigen::Vector2d t = load.mu * load.tangential_force_N / Q;
             for (int j : A)
                 sol.forces_N.row(j).head<2>() = -sol.forces_N(j, 2) * t.transpose();
-        } else if (!solve_tied(C, A, load.tangential_force_N, sol.forces_N)) {
+            sol.slipping = A;
+        } else if (!solve_partial_slip(C, A, load.tangential_force_N, load.mu, sol.forces_N,
+                                       sol.slipping, sol.iterations)) {
             sol.converged = false;
-            sol.status = "singular";
+            sol.status = "stick_slip_not_converged";
         }
     }
     sol.normal_force_N = -sol.forces_N.col(2).sum();

@@ -4,15 +4,16 @@
 /// iteration). Contact forces act along z: exact for a flat, the small-slope approximation
 /// (contact radius << object radius, as Hertz assumes) for a sphere.
 ///
-/// Model (foundation level, see docs/ARCHITECTURE.md "What is deliberately coarse"):
+/// Model (see docs/ARCHITECTURE.md "What is deliberately coarse"):
 /// - normal: frictionless, unilateral, force controlled: the indentation d is found so that
 ///   the nodal reactions sum to the requested normal force (active set);
 /// - tangential tractions act on that contact set with its normal forces unchanged (Goodman's
 ///   approximation, which Mindlin's solution makes too: the tangential load does not alter
 ///   the normal contact; the displacement field still includes every coupling);
-/// - |Q| < mu P: the contact patch sticks as a whole (tied): every contact node moves by the
-///   same tangential offset s from the frictionless state and the tractions sum to Q; no
-///   partial slip yet;
+/// - |Q| < mu P: Cattaneo-Mindlin partial slip for a load applied monotonically along Q:
+///   stick nodes move by one common tangential offset s from the frictionless state, slip
+///   nodes carry mu times their normal force along Q, the tractions sum to Q. No history:
+///   unloading or a change of direction needs the incremental stick/slip state (not yet);
 /// - |Q| >= mu P: full slip, every contact node carries mu times its normal force along the
 ///   pull, the transmitted tangential force is mu P and Gamma = 0.
 #include <Eigen/Core>
@@ -45,15 +46,16 @@ struct ContactLoad {
 /// Solution of the contact problem on the candidate nodes.
 struct ContactSolution {
     Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> forces_N; ///< on each candidate
-    std::vector<int> active;                      ///< candidate indices in contact
-    double indentation_mm = 0.0;                  ///< rigid approach d of the object
+    std::vector<int> active;     ///< candidate indices in contact
+    std::vector<int> slipping;   ///< those of `active` that slip (all of them when sliding)
+    double indentation_mm = 0.0; ///< rigid approach d of the object
     Eigen::Vector2d tangential_force_N{0.0, 0.0}; ///< transmitted (= Q when sticking)
     double normal_force_N = 0.0; ///< sum of nodal normal forces (= P when converged)
     bool sliding = false;
     double gamma = 1.0; ///< safety margin, clamped to [0, 1]
-    int iterations = 0; ///< active-set iterations (all phases)
+    int iterations = 0; ///< active-set iterations, normal then stick/slip
     bool converged = false;
-    std::string status = "ok"; ///< ok | max_iterations | singular
+    std::string status = "ok"; ///< ok | max_iterations | singular | stick_slip_not_converged
 };
 
 /// Safety margin (mu P - |f_t|) / (mu P), clamped at 0 while sliding; 0 when mu P = 0.

@@ -133,6 +133,9 @@ FrameResult DomeModel::solve(const ContactLoad& load, const FrameRequest& reques
         r.contact_area_mm2 += m.candidate_area_mm2[j];
         r.at_candidate_edge = r.at_candidate_edge || m.candidate_edge[j];
     }
+    r.stick_area_mm2 = r.contact_area_mm2;
+    for (int j : r.contact.slipping)
+        r.stick_area_mm2 -= m.candidate_area_mm2[j];
     if (request.full_field)
         r.node_displacement_mm = m.body->full_displacement(r.contact.forces_N, r.contact.active);
     if (!request.coating && !request.markers) return r;

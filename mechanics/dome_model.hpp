@@ -44,6 +44,7 @@ struct PrecomputeStats {
 struct FrameResult {
     ContactSolution contact;
     double contact_area_mm2 = 0.0;  ///< tributary area of the nodes in contact
+    double stick_area_mm2 = 0.0;    ///< tributary area of the contact nodes that stick
     bool at_candidate_edge = false; ///< contact reached the rim of the candidate cap
     Points coating_displacement_mm; ///< per coating_surface() vertex (empty unless requested)
     Points marker_points_mm;        ///< deformed MarkerDiscs::points (empty unless requested)

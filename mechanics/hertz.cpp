@@ -4,7 +4,9 @@
 
 #include <array>
 #include <cmath>
+#include <limits>
 #include <numbers>
+#include <utility>
 
 namespace chromasim::mechanics {
 
@@ -58,6 +60,42 @@ ContactFit fit_hertz_profile(const Points& X, const std::vector<double>& area,
         fit.a_mm = std::sqrt(-c(0) / c(1));
     }
     return fit;
+}
+
+double fit_mindlin_stick_radius(const Points& X, const std::vector<double>& area,
+                                const ContactSolution& contact, double a, double p0, double mu) {
+    std::vector<std::pair<double, double>> samples; // (r, measured traction)
+    for (int j : contact.active) {
+        const double r = std::hypot(X(j, 0), X(j, 1));
+        if (r > 0.85 * a) continue;
+        samples.emplace_back(r, contact.forces_N.row(j).head<2>().norm() / area[std::size_t(j)]);
+    }
+    auto model = [&](double r, double c) {
+        const double outer = std::sqrt(std::max(0.0, a * a - r * r));
+        const double inner = r < c ? std::sqrt(c * c - r * r) : 0.0;
+        return mu * p0 / a * (outer - inner);
+    };
+    double best_c = 0, best_sse = std::numeric_limits<double>::infinity();
+    for (int k = 0; k <= 1000; ++k) {
+        const double c = a * k / 1000.0;
+        double sse = 0;
+        for (const auto& [r, q] : samples)
+            sse += std::pow(q - model(r, c), 2);
+        if (sse < best_sse) {
+            best_sse = sse;
+            best_c = c;
+        }
+    }
+    return best_c;
+}
+
+double stick_area_radius(const std::vector<double>& area, const ContactSolution& contact) {
+    double total = 0;
+    for (int j : contact.active)
+        total += area[std::size_t(j)];
+    for (int j : contact.slipping)
+        total -= area[std::size_t(j)];
+    return std::sqrt(std::max(0.0, total) / std::numbers::pi);
 }
 
 } // namespace chromasim::mechanics

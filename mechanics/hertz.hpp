@@ -34,4 +34,15 @@ struct ContactFit {
 ContactFit fit_hertz_profile(const Points& X, const std::vector<double>& area_mm2,
                              const ContactSolution& contact);
 
+/// Stick radius estimated from nodal tangential tractions q_i = |t_i| / area_i (nodes inside
+/// 0.85 a): the c in [0, a] whose Mindlin traction profile, mu p0 / a (sqrt(a^2 - r^2) -
+/// sqrt(c^2 - r^2)) inside c and mu p0 sqrt(1 - r^2 / a^2) outside, fits best (least squares,
+/// scanned in steps of a / 1000). `a_mm` and `p0_MPa` from fit_hertz_profile.
+double fit_mindlin_stick_radius(const Points& X, const std::vector<double>& area_mm2,
+                                const ContactSolution& contact, double a_mm, double p0_MPa,
+                                double mu);
+
+/// Radius of the circle with the tributary area of the sticking contact nodes (mm).
+double stick_area_radius(const std::vector<double>& area_mm2, const ContactSolution& contact);
+
 } // namespace chromasim::mechanics

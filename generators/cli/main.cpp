@@ -89,7 +89,7 @@ int main(int argc, char** argv) {
     verify->require_subcommand(1);
     gen::VerifyOptions verify_options;
     std::string verify_json;
-    auto* verify_mech = verify->add_subcommand("mechanics", "Hertz on an elastic block");
+    auto* verify_mech = verify->add_subcommand("mechanics", "Hertz and Cattaneo-Mindlin on an elastic block");
     verify_mech->add_option("--levels", verify_options.levels, "block mesh levels")
         ->delimiter(',')
         ->check(CLI::IsMember({"coarse", "medium", "fine"}));

@@ -17,7 +17,8 @@ TEST_CASE("Hertz formulas reproduce SENSOR.md's scale check", "[mechanics][hertz
     CHECK(mindlin_stick_radius(2.0, 1.5, 1.0, 1.0) == 0.0);
 }
 
-TEST_CASE("sphere on a near-incompressible block (nu = 0.49): Hertz a, approach and p0",
+TEST_CASE("sphere on a near-incompressible block (nu = 0.49): Hertz a, approach, p0, and "
+          "Cattaneo-Mindlin stick radius",
           "[mechanics][hertz]") {
     const double nu = 0.49;
     BlockParams params = block_level("coarse"); // average nodal pressure: no locking
@@ -36,5 +37,26 @@ TEST_CASE("sphere on a near-incompressible block (nu = 0.49): Hertz a, approach 
         CHECK(fit.p0_MPa == Approx(h.p0_MPa).epsilon(0.05));
         const double delta_ref = h.delta_mm - boussinesq_axis_displacement(P, 1.0, nu, 40.0);
         CHECK(s.indentation_mm == Approx(delta_ref).epsilon(0.03));
+    }
+    // Cattaneo-Mindlin: normal load frictionless, then Q at Q / (mu P) = 0.25, 0.5, 0.75.
+    const double P = 1.0, mu = 0.5;
+    const ContactSolution normal = block.solve({P, {0, 0}, mu}, sphere);
+    const ContactFit fit =
+        fit_hertz_profile(block.candidate_positions(), block.candidate_areas(), normal);
+    const double a = hertz(P, 10.0, 1.0, nu).a_mm;
+    double last_c = a;
+    for (double ratio : {0.25, 0.5, 0.75}) {
+        INFO("Q / (mu P) = " << ratio);
+        const ContactSolution s = block.solve({P, {0.0, ratio * mu * P}, mu}, sphere);
+        REQUIRE(s.converged);
+        CHECK_FALSE(s.sliding);
+        CHECK(s.tangential_force_N.y() == Approx(ratio * mu * P));
+        const double c = fit_mindlin_stick_radius(
+            block.candidate_positions(), block.candidate_areas(), s, fit.a_mm, fit.p0_MPa, mu);
+        CHECK(c == Approx(mindlin_stick_radius(a, ratio * mu * P, mu, P)).epsilon(0.05));
+        CHECK(c < last_c); // the slip front moves inwards as Q grows
+        last_c = c;
+        for (int j : s.active) // Coulomb: no traction above mu times the normal force
+            CHECK(s.forces_N.row(j).head<2>().norm() <= mu * -s.forces_N(j, 2) * (1 + 1e-9));
     }
 }
