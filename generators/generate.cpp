@@ -4,6 +4,7 @@
 #include "generators/image_io.hpp"
 #include "generators/plan.hpp"
 #include "generators/sensor_bridge.hpp"
+#include "mechanics/stopwatch.hpp"
 #include "render/renderer.hpp"
 
 #include <chrono>
@@ -17,9 +18,7 @@ namespace chromasim::generators {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t0) {
-    return std::chrono::duration<double>(Clock::now() - t0).count();
-}
+using mechanics::seconds_since;
 
 LabelRow label_row(const FramePlan& f, const mechanics::FrameResult& r) {
     LabelRow row;
@@ -79,7 +78,7 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     std::unique_ptr<render::Renderer> renderer;
     if (spec.outputs.images)
         renderer = std::make_unique<render::Renderer>(camera_params(spec), optics_params(spec));
-    report.precompute_s = since(t0);
+    report.precompute_s = seconds_since(t0);
     const auto& st = model.stats();
     log << "chromasim: dome mesh '" << spec.sensor.mesh_level << "': " << st.nodes << " nodes, "
         << st.tets << " tets, " << st.candidates << " contact candidates; precomputed in "
@@ -96,23 +95,23 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
         t0 = Clock::now();
         const mechanics::FrameResult r =
             model.solve({f.normal_force_N, f.tangential_force_N, f.mu}, request, object);
-        report.mechanics_s += since(t0);
+        report.mechanics_s += seconds_since(t0);
         LabelRow row = label_row(f, r);
         if (renderer) {
             t0 = Clock::now();
             fill_sensor_frame(model, r, sensor_frame);
             renderer->set_frame(sensor_frame);
             const render::Image image = renderer->render(settings);
-            report.render_s += since(t0);
+            report.render_s += seconds_since(t0);
             t0 = Clock::now();
             write_png(writer.image_path(f.index, &row.image), image);
-            report.write_s += since(t0);
+            report.write_s += seconds_since(t0);
             ++report.images;
         }
         t0 = Clock::now();
         writer.write_label(row);
         if (spec.outputs.markers) write_markers(writer, f.index, model, r);
-        report.write_s += since(t0);
+        report.write_s += seconds_since(t0);
         if (!row.converged) {
             ++report.flagged_frames;
             log << "chromasim: warning: frame " << f.index << " flagged: " << row.status << '\n';
@@ -124,7 +123,7 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
                 << '\n';
     }
     report.frames = int(plan.frames.size());
-    report.total_s = since(t_start);
+    report.total_s = seconds_since(t_start);
     std::ostringstream extra;
     extra << "frames: " << report.frames << "\nflagged_frames: " << report.flagged_frames
           << "\nmesh: {level: " << spec.sensor.mesh_level << ", nodes: " << st.nodes

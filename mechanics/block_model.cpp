@@ -4,6 +4,8 @@
 
 #include <Eigen/Geometry>
 
+#include "mechanics/stopwatch.hpp"
+
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -11,10 +13,6 @@
 namespace chromasim::mechanics {
 
 namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 Plc box_plc(double w, double h) {
     Plc plc;

@@ -4,6 +4,8 @@
 
 #include <Eigen/Geometry>
 
+#include "mechanics/stopwatch.hpp"
+
 #include <chrono>
 #include <cmath>
 #include <numbers>
@@ -12,10 +14,6 @@
 namespace chromasim::mechanics {
 
 namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 SurfacePatch make_patch(const Triangles& F_global) {
     SurfacePatch patch;

@@ -1,5 +1,7 @@
 #include "mechanics/elastic_body.hpp"
 
+#include "mechanics/stopwatch.hpp"
+
 #include <Eigen/CholmodSupport>
 
 #include <chrono>
@@ -8,12 +10,6 @@
 #include <string>
 
 namespace chromasim::mechanics {
-
-namespace {
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-} // namespace
 
 Embedding embed(const TetMesh& mesh, const Points& P, const char* what) {
     const TetLocator locator(mesh);
