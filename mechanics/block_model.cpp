@@ -1,10 +1,9 @@
 #include "mechanics/block_model.hpp"
 
+#include "mechanics/stopwatch.hpp"
 #include "mechanics/tetgen_adapter.hpp"
 
 #include <Eigen/Geometry>
-
-#include "mechanics/stopwatch.hpp"
 
 #include <chrono>
 #include <cmath>
