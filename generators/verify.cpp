@@ -1,12 +1,14 @@
 #include "generators/verify.hpp"
 
 #include "mechanics/block_model.hpp"
+#include "mechanics/dome_model.hpp"
 #include "mechanics/hertz.hpp"
 
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <iomanip>
+#include <numbers>
 #include <ostream>
 
 namespace chromasim::generators {
@@ -94,6 +96,41 @@ std::vector<VerifyCase> verify_mechanics(const VerifyOptions& options) {
             for (const auto& level : options.levels)
                 hertz_cases(level, volumetric, nu, cases);
     return cases;
+}
+
+void print_dome_curve(std::ostream& out) {
+    const mechanics::DomeModelOptions options;
+    const mechanics::DomeModel model(options);
+    const auto& r = options.dome.radii_mm;
+    double E = 0, nu = 0;
+    for (int l = 0; l < mechanics::kLayerCount; ++l) {
+        const double w = (r[std::size_t(l) + 1] - r[std::size_t(l)]) / (r.back() - r.front());
+        E += w * options.materials[std::size_t(l)].E_MPa;
+        nu += w * options.materials[std::size_t(l)].nu;
+    }
+    out << std::defaultfloat << std::setprecision(4) << "dome (coarse, "
+        << (options.volumetric == mechanics::Volumetric::nodal_average ? "nodal_average"
+                                                                       : "element")
+        << ") beside Hertz for a solid sphere R = " << r.back() << " mm, E = " << E
+        << " MPa, nu = " << nu << " (thickness-weighted)\n\n"
+        << "| object | P N | indentation mm | Hertz delta mm | contact radius mm | Hertz a mm | "
+           "contact nodes |\n|---|---|---|---|---|---|---|\n"
+        << std::setprecision(4);
+    for (const double R_obj : {0.0, 45.0}) {
+        const mechanics::ObjectShape object{R_obj > 0 ? mechanics::ObjectShape::Kind::sphere
+                                                      : mechanics::ObjectShape::Kind::flat,
+                                            R_obj};
+        // Two curved bodies: 1/R = 1/R1 + 1/R2 (a flat adds nothing).
+        const double R = R_obj > 0 ? 1.0 / (1.0 / r.back() + 1.0 / R_obj) : r.back();
+        for (double P : {0.25, 0.5, 1.0, 1.5, 2.0, 2.5, 3.2}) {
+            const mechanics::FrameResult f = model.solve({P, {0, 0}, 0.8}, {}, object);
+            const mechanics::HertzSolution h = mechanics::hertz(P, R, E, nu);
+            out << "| " << (R_obj > 0 ? "sphere 45 mm" : "flat") << " | " << P << " | "
+                << f.contact.indentation_mm << " | " << h.delta_mm << " | "
+                << std::sqrt(f.contact_area_mm2 / std::numbers::pi) << " | " << h.a_mm << " | "
+                << f.contact.active.size() << " |\n";
+        }
+    }
 }
 
 void print_verify_table(const std::vector<VerifyCase>& cases, std::ostream& out) {

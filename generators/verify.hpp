@@ -29,6 +29,12 @@ struct VerifyOptions {
 /// mu = 0.5 and 1; per volumetric formulation, Poisson ratio and mesh level.
 std::vector<VerifyCase> verify_mechanics(const VerifyOptions& options);
 
+/// The dome itself (coarse mesh, default materials) under a flat and a 45 mm sphere: force,
+/// indentation and area-equivalent contact radius beside Hertz for a solid sphere of the
+/// dome's radius with the thickness-weighted Young's modulus of its layers. No pass/fail: the
+/// shell is not a half-space.
+void print_dome_curve(std::ostream& out);
+
 void print_verify_table(const std::vector<VerifyCase>& cases, std::ostream& out);
 void write_verify_json(const std::vector<VerifyCase>& cases, std::ostream& out);
 

@@ -89,7 +89,8 @@ int main(int argc, char** argv) {
     verify->require_subcommand(1);
     gen::VerifyOptions verify_options;
     std::string verify_json;
-    auto* verify_mech = verify->add_subcommand("mechanics", "Hertz and Cattaneo-Mindlin on an elastic block");
+    auto* verify_mech =
+        verify->add_subcommand("mechanics", "Hertz and Cattaneo-Mindlin on an elastic block");
     verify_mech->add_option("--levels", verify_options.levels, "block mesh levels")
         ->delimiter(',')
         ->check(CLI::IsMember({"coarse", "medium", "fine"}));
@@ -99,6 +100,9 @@ int main(int argc, char** argv) {
     verify_mech->add_option("--volumetric", verify_options.volumetrics, "formulations")
         ->delimiter(',')
         ->check(CLI::IsMember({"nodal_average", "element"}));
+    bool dome_curve = false;
+    verify_mech->add_flag("--dome-curve", dome_curve,
+                          "also print the dome's force-indentation curve beside Hertz");
     verify_mech->add_option("--json", verify_json, "also write the cases to this JSON file");
 
     CLI11_PARSE(app, argc, argv);
@@ -129,6 +133,10 @@ int main(int argc, char** argv) {
         if (*verify_mech) {
             const auto cases = gen::verify_mechanics(verify_options);
             gen::print_verify_table(cases, std::cout);
+            if (dome_curve) {
+                std::cout << "\n";
+                gen::print_dome_curve(std::cout);
+            }
             if (!verify_json.empty()) {
                 std::ofstream json(verify_json);
                 gen::write_verify_json(cases, json);
