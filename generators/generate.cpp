@@ -9,6 +9,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <memory>
 #include <ostream>
 #include <sstream>
@@ -58,6 +59,15 @@ void write_markers(DatasetWriter& writer, int frame, const mechanics::DomeModel&
 
 } // namespace
 
+std::filesystem::path default_cache_dir() {
+    if (const char* dir = std::getenv("CHROMASIM_CACHE_DIR"); dir && *dir) return dir;
+    if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg)
+        return std::filesystem::path(xdg) / "chromasim";
+    if (const char* home = std::getenv("HOME"); home && *home)
+        return std::filesystem::path(home) / ".cache" / "chromasim";
+    return {};
+}
+
 GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::ostream& log) {
     const auto t_start = Clock::now();
     GenerateReport report;
@@ -74,7 +84,9 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
 
     // 2. Precompute what every frame shares: mesh, factorization, contact compliance, scene.
     auto t0 = Clock::now();
-    const mechanics::DomeModel model(dome_options(spec));
+    mechanics::DomeModelOptions model_options = dome_options(spec);
+    model_options.cache_dir = options.cache_dir;
+    const mechanics::DomeModel model(model_options);
     std::unique_ptr<render::Renderer> renderer;
     if (spec.outputs.images)
         renderer = std::make_unique<render::Renderer>(camera_params(spec), optics_params(spec));
@@ -82,7 +94,9 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     const auto& st = model.stats();
     log << "chromasim: dome mesh '" << spec.sensor.mesh_level << "': " << st.nodes << " nodes, "
         << st.tets << " tets, " << st.candidates << " contact candidates; precomputed in "
-        << report.precompute_s << " s\n";
+        << report.precompute_s << " s (cache: " << st.cache
+        << (options.cache_dir.empty() ? "" : ", " + options.cache_dir.string()) << ")\n";
+    if (!st.cache_note.empty()) log << "chromasim: cache: " << st.cache_note << '\n';
 
     // 3. Frames: mechanics, then (only if images are asked for) render, then writers.
     mechanics::FrameRequest request;

@@ -11,7 +11,13 @@ struct GenerateOptions {
     std::filesystem::path out_dir;
     bool overwrite = false; ///< replace an existing dataset from another spec
     bool quiet = false;     ///< no per-frame progress lines
+    /// On-disk cache of the mechanics precomputation (empty: off). See default_cache_dir().
+    std::filesystem::path cache_dir;
 };
+
+/// $CHROMASIM_CACHE_DIR, else $XDG_CACHE_HOME/chromasim, else $HOME/.cache/chromasim; empty
+/// if none of these variables is set.
+std::filesystem::path default_cache_dir();
 
 struct GenerateReport {
     bool up_to_date = false; ///< nothing done: the output already holds this dataset

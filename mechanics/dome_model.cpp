@@ -1,5 +1,6 @@
 #include "mechanics/dome_model.hpp"
 
+#include "mechanics/model_cache.hpp"
 #include "mechanics/stopwatch.hpp"
 #include "mechanics/tetgen_adapter.hpp"
 
@@ -46,9 +47,40 @@ struct DomeModel::Impl {
     PrecomputeStats stats;
 
     void build_mesh();
+    void derive_from_mesh();
     void find_candidates();
+    std::vector<bool> clamped_nodes() const;
     void build_body();
+    bool load_from_cache(std::uint64_t key);
 };
+
+namespace {
+
+/// Everything the cached mesh and responses depend on, as text, hashed into the cache key.
+std::uint64_t cache_key(const DomeModelOptions& o) {
+    std::string text = "chromasim " CHROMASIM_VERSION " dome-model-cache 1\n";
+    char buf[128];
+    for (double r : o.dome.radii_mm) {
+        std::snprintf(buf, sizeof buf, "radius %.17g\n", r);
+        text += buf;
+    }
+    std::snprintf(buf, sizeof buf, "rings %.17g %d %.17g %d\n", o.dome.ring_step_deg,
+                  o.dome.ring_count, o.dome.marker_radius_mm, o.dome.marker_rim_points);
+    text += buf;
+    for (const Material& m : o.materials) {
+        std::snprintf(buf, sizeof buf, "material %.17g %.17g\n", m.E_MPa, m.nu);
+        text += buf;
+    }
+    const MeshLevel level = mesh_level(o.mesh_level);
+    TetgenOptions tg;
+    tg.max_volume_mm3 = level.max_volume_mm3;
+    std::snprintf(buf, sizeof buf, "mesh %s %.17g %s\nvolumetric %d\ncandidates %.17g\n",
+                  o.mesh_level.c_str(), level.edge_mm, tetgen_switches(tg).c_str(),
+                  int(o.volumetric), o.contact_candidate_angle_deg);
+    return fnv1a64(text + buf);
+}
+
+} // namespace
 
 void DomeModel::Impl::build_mesh() {
     const auto t0 = std::chrono::steady_clock::now();
@@ -56,11 +88,15 @@ void DomeModel::Impl::build_mesh() {
     TetgenOptions tg;
     tg.max_volume_mm3 = level.max_volume_mm3;
     mesh = tetrahedralize(dome_plc(options.dome, level.edge_mm), tg);
+    stats.mesh_s = seconds_since(t0);
+}
+
+void DomeModel::Impl::derive_from_mesh() {
     markers = marker_discs(options.dome);
     coating = make_patch(interface_faces(mesh, kCoating, kOuterMarkerLayer));
-    stats.mesh_s = seconds_since(t0);
     stats.nodes = int(mesh.V.rows());
     stats.tets = int(mesh.T.rows());
+    find_candidates();
 }
 
 void DomeModel::Impl::find_candidates() {
@@ -97,14 +133,34 @@ void DomeModel::Impl::find_candidates() {
     stats.candidates = int(candidates.size());
 }
 
-void DomeModel::Impl::build_body() {
+std::vector<bool> DomeModel::Impl::clamped_nodes() const {
     // Clamp the rim: every node in the plane z = 0.
     std::vector<bool> clamped(std::size_t(mesh.V.rows()));
     for (int v = 0; v < mesh.V.rows(); ++v)
         clamped[std::size_t(v)] = mesh.V(v, 2) <= 1e-9;
+    return clamped;
+}
+
+bool DomeModel::Impl::load_from_cache(std::uint64_t key) {
+    const auto t0 = std::chrono::steady_clock::now();
+    std::optional<CachedModel> cached =
+        load_cached_model(options.cache_dir, key, &stats.cache_note);
+    if (!cached) return false;
+    mesh = std::move(cached->mesh);
+    derive_from_mesh();
     body = std::make_unique<ElasticBody>(
-        mesh, std::vector<Material>(options.materials.begin(), options.materials.end()), clamped,
-        candidates, coating.nodes, embed(mesh, markers.points, "marker point"), options.volumetric);
+        mesh, std::vector<Material>(options.materials.begin(), options.materials.end()),
+        clamped_nodes(), candidates, options.volumetric, std::move(cached->responses));
+    stats.cache_s = seconds_since(t0);
+    stats.cache = "hit";
+    return true;
+}
+
+void DomeModel::Impl::build_body() {
+    body = std::make_unique<ElasticBody>(
+        mesh, std::vector<Material>(options.materials.begin(), options.materials.end()),
+        clamped_nodes(), candidates, coating.nodes, embed(mesh, markers.points, "marker point"),
+        options.volumetric);
     const ElasticBodyStats& b = body->stats();
     stats.assemble_s = b.assemble_s;
     stats.factorize_s = b.factorize_s;
@@ -113,10 +169,21 @@ void DomeModel::Impl::build_body() {
 }
 
 DomeModel::DomeModel(const DomeModelOptions& options) : m_impl(std::make_unique<Impl>()) {
-    m_impl->options = options;
-    m_impl->build_mesh();
-    m_impl->find_candidates();
-    m_impl->build_body();
+    Impl& m = *m_impl;
+    m.options = options;
+    const bool cached = !options.cache_dir.empty();
+    const std::uint64_t key = cached ? cache_key(options) : 0;
+    if (cached && m.load_from_cache(key)) return;
+    m.build_mesh();
+    m.derive_from_mesh();
+    m.build_body();
+    if (!cached) return;
+    m.stats.cache = m.stats.cache_note.empty() ? "miss" : "rejected";
+    const auto t0 = std::chrono::steady_clock::now();
+    std::string problem;
+    if (!save_cached_model(options.cache_dir, key, m.mesh, m.body->responses(), &problem))
+        m.stats.cache_note += (m.stats.cache_note.empty() ? "" : "; ") + problem;
+    m.stats.cache_s = seconds_since(t0);
 }
 
 DomeModel::~DomeModel() = default;

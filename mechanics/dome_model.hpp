@@ -10,6 +10,7 @@
 #include "mechanics/tet_mesh.hpp"
 
 #include <array>
+#include <filesystem>
 #include <memory>
 #include <string>
 
@@ -24,6 +25,9 @@ struct DomeModelOptions {
     /// Volumetric integration (linear_elasticity.hpp): nodal averaging relieves the locking of
     /// nearly incompressible layers.
     Volumetric volumetric = Volumetric::nodal_average;
+    /// Folder of the on-disk cache of mesh and responses (empty: no cache). Entries are keyed
+    /// by a hash of everything above and the chromasim version.
+    std::filesystem::path cache_dir;
     /// Outer-surface nodes up to this polar angle may touch the object.
     double contact_candidate_angle_deg = 35.0;
 };
@@ -36,8 +40,12 @@ struct SurfacePatch {
 
 /// Timings (s) and sizes of the precomputation.
 struct PrecomputeStats {
-    double mesh_s = 0, assemble_s = 0, factorize_s = 0, compliance_s = 0;
+    double mesh_s = 0, assemble_s = 0, factorize_s = 0, compliance_s = 0, cache_s = 0;
     int nodes = 0, tets = 0, free_dofs = 0, candidates = 0;
+    /// off (no cache folder) | hit (mesh and responses loaded) | miss (computed, then stored) |
+    /// rejected (a file was there but unusable: `cache_note` says why; recomputed, rewritten)
+    std::string cache = "off";
+    std::string cache_note; ///< why a cache file was rejected or could not be written
 };
 
 /// What a frame produces. Fields are filled only when asked for (FrameRequest).

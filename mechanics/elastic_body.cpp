@@ -27,25 +27,25 @@ Embedding embed(const TetMesh& mesh, const Points& P, const char* what) {
 
 struct ElasticBody::Impl {
     const TetMesh& mesh;
+    std::vector<Material> materials;
+    std::vector<bool> clamped;
+    Volumetric volumetric = Volumetric::element;
     std::vector<int> candidates, observed_nodes;
     Embedding observed_points;
+    bool factorized = false;
     std::vector<int> free_of_dof; ///< free-dof index per mesh dof, -1 where clamped
     Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> solver;
     mutable std::mutex solver_mutex; ///< CHOLMOD's solve shares one workspace
-    Eigen::MatrixXd compliance;      ///< 3n x 3n (mm/N)
-    /// Response (mm/N) of the observed nodes, then points, to unit candidate forces: 3n columns.
-    Eigen::MatrixXd observed_response;
+    ElasticBodyResponses responses;
     ElasticBodyStats stats;
 
     explicit Impl(const TetMesh& m) : mesh(m) {}
-    void factorize(const std::vector<Material>& materials, const std::vector<bool>& clamped,
-                   Volumetric volumetric);
+    void factorize();
     void precompute_responses();
     void fill_observed(int c0, const Eigen::MatrixXd& u);
 };
 
-void ElasticBody::Impl::factorize(const std::vector<Material>& materials,
-                                  const std::vector<bool>& clamped, Volumetric volumetric) {
+void ElasticBody::Impl::factorize() {
     auto t0 = std::chrono::steady_clock::now();
     const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, materials, volumetric);
     free_of_dof.assign(std::size_t(K.rows()), -1);
@@ -64,6 +64,7 @@ void ElasticBody::Impl::factorize(const std::vector<Material>& materials,
         throw std::runtime_error("stiffness factorization failed: the body is not held "
                                  "(no clamped node) or a material is invalid");
     stats.factorize_s = seconds_since(t0);
+    factorized = true;
 }
 
 void ElasticBody::Impl::fill_observed(int c0, const Eigen::MatrixXd& u) {
@@ -75,7 +76,7 @@ void ElasticBody::Impl::fill_observed(int c0, const Eigen::MatrixXd& u) {
     const int nn = int(observed_nodes.size());
     for (int i = 0; i < nn; ++i)
         for (int k = 0; k < 3; ++k)
-            observed_response.row(3 * i + k).segment(c0, u.cols()) =
+            responses.observed.row(3 * i + k).segment(c0, u.cols()) =
                 node_response(observed_nodes[i], k);
     for (std::size_t p = 0; p < observed_points.tet.size(); ++p) {
         const int t = observed_points.tet[p];
@@ -83,7 +84,7 @@ void ElasticBody::Impl::fill_observed(int c0, const Eigen::MatrixXd& u) {
             Eigen::RowVectorXd row = Eigen::RowVectorXd::Zero(u.cols());
             for (int a = 0; a < 4; ++a)
                 row += observed_points.weights[p](a) * node_response(mesh.T(t, a), k);
-            observed_response.row(3 * (nn + int(p)) + k).segment(c0, u.cols()) = row;
+            responses.observed.row(3 * (nn + int(p)) + k).segment(c0, u.cols()) = row;
         }
     }
 }
@@ -91,9 +92,10 @@ void ElasticBody::Impl::fill_observed(int c0, const Eigen::MatrixXd& u) {
 void ElasticBody::Impl::precompute_responses() {
     const auto t0 = std::chrono::steady_clock::now();
     const int nc = 3 * int(candidates.size());
+    Eigen::MatrixXd& compliance = responses.compliance;
     compliance.resize(nc, nc);
-    observed_response.resize(3 * Eigen::Index(observed_nodes.size() + observed_points.tet.size()),
-                             nc);
+    responses.observed.resize(3 * Eigen::Index(observed_nodes.size() + observed_points.tet.size()),
+                              nc);
     // CHOLMOD's solve is not re-entrant (one workspace): blocks of right-hand sides in turn,
     // each solved with BLAS-3 supernodal triangular solves.
     constexpr int kBlock = 256;
@@ -120,18 +122,42 @@ ElasticBody::ElasticBody(const TetMesh& mesh, const std::vector<Material>& mater
                          std::vector<int> observed_nodes, Embedding observed_points,
                          Volumetric volumetric)
     : m_impl(std::make_unique<Impl>(mesh)) {
-    m_impl->candidates = std::move(candidates);
-    m_impl->observed_nodes = std::move(observed_nodes);
-    m_impl->observed_points = std::move(observed_points);
-    m_impl->stats.candidates = int(m_impl->candidates.size());
-    m_impl->factorize(materials, clamped, volumetric);
-    m_impl->precompute_responses();
+    Impl& m = *m_impl;
+    m.materials = materials;
+    m.clamped = clamped;
+    m.volumetric = volumetric;
+    m.candidates = std::move(candidates);
+    m.observed_nodes = std::move(observed_nodes);
+    m.observed_points = std::move(observed_points);
+    m.stats.candidates = int(m.candidates.size());
+    m.factorize();
+    m.precompute_responses();
+}
+
+ElasticBody::ElasticBody(const TetMesh& mesh, const std::vector<Material>& materials,
+                         const std::vector<bool>& clamped, std::vector<int> candidates,
+                         Volumetric volumetric, ElasticBodyResponses responses)
+    : m_impl(std::make_unique<Impl>(mesh)) {
+    Impl& m = *m_impl;
+    m.materials = materials;
+    m.clamped = clamped;
+    m.volumetric = volumetric;
+    m.candidates = std::move(candidates);
+    m.stats.candidates = int(m.candidates.size());
+    const Eigen::Index nc = 3 * Eigen::Index(m.candidates.size());
+    if (responses.compliance.rows() != nc || responses.compliance.cols() != nc ||
+        responses.observed.cols() != nc)
+        throw std::runtime_error("precomputed responses do not match the contact candidates");
+    m.responses = std::move(responses);
 }
 
 ElasticBody::~ElasticBody() = default;
 
 const Eigen::MatrixXd& ElasticBody::compliance() const {
-    return m_impl->compliance;
+    return m_impl->responses.compliance;
+}
+const ElasticBodyResponses& ElasticBody::responses() const {
+    return m_impl->responses;
 }
 const std::vector<int>& ElasticBody::candidates() const {
     return m_impl->candidates;
@@ -142,7 +168,7 @@ const ElasticBodyStats& ElasticBody::stats() const {
 
 Points ElasticBody::observed_displacement(const Eigen::Ref<const Points>& forces_N,
                                           const std::vector<int>& active) const {
-    const Eigen::MatrixXd& R = m_impl->observed_response;
+    const Eigen::MatrixXd& R = m_impl->responses.observed;
     Eigen::VectorXd u = Eigen::VectorXd::Zero(R.rows());
     for (int j : active)
         u += R.middleCols<3>(3 * j) * forces_N.row(j).transpose();
@@ -151,16 +177,14 @@ Points ElasticBody::observed_displacement(const Eigen::Ref<const Points>& forces
 
 Points ElasticBody::full_displacement(const Eigen::Ref<const Points>& forces_N,
                                       const std::vector<int>& active) const {
-    const Impl& m = *m_impl;
+    Impl& m = *m_impl;
+    const std::lock_guard<std::mutex> lock(m.solver_mutex);
+    if (!m.factorized) m.factorize(); // a body from cached responses factorizes on demand
     Eigen::VectorXd f = Eigen::VectorXd::Zero(m.stats.free_dofs);
     for (int j : active)
         for (int k = 0; k < 3; ++k)
             f(m.free_of_dof[3 * m.candidates[j] + k]) = forces_N(j, k);
-    Eigen::VectorXd u_free;
-    {
-        const std::lock_guard<std::mutex> lock(m.solver_mutex);
-        u_free = m.solver.solve(f);
-    }
+    const Eigen::VectorXd u_free = m.solver.solve(f);
     Points U = Points::Zero(m.mesh.V.rows(), 3);
     for (std::size_t d = 0; d < m.free_of_dof.size(); ++d)
         if (m.free_of_dof[d] >= 0)

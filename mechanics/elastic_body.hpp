@@ -21,6 +21,12 @@ struct Embedding {
 /// Embeds points (mm); throws std::runtime_error naming the first point outside the mesh.
 Embedding embed(const TetMesh& mesh, const Points& P, const char* what = "point");
 
+/// What the precomputation produces (and an on-disk cache can hold).
+struct ElasticBodyResponses {
+    Eigen::MatrixXd compliance; ///< 3n x 3n (mm/N) of the n candidates
+    Eigen::MatrixXd observed;   ///< 3 #observed x 3n (mm/N): observed nodes, then points
+};
+
 struct ElasticBodyStats {
     double assemble_s = 0, factorize_s = 0, compliance_s = 0;
     int free_dofs = 0, candidates = 0;
@@ -35,12 +41,18 @@ public:
                 const std::vector<bool>& clamped, std::vector<int> candidates,
                 std::vector<int> observed_nodes, Embedding observed_points,
                 Volumetric volumetric = Volumetric::element);
+    /// Same body from responses computed earlier (a cache): no factorization until
+    /// full_displacement is first called. `observed_points` may be empty then.
+    ElasticBody(const TetMesh& mesh, const std::vector<Material>& materials,
+                const std::vector<bool>& clamped, std::vector<int> candidates,
+                Volumetric volumetric, ElasticBodyResponses responses);
     ~ElasticBody();
     ElasticBody(const ElasticBody&) = delete;
     ElasticBody& operator=(const ElasticBody&) = delete;
 
     /// 3n x 3n compliance of the n candidates (mm/N; dofs x, y, z per candidate), symmetric.
     const Eigen::MatrixXd& compliance() const;
+    const ElasticBodyResponses& responses() const;
     const std::vector<int>& candidates() const;
 
     /// Displacements (mm, 3 per row) of the observed nodes then the observed points under the
@@ -48,7 +60,8 @@ public:
     Points observed_displacement(const Eigen::Ref<const Points>& forces_N,
                                  const std::vector<int>& active) const;
 
-    /// Every node's displacement (#V x 3, mm): one sparse back-substitution. Thread safe.
+    /// Every node's displacement (#V x 3, mm): one sparse back-substitution (after a
+    /// factorization, the first time, for a body built from cached responses). Thread safe.
     Points full_displacement(const Eigen::Ref<const Points>& forces_N,
                              const std::vector<int>& active) const;
 

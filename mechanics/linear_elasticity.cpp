@@ -1,7 +1,6 @@
 #include "mechanics/linear_elasticity.hpp"
 
 #include <Eigen/Dense>
-#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <stdexcept>
@@ -95,15 +94,14 @@ const Material& material_of(const TetMesh& mesh, int t, const std::vector<Materi
     return materials[std::size_t(region - 1)];
 }
 
-/// Element matrices (full, or deviatoric only) gathered as triplets, in parallel.
+/// Element matrices (full, or deviatoric only) gathered as triplets, in parallel. Each tet
+/// writes its 144 entries at a fixed place, so the sum (and the result, bit for bit) does not
+/// depend on the thread count or scheduling.
 Eigen::SparseMatrix<double> assemble_elements(const TetMesh& mesh,
                                               const std::vector<Material>& materials,
                                               bool deviatoric_only) {
-    using Triplet = Eigen::Triplet<double>;
-    tbb::enumerable_thread_specific<std::vector<Triplet>> local;
+    std::vector<Eigen::Triplet<double>> triplets(std::size_t(mesh.T.rows()) * 144);
     tbb::parallel_for(tbb::blocked_range<int>(0, int(mesh.T.rows())), [&](const auto& range) {
-        auto& triplets = local.local();
-        triplets.reserve(triplets.size() + std::size_t(range.size()) * 144);
         for (int t = range.begin(); t != range.end(); ++t) {
             const Material& m = material_of(mesh, t, materials);
             const TetGradients g = tet_gradients(tet_points(mesh, t));
@@ -111,20 +109,18 @@ Eigen::SparseMatrix<double> assemble_elements(const TetMesh& mesh,
             const Matrix12d Ke = g.volume * B.transpose() *
                                  (deviatoric_only ? deviatoric_matrix(m) : elasticity_matrix(m)) *
                                  B;
+            auto* out = triplets.data() + std::size_t(t) * 144;
             for (int a = 0; a < 4; ++a)
                 for (int b = 0; b < 4; ++b)
                     for (int i = 0; i < 3; ++i)
                         for (int j = 0; j < 3; ++j)
-                            triplets.emplace_back(3 * mesh.T(t, a) + i, 3 * mesh.T(t, b) + j,
-                                                  Ke(3 * a + i, 3 * b + j));
+                            *out++ = {3 * mesh.T(t, a) + i, 3 * mesh.T(t, b) + j,
+                                      Ke(3 * a + i, 3 * b + j)};
         }
     });
-    std::vector<Triplet> all;
-    for (auto& part : local)
-        all.insert(all.end(), part.begin(), part.end());
     const Eigen::Index n = 3 * mesh.V.rows();
     Eigen::SparseMatrix<double> K(n, n);
-    K.setFromTriplets(all.begin(), all.end());
+    K.setFromTriplets(triplets.begin(), triplets.end());
     return K;
 }
 

@@ -55,6 +55,13 @@ int main(int argc, char** argv) {
     generate->add_flag("--overwrite", options.overwrite,
                        "replace an existing dataset once the new one is complete");
     generate->add_flag("-q,--quiet", options.quiet, "no per-frame progress");
+    std::string cache_dir = gen::default_cache_dir().string();
+    bool no_cache = false;
+    generate
+        ->add_option("--cache-dir", cache_dir,
+                     "cache of mesh and contact responses, reused across runs")
+        ->capture_default_str();
+    generate->add_flag("--no-cache", no_cache, "neither read nor write the cache");
 
     std::vector<std::string> validate_paths;
     auto* validate = app.add_subcommand("validate", "check spec files; do no work");
@@ -113,6 +120,7 @@ int main(int argc, char** argv) {
     try {
         if (*generate) {
             options.out_dir = out_dir;
+            if (!no_cache) options.cache_dir = cache_dir;
             return run_generate(spec_path, options);
         }
         if (*validate) {

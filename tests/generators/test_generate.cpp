@@ -70,7 +70,7 @@ struct Quickstart {
     GenerateReport report;
     Quickstart() {
         std::ostringstream log;
-        report = generate(spec, {out, false, true}, log);
+        report = generate(spec, {out, false, true, {}}, log);
     }
     ~Quickstart() {
         std::error_code ec;
@@ -183,7 +183,7 @@ TEST_CASE("generate again: up to date, nothing rewritten", "[generators][e2e]") 
     const Quickstart& q = quickstart();
     const auto before = fs::last_write_time(q.out / "labels.csv");
     std::ostringstream log;
-    const GenerateReport again = generate(q.spec, {q.out, false, true}, log);
+    const GenerateReport again = generate(q.spec, {q.out, false, true, {}}, log);
     CHECK(again.up_to_date);
     CHECK(again.frames == 0);
     CHECK(fs::last_write_time(q.out / "labels.csv") == before);
@@ -196,7 +196,7 @@ TEST_CASE("an output folder with other content is never overwritten silently",
     std::ofstream(out / "precious.txt") << "user data";
     Spec spec = load_spec("datasets_spec/quickstart.yaml");
     std::ostringstream log;
-    CHECK_THROWS_AS(generate(spec, {out, false, true}, log), SpecError);
+    CHECK_THROWS_AS(generate(spec, {out, false, true, {}}, log), SpecError);
     CHECK(fs::is_regular_file(out / "precious.txt"));
     CHECK(std::distance(fs::directory_iterator(out), fs::directory_iterator{}) == 1);
     fs::remove_all(out);
@@ -211,7 +211,7 @@ TEST_CASE("the spec's object reaches the mechanics: a sphere indents deeper than
                                      "inline.yaml");
         const fs::path out = fresh_dir("object");
         std::ostringstream log;
-        generate(spec, {out, false, true}, log);
+        generate(spec, {out, false, true, {}}, log);
         const auto rows = read_csv(out / "labels.csv");
         REQUIRE(rows.size() == 1);
         CHECK_FALSE(fs::exists(out / "images"));

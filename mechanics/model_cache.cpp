@@ -1,0 +1,118 @@
+#include "mechanics/model_cache.hpp"
+
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+#include <unistd.h>
+
+namespace fs = std::filesystem;
+
+namespace chromasim::mechanics {
+
+namespace {
+
+constexpr char kMagic[8] = {'C', 'S', 'M', 'C', 'A', 'C', 'H', '1'};
+
+/// Appends a dense matrix (rows, cols, raw storage) to a byte buffer.
+template <class M> void put(std::string& out, const M& m) {
+    const std::int64_t dims[2] = {m.rows(), m.cols()};
+    out.append(reinterpret_cast<const char*>(dims), sizeof dims);
+    out.append(reinterpret_cast<const char*>(m.data()), sizeof(*m.data()) * std::size_t(m.size()));
+}
+
+/// Reads back what put() wrote; false if the buffer is too short.
+template <class M> bool get(std::string_view& in, M& m) {
+    std::int64_t dims[2];
+    if (in.size() < sizeof dims) return false;
+    std::memcpy(dims, in.data(), sizeof dims);
+    in.remove_prefix(sizeof dims);
+    if (dims[0] < 0 || dims[1] < 0) return false;
+    const std::size_t bytes = sizeof(*m.data()) * std::size_t(dims[0] * dims[1]);
+    if (in.size() < bytes) return false;
+    m.resize(dims[0], dims[1]);
+    std::memcpy(m.data(), in.data(), bytes);
+    in.remove_prefix(bytes);
+    return true;
+}
+
+} // namespace
+
+std::uint64_t fnv1a64(std::string_view bytes, std::uint64_t h) {
+    for (unsigned char c : bytes) {
+        h ^= c;
+        h *= 0x100000001b3ull;
+    }
+    return h;
+}
+
+fs::path cache_file(const fs::path& dir, std::uint64_t key) {
+    char name[40];
+    std::snprintf(name, sizeof name, "model-%016llx.bin", static_cast<unsigned long long>(key));
+    return dir / name;
+}
+
+std::optional<CachedModel> load_cached_model(const fs::path& dir, std::uint64_t key,
+                                             std::string* problem) {
+    const fs::path path = cache_file(dir, key);
+    std::ifstream file(path, std::ios::binary);
+    if (!file) return std::nullopt;
+    std::ostringstream buffer;
+    buffer << file.rdbuf();
+    const std::string bytes = buffer.str();
+    auto fail = [&](const char* why) -> std::optional<CachedModel> {
+        if (problem) *problem = path.string() + ": " + why;
+        return std::nullopt;
+    };
+    constexpr std::size_t kHeader = sizeof kMagic + 2 * sizeof(std::uint64_t);
+    if (bytes.size() < kHeader || std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0)
+        return fail("not a chromasim cache file");
+    std::uint64_t stored_key = 0, checksum = 0;
+    std::memcpy(&stored_key, bytes.data() + sizeof kMagic, sizeof stored_key);
+    std::memcpy(&checksum, bytes.data() + sizeof kMagic + 8, sizeof checksum);
+    std::string_view payload(bytes.data() + kHeader, bytes.size() - kHeader);
+    if (stored_key != key) return fail("written for another key");
+    if (fnv1a64(payload) != checksum) return fail("checksum mismatch (torn or corrupt file)");
+    CachedModel m;
+    if (!get(payload, m.mesh.V) || !get(payload, m.mesh.T) || !get(payload, m.mesh.region) ||
+        !get(payload, m.responses.compliance) || !get(payload, m.responses.observed) ||
+        !payload.empty())
+        return fail("truncated payload");
+    return m;
+}
+
+bool save_cached_model(const fs::path& dir, std::uint64_t key, const TetMesh& mesh,
+                       const ElasticBodyResponses& responses, std::string* problem) {
+    std::string payload;
+    put(payload, mesh.V);
+    put(payload, mesh.T);
+    put(payload, mesh.region);
+    put(payload, responses.compliance);
+    put(payload, responses.observed);
+    const std::uint64_t checksum = fnv1a64(payload);
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    const fs::path path = cache_file(dir, key);
+    const fs::path tmp = path.string() + ".tmp-" + std::to_string(::getpid());
+    {
+        std::ofstream out(tmp, std::ios::binary);
+        out.write(kMagic, sizeof kMagic);
+        out.write(reinterpret_cast<const char*>(&key), sizeof key);
+        out.write(reinterpret_cast<const char*>(&checksum), sizeof checksum);
+        out.write(payload.data(), std::streamsize(payload.size()));
+        if (!out) {
+            if (problem) *problem = "cannot write " + tmp.string();
+            fs::remove(tmp, ec);
+            return false;
+        }
+    }
+    fs::rename(tmp, path, ec);
+    if (ec) {
+        if (problem) *problem = "cannot rename " + tmp.string() + ": " + ec.message();
+        fs::remove(tmp, ec);
+        return false;
+    }
+    return true;
+}
+
+} // namespace chromasim::mechanics
