@@ -39,7 +39,11 @@ struct ElasticBody::Impl {
     ElasticBodyResponses responses;
     ElasticBodyStats stats;
 
-    explicit Impl(const TetMesh& m) : mesh(m) {}
+    Impl(const TetMesh& m, const std::vector<Material>& mat, const std::vector<bool>& fixed,
+         std::vector<int> cand, Volumetric vol)
+        : mesh(m), materials(mat), clamped(fixed), volumetric(vol), candidates(std::move(cand)) {
+        stats.candidates = int(candidates.size());
+    }
     void factorize();
     void precompute_responses();
     void fill_observed(int c0, const Eigen::MatrixXd& u);
@@ -121,15 +125,10 @@ ElasticBody::ElasticBody(const TetMesh& mesh, const std::vector<Material>& mater
                          const std::vector<bool>& clamped, std::vector<int> candidates,
                          std::vector<int> observed_nodes, Embedding observed_points,
                          Volumetric volumetric)
-    : m_impl(std::make_unique<Impl>(mesh)) {
+    : m_impl(std::make_unique<Impl>(mesh, materials, clamped, std::move(candidates), volumetric)) {
     Impl& m = *m_impl;
-    m.materials = materials;
-    m.clamped = clamped;
-    m.volumetric = volumetric;
-    m.candidates = std::move(candidates);
     m.observed_nodes = std::move(observed_nodes);
     m.observed_points = std::move(observed_points);
-    m.stats.candidates = int(m.candidates.size());
     m.factorize();
     m.precompute_responses();
 }
@@ -137,13 +136,8 @@ ElasticBody::ElasticBody(const TetMesh& mesh, const std::vector<Material>& mater
 ElasticBody::ElasticBody(const TetMesh& mesh, const std::vector<Material>& materials,
                          const std::vector<bool>& clamped, std::vector<int> candidates,
                          Volumetric volumetric, ElasticBodyResponses responses)
-    : m_impl(std::make_unique<Impl>(mesh)) {
+    : m_impl(std::make_unique<Impl>(mesh, materials, clamped, std::move(candidates), volumetric)) {
     Impl& m = *m_impl;
-    m.materials = materials;
-    m.clamped = clamped;
-    m.volumetric = volumetric;
-    m.candidates = std::move(candidates);
-    m.stats.candidates = int(m.candidates.size());
     const Eigen::Index nc = 3 * Eigen::Index(m.candidates.size());
     if (responses.compliance.rows() != nc || responses.compliance.cols() != nc ||
         responses.observed.cols() != nc)
