@@ -89,15 +89,9 @@ BlockModel::BlockModel(const BlockParams& params) : m_impl(std::make_unique<Impl
     m.stats.tets = int(m.mesh.T.rows());
 
     // Top face: tributary areas; candidates within the contact radius. Base: clamped.
-    const Triangles boundary = interface_faces(m.mesh, 1, -1);
-    std::vector<double> area(std::size_t(m.mesh.V.rows()), 0.0);
-    for (int f = 0; f < boundary.rows(); ++f) {
-        const Eigen::Vector3d a = m.mesh.V.row(boundary(f, 0)), b = m.mesh.V.row(boundary(f, 1)),
-                              c = m.mesh.V.row(boundary(f, 2));
-        if (std::abs(a.z()) + std::abs(b.z()) + std::abs(c.z()) > 1e-9) continue;
-        for (int k = 0; k < 3; ++k)
-            area[boundary(f, k)] += (b - a).cross(c - a).norm() / 6.0;
-    }
+    const std::vector<double> area =
+        tributary_areas(m.mesh, interface_faces(m.mesh, 1, -1),
+                        [](const Eigen::Vector3d& p) { return std::abs(p.z()) <= 1e-9; });
     std::vector<int> candidates;
     std::vector<bool> clamped(std::size_t(m.mesh.V.rows()));
     const double r_max = params.contact_radius_mm;

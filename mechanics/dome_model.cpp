@@ -106,18 +106,9 @@ void DomeModel::Impl::find_candidates() {
     const double cos_edge =
         std::cos(options.contact_candidate_angle_deg * std::numbers::pi / 180 - edge_band);
     // Outer surface: boundary faces of the coating off the rim plane; tributary nodal areas.
-    const Triangles outer = interface_faces(mesh, kCoating, -1);
-    std::vector<double> area(std::size_t(mesh.V.rows()), 0.0);
-    for (int f = 0; f < outer.rows(); ++f) {
-        const Eigen::Vector3d a = mesh.V.row(outer(f, 0)), b = mesh.V.row(outer(f, 1)),
-                              c = mesh.V.row(outer(f, 2));
-        if (std::abs(a.norm() - R) > 1e-6 || std::abs(b.norm() - R) > 1e-6 ||
-            std::abs(c.norm() - R) > 1e-6)
-            continue;
-        const double third = (b - a).cross(c - a).norm() / 6.0;
-        for (int k = 0; k < 3; ++k)
-            area[outer(f, k)] += third;
-    }
+    const std::vector<double> area =
+        tributary_areas(mesh, interface_faces(mesh, kCoating, -1),
+                        [R](const Eigen::Vector3d& p) { return std::abs(p.norm() - R) <= 1e-6; });
     for (int v = 0; v < mesh.V.rows(); ++v) {
         const double cz = mesh.V(v, 2) / R;
         if (area[v] > 0 && cz >= cos_max) {

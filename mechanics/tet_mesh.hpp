@@ -1,6 +1,7 @@
 #pragma once
 /// Tetrahedral meshes and the piecewise linear complexes they are made from (plain data).
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <vector>
 
@@ -43,6 +44,23 @@ Eigen::Vector4d barycentric(const TetMesh& mesh, int t, const Eigen::Vector3d& p
 /// Faces between a tet of region `a` and a tet of region `b` (b = -1: boundary faces of
 /// region a tets), oriented with their normal pointing out of region `a`.
 Triangles interface_faces(const TetMesh& mesh, int a, int b);
+
+/// Tributary area (mm^2) of every node over the faces F whose three vertices satisfy
+/// `on_surface(position)`: a third of each such triangle's area per vertex (#V entries).
+template <class Pred>
+std::vector<double> tributary_areas(const TetMesh& mesh, const Triangles& F, Pred&& on_surface) {
+    std::vector<double> area(std::size_t(mesh.V.rows()), 0.0);
+    for (int f = 0; f < F.rows(); ++f) {
+        const Eigen::Vector3d a = mesh.V.row(F(f, 0)), b = mesh.V.row(F(f, 1)),
+                              c = mesh.V.row(F(f, 2));
+        if (!on_surface(a) || !on_surface(b) || !on_surface(c)) continue;
+        const Eigen::Vector3d e1 = b - a, e2 = c - a;
+        const double third = e1.cross(e2).norm() / 6.0;
+        for (int k = 0; k < 3; ++k)
+            area[std::size_t(F(f, k))] += third;
+    }
+    return area;
+}
 
 /// Finds the tet containing a point with a uniform grid over tet bounding boxes.
 class TetLocator {
