@@ -116,8 +116,11 @@ BlockModel::BlockModel(const BlockParams& params) : m_impl(std::make_unique<Impl
 
 BlockModel::~BlockModel() = default;
 
-ContactSolution BlockModel::solve(const ContactLoad& load, const ObjectShape& object) const {
-    return solve_contact(m_impl->body->compliance(), object_gap(object, m_impl->candidate_X), load);
+ContactSolution BlockModel::solve(const ContactLoad& load, const ObjectShape& object,
+                                  const LoadPath& path, const ContactSolution* previous,
+                                  const ContactOptions& options) const {
+    return solve_contact_path(m_impl->body->compliance(), object, m_impl->candidate_X, load, path,
+                              previous, options);
 }
 
 const Points& BlockModel::candidate_positions() const {

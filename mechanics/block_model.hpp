@@ -34,7 +34,10 @@ public:
     explicit BlockModel(const BlockParams& params);
     ~BlockModel();
 
-    ContactSolution solve(const ContactLoad& load, const ObjectShape& object) const;
+    /// One frame from rest along `path` (contact.hpp), or from `previous` in path's steps.
+    ContactSolution solve(const ContactLoad& load, const ObjectShape& object, const LoadPath& path,
+                          const ContactSolution* previous = nullptr,
+                          const ContactOptions& options = {}) const;
     /// Candidate positions (mm) and tributary areas (mm^2), in the solution's node order.
     const Points& candidate_positions() const;
     const std::vector<double>& candidate_areas() const;

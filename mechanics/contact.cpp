@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace chromasim::mechanics {
 
@@ -15,206 +16,426 @@ double safety_margin(double mu, double normal_force_N, double tangential_force_N
 
 Eigen::VectorXd
 object_gap(const ObjectShape& object,
-           const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& X) {
+           const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& X,
+           const Eigen::Vector2d& shift) {
     constexpr double kUnreachable_mm = 1e3;
     const Eigen::Index n = X.rows();
-    Eigen::VectorXd h = Eigen::VectorXd::Zero(n); // object surface height above its lowest point
-    if (object.kind == ObjectShape::Kind::sphere) {
-        const double R = object.radius_mm;
-        for (Eigen::Index i = 0; i < n; ++i) {
-            const double r2 = X(i, 0) * X(i, 0) + X(i, 1) * X(i, 1);
-            h(i) = r2 < R * R ? R - std::sqrt(R * R - r2) : kUnreachable_mm;
-        }
+    // Object surface height above its lowest point, at (x, y) relative to the object's axis.
+    auto height = [&](double x, double y) {
+        if (object.kind != ObjectShape::Kind::sphere) return 0.0;
+        const double R = object.radius_mm, r2 = x * x + y * y;
+        return r2 < R * R ? R - std::sqrt(R * R - r2) : kUnreachable_mm;
+    };
+    Eigen::VectorXd g(n), g_shifted(n);
+    for (Eigen::Index i = 0; i < n; ++i) {
+        g(i) = height(X(i, 0), X(i, 1)) - X(i, 2);
+        g_shifted(i) = height(X(i, 0) - shift.x(), X(i, 1) - shift.y()) - X(i, 2);
     }
-    const Eigen::VectorXd g = h - X.col(2);
-    return g.array() - g.minCoeff();
+    return g_shifted.array() - g.minCoeff();
 }
 
 namespace {
+/// Which nodes touch, and the linearized friction law of those that slip.
+struct ActiveSets {
+    std::vector<int> A;               ///< in contact, sorted
+    std::vector<char> slip;           ///< per candidate
+    std::vector<Eigen::Vector2d> dir; ///< per candidate: unit trial-traction direction n
+    std::vector<double> kappa;        ///< per candidate: mu lambda / |tau| (0: fixed direction)
+};
 
-using RowForces = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+/// Unknowns of the linear system for fixed sets, and its solution.
+struct LinearSolution {
+    Eigen::VectorXd lambda; ///< n: normal forces (>= 0 pressing)
+    RowVectors2 t;          ///< n x 2: tangential forces on the body
+    double d = 0;
+    Eigen::Vector2d w{0, 0};
+};
 
-/// Frictionless normal system: F_j = (0, 0, -lambda_j), C_zz lambda = d - gap on A,
-/// sum lambda = P. C_zz restricted to A is symmetric positive definite (a compliance), so
-/// eliminate d: lambda = C^-1 (d 1 - gap), d = (P + 1' C^-1 gap) / (1' C^-1 1).
-bool solve_normal(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, const std::vector<int>& A,
-                  double P, RowForces& F, double& d) {
-    const int m = int(A.size());
-    Eigen::MatrixXd Czz(m, m);
-    Eigen::VectorXd g(m);
-    for (int i = 0; i < m; ++i) {
-        for (int j = 0; j < m; ++j)
-            Czz(i, j) = C(3 * A[i] + 2, 3 * A[j] + 2);
-        g(i) = gap(A[i]);
-    }
-    const Eigen::LLT<Eigen::MatrixXd> llt(Czz);
-    if (llt.info() != Eigen::Success) return false;
-    const Eigen::VectorXd c1 = llt.solve(Eigen::VectorXd::Ones(m));
-    const Eigen::VectorXd cg = llt.solve(g);
-    d = (P + cg.sum()) / c1.sum();
-    const Eigen::VectorXd lambda = d * c1 - cg;
-    F.setZero();
-    for (int j = 0; j < m; ++j)
-        F(A[j], 2) = -lambda(j);
-    return std::isfinite(d);
-}
-
-/// The tangential (x, y) block of C between candidate sets `rows` and `cols`.
-Eigen::MatrixXd tangential_block(const Eigen::MatrixXd& C, const std::vector<int>& rows,
-                                 const std::vector<int>& cols) {
-    Eigen::MatrixXd B(2 * rows.size(), 2 * cols.size());
-    for (std::size_t i = 0; i < rows.size(); ++i)
-        for (std::size_t j = 0; j < cols.size(); ++j)
-            B.block<2, 2>(2 * Eigen::Index(i), 2 * Eigen::Index(j)) =
-                C.block<2, 2>(3 * rows[i], 3 * cols[j]);
-    return B;
-}
-
-Eigen::VectorXd stacked_tangential(const RowForces& F, const std::vector<int>& nodes) {
-    Eigen::VectorXd t(2 * nodes.size());
-    for (std::size_t j = 0; j < nodes.size(); ++j)
-        t.segment<2>(2 * Eigen::Index(j)) = F.row(nodes[j]).head<2>().transpose();
-    return t;
-}
-
-/// Stick set S shares one tangential offset s from the frictionless state; slip set L carries
-/// mu lambda along q: C_SS t_S + C_SL t_L = E s, sum t_S = Q - sum t_L. With C_SS SPD,
-/// t_S = C_SS^-1 (E s - C_SL t_L) and s solves a 2 x 2 system. Writes t_S into F; returns s.
-bool solve_stick_set(const Eigen::MatrixXd& C, const std::vector<int>& S, const std::vector<int>& L,
-                     const Eigen::Vector2d& Q, RowForces& F, Eigen::Vector2d& s) {
-    const Eigen::Index m = Eigen::Index(S.size());
-    Eigen::MatrixXd E = Eigen::MatrixXd::Zero(2 * m, 2);
-    for (Eigen::Index i = 0; i < m; ++i)
-        E.block<2, 2>(2 * i, 0).setIdentity();
-    const Eigen::LLT<Eigen::MatrixXd> llt(tangential_block(C, S, S));
-    if (llt.info() != Eigen::Success) return false;
-    const Eigen::VectorXd tL = stacked_tangential(F, L);
-    const Eigen::VectorXd r = L.empty()
-                                  ? Eigen::VectorXd::Zero(2 * m)
-                                  : Eigen::VectorXd(llt.solve(tangential_block(C, S, L) * tL));
-    const Eigen::MatrixXd CE = llt.solve(E);
-    Eigen::Vector2d rhs = Q + E.transpose() * r;
-    for (std::size_t j = 0; j < L.size(); ++j)
-        rhs -= tL.segment<2>(2 * Eigen::Index(j));
-    s = (E.transpose() * CE).ldlt().solve(rhs);
-    const Eigen::VectorXd tS = CE * s - r;
-    for (Eigen::Index j = 0; j < m; ++j)
-        F.row(S[std::size_t(j)]).head<2>() = tS.segment<2>(2 * j).transpose();
-    return tS.allFinite();
-}
-
-/// Cattaneo-Mindlin partial slip under a tangential load Q < mu P, applied monotonically
-/// along q = Q / |Q| with the normal forces unchanged (Goodman). Nodes whose stick traction
-/// would exceed mu lambda slip (traction mu lambda q); the slip set only grows, as under a
-/// monotonic load, so the loop ends after at most #A rounds. `slipping` receives the nodes
-/// of A that slip.
-bool solve_partial_slip(const Eigen::MatrixXd& C, const std::vector<int>& A,
-                        const Eigen::Vector2d& Q, double mu, RowForces& F,
-                        std::vector<int>& slipping, int& iterations) {
-    const Eigen::Vector2d q = Q.normalized();
-    std::vector<bool> slip(A.size(), false);
-    for (std::size_t round = 0; round <= A.size(); ++round) {
-        ++iterations;
-        std::vector<int> S, L;
-        for (std::size_t k = 0; k < A.size(); ++k) {
-            (slip[k] ? L : S).push_back(A[k]);
-            if (slip[k]) F.row(A[k]).head<2>() = mu * -F(A[k], 2) * q.transpose();
-        }
-        Eigen::Vector2d s;
-        if (S.empty() || !solve_stick_set(C, S, L, Q, F, s)) return false;
-        bool changed = false;
-        for (std::size_t k = 0; k < A.size(); ++k)
-            if (!slip[k] && F.row(A[k]).head<2>().norm() > mu * -F(A[k], 2) * (1 + 1e-9))
-                slip[k] = changed = true;
-        if (!changed) {
-            slipping = L;
-            return true;
+/// One (semi-smooth) Newton system. Unknowns: lambda and t on A, d, and w under force control
+/// (not while fully sliding). Forces on the body F_j = (t_j, -lambda_j); u_i = sum_j C_ij F_j;
+/// slip g_j = u_t,j - w - a_j. Rows: u_z,i + d = gap_i on A (contact closed); g_j = 0 for a
+/// stick node; for a slip node the Alart-Curnier law t = mu lambda tau / |tau|, tau = t - r g,
+/// linearized at the last iterate: (I - kappa P) t + kappa r P g - mu lambda n = 0 with
+/// P = I - n n' (kappa = 0: traction along a fixed n); sum lambda = P; under force control
+/// sum t = Q. Goodman: the z rows ignore the tangential forces. Dense LU (not symmetric).
+bool solve_linear(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, const RowVectors2& anchor,
+                  const Eigen::VectorXd& r_stiff, const ActiveSets& sets, const ContactLoad& load,
+                  bool full_slip, bool coupled, LinearSolution& out) {
+    const std::vector<int>& A = sets.A;
+    const Eigen::Index m = Eigen::Index(A.size());
+    const double mu = std::max(0.0, load.mu);
+    const bool force = load.tangential == TangentialControl::force && !full_slip;
+    const Eigen::Index nw = force ? 2 : 0, N = 3 * m + 1 + nw;
+    const Eigen::Index col_d = 3 * m, col_w = 3 * m + 1;
+    // Column of unknown: lambda_k -> k, t_k -> m + 2k + c.
+    // G: displacement (3m rows, x y z per contact node) per unit unknown force component.
+    Eigen::MatrixXd G = Eigen::MatrixXd::Zero(3 * m, 3 * m);
+    for (Eigen::Index k = 0; k < m; ++k) {
+        const int j = A[std::size_t(k)];
+        for (Eigen::Index i = 0; i < m; ++i) {
+            const Eigen::Matrix3d Cij = C.block<3, 3>(3 * A[std::size_t(i)], 3 * j);
+            G.block<3, 1>(3 * i, k) = -Cij.col(2);
+            G.block<3, 2>(3 * i, m + 2 * k) = Cij.leftCols<2>();
+            if (!coupled) G.block<1, 2>(3 * i + 2, m + 2 * k).setZero();
         }
     }
-    return false;
+    Eigen::MatrixXd M = Eigen::MatrixXd::Zero(N, N);
+    Eigen::VectorXd b = Eigen::VectorXd::Zero(N);
+    const Eigen::Vector2d w_given = load.tangential_displacement_mm;
+    Eigen::Index row = 0;
+    for (Eigen::Index i = 0; i < m; ++i, ++row) { // contact closed
+        M.row(row).head(3 * m) = G.row(3 * i + 2);
+        M(row, col_d) = 1.0;
+        b(row) = gap(A[std::size_t(i)]);
+    }
+    for (Eigen::Index i = 0; i < m; ++i) {
+        const std::size_t j = std::size_t(A[std::size_t(i)]);
+        // g = Gt y - w - a as rows: coefficients over y, the w columns, and a constant.
+        Eigen::Matrix<double, 2, Eigen::Dynamic> Gg = G.middleRows<2>(3 * i);
+        Eigen::Vector2d g_const = -anchor.row(Eigen::Index(j)).transpose();
+        if (!force) g_const -= w_given;
+        if (!sets.slip[j]) { // stick: g = 0
+            M.block(row, 0, 2, 3 * m) = Gg;
+            if (force) M.block<2, 2>(row, col_w) = -Eigen::Matrix2d::Identity();
+            b.segment<2>(row) = -g_const;
+        } else { // (I - kappa P) t + kappa r P g - mu n lambda = 0
+            const Eigen::Vector2d n = sets.dir[j];
+            const Eigen::Matrix2d Pn = Eigen::Matrix2d::Identity() - n * n.transpose();
+            const double kappa = sets.kappa[j], r = r_stiff(Eigen::Index(j));
+            const Eigen::Matrix2d KP = kappa * r * Pn;
+            M.block(row, 0, 2, 3 * m) = KP * Gg;
+            M.block<2, 2>(row, m + 2 * i) += Eigen::Matrix2d::Identity() - kappa * Pn;
+            M.block<2, 1>(row, i) -= mu * n;
+            if (force) M.block<2, 2>(row, col_w) = -KP;
+            b.segment<2>(row) = -KP * g_const;
+        }
+        row += 2;
+    }
+    M.row(row).head(m).setOnes(); // sum lambda = P
+    b(row++) = load.normal_force_N;
+    if (force) { // sum t = Q
+        for (int c = 0; c < 2; ++c, ++row) {
+            for (Eigen::Index k = 0; k < m; ++k)
+                M(row, m + 2 * k + c) = 1.0;
+            b(row) = load.tangential_force_N(c);
+        }
+    }
+    const Eigen::PartialPivLU<Eigen::MatrixXd> lu(M);
+    const Eigen::VectorXd y = lu.solve(b);
+    if (!y.allFinite() || (M * y - b).norm() > 1e-6 * (b.norm() + 1e-300)) return false;
+    out.lambda.setZero();
+    out.t.setZero();
+    for (Eigen::Index k = 0; k < m; ++k) {
+        const int j = A[std::size_t(k)];
+        out.lambda(j) = y(k);
+        out.t.row(j) = y.segment<2>(m + 2 * k).transpose();
+    }
+    out.d = y(col_d);
+    out.w = force ? Eigen::Vector2d(y.segment<2>(col_w)) : w_given;
+    return true;
 }
 
-/// Active set on the frictionless normal problem: solve on A, drop nodes pulling on the
-/// object, add every node that penetrates it; until neither happens.
-bool normal_active_set(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, double P,
-                       std::vector<int>& A, RowForces& F, double& d, int max_iterations,
-                       int& iterations, std::string& status) {
-    const int n = int(gap.size());
-    std::vector<bool> in_A(std::size_t(n), false);
-    for (int it = 0; it < max_iterations; ++it) {
-        ++iterations;
-        if (!solve_normal(C, gap, A, P, F, d)) {
-            status = "singular";
-            return false;
-        }
-        std::vector<int> kept;
-        for (int j : A)
-            if (-F(j, 2) >= 0.0) kept.push_back(j);
-        if (kept.size() != A.size() && !kept.empty()) {
-            A = std::move(kept);
-            continue;
-        }
-        std::fill(in_A.begin(), in_A.end(), false);
-        for (int j : A)
-            in_A[std::size_t(j)] = true;
-        // Normal displacement of every candidate under the current forces (z rows only).
-        Eigen::VectorXd uz = Eigen::VectorXd::Zero(n);
-        for (int j : A)
-            for (int i = 0; i < n; ++i)
-                uz(i) += C(3 * i + 2, 3 * j + 2) * F(j, 2);
-        const double tol = 1e-9 * std::max(1.0, std::abs(d));
-        bool added = false;
-        for (int i = 0; i < n; ++i)
-            if (!in_A[std::size_t(i)] && gap(i) - d - uz(i) < -tol) {
-                A.push_back(i);
-                added = true;
-            }
-        if (!added) return true;
-        std::sort(A.begin(), A.end());
+/// Displacements (n x 3) of every candidate under the forces of `sol` on A.
+RowForces candidate_displacements(const Eigen::MatrixXd& C, const std::vector<int>& A,
+                                  const LinearSolution& sol, bool normal_only) {
+    const Eigen::Index n = C.rows() / 3;
+    Eigen::VectorXd u = Eigen::VectorXd::Zero(3 * n);
+    for (int j : A) {
+        const Eigen::Vector3d F(normal_only ? 0.0 : sol.t(j, 0), normal_only ? 0.0 : sol.t(j, 1),
+                                -sol.lambda(j));
+        u.noalias() += C.middleCols<3>(3 * j) * F;
     }
-    status = "max_iterations";
-    return false;
+    return Eigen::Map<const RowForces>(u.data(), n, 3);
 }
 
 } // namespace
 
-ContactSolution solve_contact(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_mm,
-                              const ContactLoad& load, int max_iterations) {
-    const int n = int(gap_mm.size());
+ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap,
+                                   const ContactLoad& load, const ContactSolution* previous,
+                                   const ContactOptions& options) {
+    const int n = int(gap.size());
+    const std::size_t nz = std::size_t(n);
     ContactSolution sol;
+    sol.load = load;
     sol.forces_N = RowForces::Zero(n, 3);
-    Eigen::Index first = 0;
-    gap_mm.minCoeff(&first);
-    std::vector<int> A{int(first)};
+    sol.displacement_mm = RowForces::Zero(n, 3);
+    sol.state.assign(nz, NodeContact::free);
+    sol.anchor_mm = RowVectors2::Zero(n, 2);
+    const Eigen::Vector2d w_prev =
+        previous ? previous->object_displacement_mm : Eigen::Vector2d::Zero();
+    sol.object_displacement_mm = load.tangential == TangentialControl::displacement
+                                     ? load.tangential_displacement_mm
+                                     : w_prev;
     const double P = load.normal_force_N;
+    if (!(P > 0)) { // unloaded: nothing touches
+        sol.converged = true;
+        sol.gamma = safety_margin(load.mu, 0.0, 0.0);
+        return sol;
+    }
+    const double mu = std::max(0.0, load.mu);
+    const bool force = load.tangential == TangentialControl::force;
+    // Under force control a pull at or beyond the frictional strength mu P slides the object:
+    // every contact node slips along the pull (frictionless: no traction at all).
+    const bool full_slip =
+        force && load.tangential_force_N.norm() > 0 && load.tangential_force_N.norm() >= mu * P;
+    const Eigen::Vector2d pull = load.tangential_force_N.norm() > 0
+                                     ? Eigen::Vector2d(load.tangential_force_N.normalized())
+                                     : Eigen::Vector2d(1, 0);
 
-    // 1. Frictionless normal problem: contact set, normal forces, indentation.
-    sol.converged = normal_active_set(C, gap_mm, P, A, sol.forces_N, sol.indentation_mm,
-                                      max_iterations, sol.iterations, sol.status);
-    sol.active = A;
+    // Where each node sticks if it is in contact in this step: its old anchor if it was in
+    // contact, else where it is when it touches (set when the active set takes it in).
+    RowVectors2 anchor = RowVectors2::Zero(n, 2);
+    if (previous)
+        for (int i = 0; i < n; ++i)
+            anchor.row(i) = previous->state[std::size_t(i)] != NodeContact::free
+                                ? Eigen::RowVector2d(previous->anchor_mm.row(i))
+                                : Eigen::RowVector2d(previous->displacement_mm.row(i).head<2>() -
+                                                     w_prev.transpose());
 
-    // 2. Tangential tractions on that contact set: partial slip below mu P, full slip at or
-    //    above.
-    const double Q = load.tangential_force_N.norm();
-    if (sol.converged && Q > 0) {
-        sol.sliding = Q >= load.mu * P;
-        if (sol.sliding) {
-            const Eigen::Vector2d t = load.mu * load.tangential_force_N / Q;
-            for (int j : A)
-                sol.forces_N.row(j).head<2>() = -sol.forces_N(j, 2) * t.transpose();
-            sol.slipping = A;
-        } else if (!solve_partial_slip(C, A, load.tangential_force_N, load.mu, sol.forces_N,
-                                       sol.slipping, sol.iterations)) {
-            sol.converged = false;
-            sol.status = "stick_slip_not_converged";
+    std::vector<char> was_in_contact(nz, 0);
+    if (previous)
+        for (int j : previous->active)
+            was_in_contact[std::size_t(j)] = 1;
+    ActiveSets sets{{},
+                    std::vector<char>(nz, 0),
+                    std::vector<Eigen::Vector2d>(nz, pull),
+                    std::vector<double>(nz, 0.0)};
+    if (previous && !previous->active.empty()) {
+        sets.A = previous->active;
+    } else {
+        Eigen::Index first = 0;
+        gap.minCoeff(&first);
+        sets.A = {int(first)};
+    }
+    const bool all_slip = full_slip || mu == 0;
+    if (all_slip)
+        std::fill(sets.slip.begin(), sets.slip.end(), 1); // kappa 0: traction mu lambda along pull
+    Eigen::VectorXd r_stiff(n); // each node's own tangential stiffness 1 / C_tt
+    for (int j = 0; j < n; ++j)
+        r_stiff(j) = 2.0 / (C(3 * j, 3 * j) + C(3 * j + 1, 3 * j + 1));
+
+    LinearSolution lin{Eigen::VectorXd::Zero(n), RowVectors2::Zero(n, 2)};
+    sol.status = "max_iterations";
+    const double tol_mm = 1e-9 * std::max(1.0, std::min(gap.maxCoeff(), 1e2));
+    for (int it = 0; it < options.max_iterations; ++it) {
+        ++sol.iterations;
+        if (!solve_linear(C, gap, anchor, r_stiff, sets, load, full_slip, options.coupled, lin)) {
+            sol.status = "singular";
+            break;
+        }
+        // Semi-smooth Newton: every set is updated from the same iterate. Normal: release the
+        // nodes pulling on the object, add the nodes penetrating it (sticking where they were,
+        // unless everything slides). Friction, on the Alart-Curnier law: trial traction
+        // tau = t - r g (g the slip from the anchor); |tau| <= mu lambda: stick; else slip,
+        // linearized at tau. Converged when no set changes and t = proj(tau) at every node.
+        // Past 30 iterations only the worst node enters or leaves per iteration (anti-cycling).
+        const RowForces u = candidate_displacements(C, sets.A, lin, false);
+        const RowForces& uz = options.coupled ? u : candidate_displacements(C, sets.A, lin, true);
+        const bool cautious = it >= 30;
+        // With friction the discrete problem can cycle on a node at the contact edge (a tiny
+        // tension in contact, a tiny penetration out of it): past 30 iterations a penetration
+        // below 1e-3 of the indentation is accepted (it shows in residual_mm).
+        const double cautious_tol_mm = std::max(tol_mm, 1e-3 * std::abs(lin.d));
+        std::vector<char> in_A(nz, 0);
+        for (int j : sets.A)
+            in_A[std::size_t(j)] = 1;
+        std::vector<std::pair<double, int>> release, add;
+        for (int j : sets.A)
+            if (lin.lambda(j) < 0.0) release.emplace_back(lin.lambda(j), j);
+        for (int i = 0; i < n; ++i) {
+            const double g = gap(i) - lin.d - uz(i, 2);
+            if (!in_A[std::size_t(i)] && g < -(cautious ? cautious_tol_mm : tol_mm))
+                add.emplace_back(g, i);
+        }
+        if (cautious) {
+            std::sort(release.begin(), release.end());
+            std::sort(add.begin(), add.end());
+            if (release.size() > 1) release.resize(1);
+            if (add.size() > 1) add.resize(1);
+        }
+        if (release.size() == sets.A.size()) release.clear(); // keep the contact non-empty
+        bool changed = !release.empty() || !add.empty();
+        double law_error = 0;
+        if (!all_slip) {
+            for (int j : sets.A) {
+                const std::size_t jj = std::size_t(j);
+                const Eigen::Vector2d t = lin.t.row(j).transpose();
+                const Eigen::Vector2d g =
+                    u.row(j).head<2>().transpose() - lin.w - anchor.row(j).transpose();
+                const Eigen::Vector2d tau = t - r_stiff(j) * g;
+                const double limit = mu * std::max(lin.lambda(j), 0.0);
+                const bool slips = tau.norm() > limit;
+                const Eigen::Vector2d projected =
+                    slips ? Eigen::Vector2d(limit * tau.normalized()) : tau;
+                law_error = std::max(law_error, (t - projected).norm());
+                changed = changed || slips != (sets.slip[jj] != 0);
+                sets.slip[jj] = slips;
+                if (slips) {
+                    sets.dir[jj] = tau.normalized();
+                    sets.kappa[jj] = limit / tau.norm();
+                }
+            }
+        }
+        for (const auto& [value, j] : release) {
+            in_A[std::size_t(j)] = 0;
+            if (!all_slip) sets.slip[std::size_t(j)] = 0;
+        }
+        for (const auto& [value, i] : add) { // sticks where it touches
+            in_A[std::size_t(i)] = 1;
+            if (!all_slip) sets.slip[std::size_t(i)] = 0;
+            if (!was_in_contact[std::size_t(i)])
+                anchor.row(i) = u.row(i).head<2>() - lin.w.transpose();
+        }
+        if (changed) {
+            sets.A.clear();
+            for (int i = 0; i < n; ++i)
+                if (in_A[std::size_t(i)]) sets.A.push_back(i);
+            continue;
+        }
+        if (law_error <= 1e-12 * P) {
+            sol.status = "ok";
+            break;
         }
     }
+    sol.converged = sol.status == "ok";
+
+    // Forces, displacements, states and anchors at the end of the step.
+    sol.active = sets.A;
+    sol.indentation_mm = lin.d;
+    for (int j : sets.A) {
+        sol.forces_N.row(j) << lin.t(j, 0), lin.t(j, 1), -lin.lambda(j);
+        const bool slips = sets.slip[std::size_t(j)] != 0;
+        sol.state[std::size_t(j)] = slips ? NodeContact::slip : NodeContact::stick;
+        if (slips) sol.slipping.push_back(j);
+    }
+    if (!full_slip) sol.object_displacement_mm = lin.w;
+    sol.sliding = full_slip || (!force && !sets.A.empty() && sol.slipping.size() == sets.A.size() &&
+                                (sol.object_displacement_mm - w_prev).norm() > 0);
+    sol.displacement_mm = candidate_displacements(C, sets.A, lin, false);
+    const Eigen::Vector2d w = sol.object_displacement_mm;
+    for (int j : sets.A)
+        sol.anchor_mm.row(j) =
+            sol.state[std::size_t(j)] == NodeContact::stick
+                ? Eigen::RowVector2d(anchor.row(j))
+                : Eigen::RowVector2d(sol.displacement_mm.row(j).head<2>() - w.transpose());
+
     sol.normal_force_N = -sol.forces_N.col(2).sum();
     sol.tangential_force_N = sol.forces_N.leftCols<2>().colwise().sum().transpose();
-    sol.gamma = sol.sliding
-                    ? 0.0
-                    : safety_margin(load.mu, sol.normal_force_N, sol.tangential_force_N.norm());
+    sol.gamma =
+        sol.sliding ? 0.0 : safety_margin(mu, sol.normal_force_N, sol.tangential_force_N.norm());
+
+    // Residuals: contact (no penetration, closed on A), stick (anchor kept), force balance,
+    // friction law; with Goodman's approximation the contact is judged on the normal forces'
+    // displacement, as solved.
+    const RowForces uz =
+        options.coupled ? sol.displacement_mm : candidate_displacements(C, sets.A, lin, true);
+    double res_mm = 0, res_N = std::abs(sol.normal_force_N - P);
+    for (int i = 0; i < n; ++i) {
+        const double g = gap(i) - sol.indentation_mm - uz(i, 2);
+        const NodeContact s = sol.state[std::size_t(i)];
+        res_mm = std::max(res_mm, s == NodeContact::free ? std::max(0.0, -g) : std::abs(g));
+        const double tn = sol.forces_N.row(i).head<2>().norm(), lim = mu * lin.lambda(i);
+        if (s == NodeContact::stick) {
+            res_mm = std::max(
+                res_mm,
+                (sol.displacement_mm.row(i).head<2>() - w.transpose() - anchor.row(i)).norm());
+            res_N = std::max(res_N, tn - lim);
+        } else if (s == NodeContact::slip) {
+            res_N = std::max(res_N, std::abs(tn - lim));
+        }
+    }
+    if (force && !sol.sliding)
+        res_N = std::max(res_N, (sol.tangential_force_N - load.tangential_force_N).norm());
+    sol.residual_mm = res_mm;
+    sol.residual_N = res_N;
     return sol;
+}
+
+namespace {
+
+ContactLoad interpolate(const ContactLoad& a, const ContactLoad& b, double s) {
+    ContactLoad l = b;
+    l.normal_force_N = a.normal_force_N + s * (b.normal_force_N - a.normal_force_N);
+    l.tangential_force_N = a.tangential_force_N + s * (b.tangential_force_N - a.tangential_force_N);
+    l.tangential_displacement_mm =
+        a.tangential_displacement_mm +
+        s * (b.tangential_displacement_mm - a.tangential_displacement_mm);
+    return l;
+}
+
+} // namespace
+
+ContactSolution solve_contact_path(
+    const Eigen::MatrixXd& C, const ObjectShape& object,
+    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& X,
+    const ContactLoad& load, const LoadPath& path, const ContactSolution* previous,
+    const ContactOptions& options) {
+    std::vector<ContactLoad> steps;
+    if (previous) {
+        ContactLoad from = previous->load;
+        from.tangential_displacement_mm = previous->object_displacement_mm;
+        if (load.tangential == TangentialControl::force &&
+            previous->load.tangential != TangentialControl::force)
+            from.tangential_force_N = previous->tangential_force_N;
+        const int k = std::max({1, path.normal_steps, path.tangential_steps});
+        for (int i = 1; i <= k; ++i)
+            steps.push_back(interpolate(from, load, double(i) / k));
+    } else {
+        ContactLoad rest = load, grasp = load;
+        rest.normal_force_N = 0;
+        rest.tangential_force_N.setZero();
+        rest.tangential_displacement_mm.setZero();
+        grasp.tangential_force_N.setZero();
+        grasp.tangential_displacement_mm.setZero();
+        if (path.frictionless_indentation) rest.mu = grasp.mu = 0.0;
+        const int kn = std::max(1, path.normal_steps);
+        for (int i = 1; i <= kn; ++i)
+            steps.push_back(interpolate(rest, grasp, double(i) / kn));
+        const bool tangential = load.tangential_force_N.norm() > 0 ||
+                                load.tangential_displacement_mm.norm() > 0 ||
+                                (path.frictionless_indentation && load.mu > 0);
+        if (tangential) {
+            grasp.mu = load.mu;
+            const int kt = std::max(1, path.tangential_steps);
+            for (int i = 1; i <= kt; ++i)
+                steps.push_back(interpolate(grasp, load, double(i) / kt));
+        }
+    }
+    // A step that does not converge is split in two halves (from the same start), down to
+    // 1/64 of a step: the stick/slip sets then change little per step.
+    int iterations = 0;
+    auto step_from = [&](auto&& self, const ContactSolution* from, const ContactLoad& start,
+                         const ContactLoad& target, int depth) -> ContactSolution {
+        const Eigen::Vector2d shift = from ? from->object_displacement_mm : Eigen::Vector2d::Zero();
+        ContactSolution next =
+            solve_contact_step(C, object_gap(object, X, shift), target, from, options);
+        iterations += next.iterations;
+        if (next.converged || depth >= 6) return next;
+        const ContactLoad middle = interpolate(start, target, 0.5);
+        const ContactSolution half = self(self, from, start, middle, depth + 1);
+        if (!half.converged) return half;
+        return self(self, &half, middle, target, depth + 1);
+    };
+    ContactSolution current;
+    const ContactSolution* last = previous;
+    ContactLoad start = previous ? previous->load : load; // the load the first step starts from
+    if (previous) {
+        start.tangential_displacement_mm = previous->object_displacement_mm;
+    } else {
+        start.normal_force_N = 0;
+        start.tangential_force_N.setZero();
+        start.tangential_displacement_mm.setZero();
+    }
+    for (const ContactLoad& step : steps) {
+        ContactLoad from = start;
+        from.mu = step.mu;
+        current = step_from(step_from, last, from, step, 0);
+        last = &current;
+        start = step;
+        if (!current.converged) break;
+    }
+    current.iterations = iterations;
+    return current;
 }
 
 } // namespace chromasim::mechanics

@@ -1,27 +1,38 @@
 #pragma once
-/// Contact of a rigid object pressed along -z onto the candidate surface nodes of a linear
-/// elastic body, solved on the precomputed compliance of those nodes (no FE solve per
-/// iteration). Contact forces act along z: exact for a flat, the small-slope approximation
-/// (contact radius << object radius, as Hertz assumes) for a sphere.
+/// Frictional contact of a rigid object pressed along -z onto the candidate surface nodes of a
+/// linear elastic body, solved on the precomputed compliance of those nodes (no FE solve per
+/// iteration). Normal contact forces act along z: exact for a flat, the small-slope
+/// approximation (contact radius << object radius, as Hertz assumes) for a curved object.
 ///
-/// Model (see docs/ARCHITECTURE.md "What is deliberately coarse"):
-/// - normal: frictionless, unilateral, force controlled: the indentation d is found so that
-///   the nodal reactions sum to the requested normal force (active set);
-/// - tangential tractions act on that contact set with its normal forces unchanged (Goodman's
-///   approximation, which Mindlin's solution makes too: the tangential load does not alter
-///   the normal contact; the displacement field still includes every coupling);
-/// - |Q| < mu P: Cattaneo-Mindlin partial slip for a load applied monotonically along Q:
-///   stick nodes move by one common tangential offset s from the frictionless state, slip
-///   nodes carry mu times their normal force along Q, the tractions sum to Q. No history:
-///   unloading or a change of direction needs the incremental stick/slip state (not yet);
-/// - |Q| >= mu P: full slip, every contact node carries mu times its normal force along the
-///   pull, the transmitted tangential force is mu P and Gamma = 0.
+/// Quasi-static and incremental (docs/ARCHITECTURE.md, "Contact and friction"):
+/// - normal: unilateral, force controlled: the indentation d is found so that the nodal
+///   reactions sum to the requested normal force (active set);
+/// - tangential: Coulomb friction with stick/slip history. Each contact node remembers its
+///   anchor, the tangential position relative to the object where it sticks. In a step a
+///   sticking node keeps its anchor; a node whose stick traction would exceed mu times its
+///   normal force slips, carrying mu times its normal force against its slip, and is
+///   re-anchored where it ends; a node entering contact is anchored where it was at the
+///   previous step. The tangential load is a force Q on the object (its displacement w is
+///   found) or a prescribed object displacement w (the force is found);
+/// - normal and tangential problems are coupled (tangential forces move nodes along z, normal
+///   forces move them sideways): for fixed contact and slip sets the problem is one linear
+///   system in the normal forces, the stick tractions, the indentation and the object's travel;
+///   an active-set loop updates the sets (Alart-Curnier trial tractions for stick/slip). On
+///   request, Goodman's approximation (the normal problem blind to the tangential forces, as
+///   Mindlin's solution assumes);
+/// - under force control |Q| >= mu P is full slip: every contact node carries mu times its
+///   normal force along the pull, the transmitted force is mu P, Gamma = 0, and the sliding
+///   object's travel is left undefined (w is kept, the contact re-anchored where it is).
 #include <Eigen/Core>
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
 namespace chromasim::mechanics {
+
+using RowForces = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+using RowVectors2 = Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>;
 
 /// Rigid object shapes, centred on the z axis, approaching along -z.
 struct ObjectShape {
@@ -30,40 +41,92 @@ struct ObjectShape {
     double radius_mm = 45.0; ///< sphere radius (unused for a flat)
 };
 
-/// Initial gap (mm) of candidate positions X (n x 3) to the object at first touch: >= 0, the
-/// highest node at 0. Nodes beyond a sphere's silhouette (r >= R) get an unreachable gap.
+/// Gap (mm) of candidate positions X (n x 3) to the object at first touch: >= 0, the highest
+/// node at 0. Nodes beyond a sphere's silhouette (r >= R) get an unreachable gap. With
+/// `shift_mm`, the object is moved by that tangential offset, keeping the reference of the
+/// unshifted first touch (so the indentation means the same before and after the shift).
 Eigen::VectorXd
 object_gap(const ObjectShape& object,
-           const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& X);
+           const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& X,
+           const Eigen::Vector2d& shift_mm = Eigen::Vector2d::Zero());
 
-/// Loads of one quasi-static frame.
+/// How the tangential load of a step is given.
+enum class TangentialControl {
+    force,       ///< ContactLoad::tangential_force_N pulls the object; its travel is found
+    displacement ///< ContactLoad::tangential_displacement_mm moves the object; force is found
+};
+
+/// Loads at the end of one quasi-static step.
 struct ContactLoad {
     double normal_force_N = 1.0;                  ///< P > 0, pressing the object onto the dome
     Eigen::Vector2d tangential_force_N{0.0, 0.0}; ///< Q, requested pull in the x-y plane
     double mu = 0.8;                              ///< Coulomb friction coefficient
+    TangentialControl tangential = TangentialControl::force;
+    /// Object's tangential displacement w from its first-touch position (displacement control).
+    Eigen::Vector2d tangential_displacement_mm{0.0, 0.0};
 };
 
-/// Solution of the contact problem on the candidate nodes.
+/// State of a candidate node.
+enum class NodeContact : std::uint8_t { free = 0, stick = 1, slip = 2 };
+
+struct ContactOptions {
+    /// Coupled normal and tangential problems (default); false: Goodman's approximation.
+    bool coupled = true;
+    int max_iterations = 200; ///< active-set iterations per step
+};
+
+/// Solution of one step on the candidate nodes; also the history the next step starts from.
 struct ContactSolution {
-    Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> forces_N; ///< on each candidate
-    std::vector<int> active;     ///< candidate indices in contact
-    std::vector<int> slipping;   ///< those of `active` that slip (all of them when sliding)
-    double indentation_mm = 0.0; ///< rigid approach d of the object
-    Eigen::Vector2d tangential_force_N{0.0, 0.0}; ///< transmitted (= Q when sticking)
+    RowForces forces_N;             ///< on each candidate (n x 3); z < 0 presses
+    RowForces displacement_mm;      ///< of each candidate (n x 3), from all the forces
+    std::vector<NodeContact> state; ///< per candidate
+    RowVectors2 anchor_mm;          ///< per candidate in contact: u_t - w where it sticks
+    std::vector<int> active;        ///< candidate indices in contact
+    std::vector<int> slipping;      ///< those of `active` that slip (all of them when sliding)
+    double indentation_mm = 0.0;    ///< rigid approach d of the object
+    Eigen::Vector2d object_displacement_mm{0.0, 0.0}; ///< object's tangential travel w
+    Eigen::Vector2d tangential_force_N{0.0, 0.0};     ///< transmitted (= Q when sticking)
     double normal_force_N = 0.0; ///< sum of nodal normal forces (= P when converged)
+    ContactLoad load;            ///< the load this step reached
     bool sliding = false;
     double gamma = 1.0; ///< safety margin, clamped to [0, 1]
-    int iterations = 0; ///< active-set iterations, normal then stick/slip
+    int iterations = 0; ///< active-set iterations (summed over the steps of a path)
+    /// Largest violation at the end: of the contact and stick conditions (mm) and of the
+    /// force balance and the friction law (N). Reported so a frame can be judged.
+    double residual_mm = 0.0, residual_N = 0.0;
     bool converged = false;
-    std::string status = "ok"; ///< ok | max_iterations | singular | stick_slip_not_converged
+    /// ok | max_iterations (the sets kept changing) | singular (no solution for the sets)
+    std::string status = "ok";
 };
 
 /// Safety margin (mu P - |f_t|) / (mu P), clamped at 0 while sliding; 0 when mu P = 0.
 double safety_margin(double mu, double normal_force_N, double tangential_force_N);
 
-/// Solves the frame. `C` is the 3n x 3n compliance of the n candidate nodes (mm/N, dofs x, y,
-/// z per node), `gap_mm` their initial gap to the object (object_gap).
-ContactSolution solve_contact(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_mm,
-                              const ContactLoad& load, int max_iterations = 200);
+/// One quasi-static step from `previous` (nullptr: the undeformed, unloaded body) to `load`.
+/// `C` is the 3n x 3n compliance of the n candidate nodes (mm/N, dofs x, y, z per node),
+/// `gap_mm` their gap to the object in its position at the start of the step (object_gap,
+/// shifted by the previous step's object displacement).
+ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_mm,
+                                   const ContactLoad& load, const ContactSolution* previous,
+                                   const ContactOptions& options = {});
+
+/// How a frame's load is reached from rest: the normal force ramps up in `normal_steps` equal
+/// steps with the tangential load at zero, then the tangential load ramps up in
+/// `tangential_steps` with the normal force held. Friction acts during the indentation (as in
+/// a real grasp) unless `frictionless_indentation` (Mindlin's assumption, for validation).
+struct LoadPath {
+    int normal_steps = 4;
+    int tangential_steps = 4;
+    bool frictionless_indentation = false;
+};
+
+/// Steps from `previous` (nullptr: rest, following `path`) to `load`: from a previous state
+/// the loads ramp linearly in max(normal_steps, tangential_steps) steps. The object's gap is
+/// re-evaluated at each step's start for its tangential travel so far.
+ContactSolution solve_contact_path(
+    const Eigen::MatrixXd& C, const ObjectShape& object,
+    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& X,
+    const ContactLoad& load, const LoadPath& path, const ContactSolution* previous = nullptr,
+    const ContactOptions& options = {});
 
 } // namespace chromasim::mechanics

@@ -8,6 +8,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <mutex>
 #include <numbers>
 #include <stdexcept>
 
@@ -42,7 +43,10 @@ struct DomeModel::Impl {
     std::vector<int> candidates; ///< mesh nodes that may touch
     Points candidate_X;          ///< their undeformed positions (mm)
     std::vector<double> candidate_area_mm2;
-    std::vector<bool> candidate_edge; ///< in the outermost band of the candidate cap
+    std::vector<bool> candidate_edge;   ///< in the outermost band of the candidate cap
+    Triangles candidate_F;              ///< outer triangles among the candidates (local ids)
+    mutable std::once_flag strain_once; ///< the strain sampler is built on first request
+    mutable std::unique_ptr<SurfaceStrainSampler> strain;
     std::unique_ptr<ElasticBody> body;
     PrecomputeStats stats;
 
@@ -118,6 +122,18 @@ void DomeModel::Impl::find_candidates() {
         }
     }
     if (candidates.empty()) throw std::runtime_error("no contact candidate nodes on the dome");
+    std::vector<int> local(std::size_t(mesh.V.rows()), -1);
+    for (std::size_t i = 0; i < candidates.size(); ++i)
+        local[std::size_t(candidates[i])] = int(i);
+    const Triangles outer = interface_faces(mesh, kCoating, -1);
+    std::vector<Eigen::Vector3i> tris;
+    for (int f = 0; f < outer.rows(); ++f) {
+        const Eigen::Vector3i t(local[outer(f, 0)], local[outer(f, 1)], local[outer(f, 2)]);
+        if (t.minCoeff() >= 0) tris.push_back(t);
+    }
+    candidate_F.resize(Eigen::Index(tris.size()), 3);
+    for (std::size_t f = 0; f < tris.size(); ++f)
+        candidate_F.row(Eigen::Index(f)) = tris[f].transpose();
     candidate_X.resize(Eigen::Index(candidates.size()), 3);
     for (std::size_t i = 0; i < candidates.size(); ++i)
         candidate_X.row(Eigen::Index(i)) = mesh.V.row(candidates[i]);
@@ -180,10 +196,12 @@ DomeModel::DomeModel(const DomeModelOptions& options) : m_impl(std::make_unique<
 DomeModel::~DomeModel() = default;
 
 FrameResult DomeModel::solve(const ContactLoad& load, const FrameRequest& request,
-                             const ObjectShape& object) const {
+                             const ObjectShape& object, const FrameResult* previous) const {
     const Impl& m = *m_impl;
     FrameResult r;
-    r.contact = solve_contact(m.body->compliance(), object_gap(object, m.candidate_X), load);
+    r.contact =
+        solve_contact_path(m.body->compliance(), object, m.candidate_X, load, m.options.load_path,
+                           previous ? &previous->contact : nullptr, m.options.contact);
     for (int j : r.contact.active) {
         r.contact_area_mm2 += m.candidate_area_mm2[j];
         r.at_candidate_edge = r.at_candidate_edge || m.candidate_edge[j];
@@ -191,6 +209,23 @@ FrameResult DomeModel::solve(const ContactLoad& load, const FrameRequest& reques
     r.stick_area_mm2 = r.contact_area_mm2;
     for (int j : r.contact.slipping)
         r.stick_area_mm2 -= m.candidate_area_mm2[j];
+    if (request.surface) {
+        const Eigen::Index n = Eigen::Index(m.candidates.size());
+        r.pressure_MPa.resize(n);
+        r.traction_MPa.resize(n, 2);
+        for (Eigen::Index j = 0; j < n; ++j) {
+            const double area = m.candidate_area_mm2[std::size_t(j)];
+            r.pressure_MPa(j) = -r.contact.forces_N(j, 2) / area;
+            r.traction_MPa.row(j) = r.contact.forces_N.row(j).head<2>() / area;
+        }
+    }
+    if (request.strain) {
+        std::call_once(m.strain_once, [&m] {
+            m.strain = std::make_unique<SurfaceStrainSampler>(m.candidate_X, m.candidate_F,
+                                                              m.options.strain_grid);
+        });
+        r.strain = m.strain->sample(r.contact.displacement_mm);
+    }
     if (request.full_field)
         r.node_displacement_mm = m.body->full_displacement(r.contact.forces_N, r.contact.active);
     if (!request.coating && !request.markers) return r;
@@ -212,6 +247,18 @@ const SurfacePatch& DomeModel::coating_surface() const {
 }
 const PrecomputeStats& DomeModel::stats() const {
     return m_impl->stats;
+}
+const std::vector<int>& DomeModel::candidate_nodes() const {
+    return m_impl->candidates;
+}
+const std::vector<double>& DomeModel::candidate_areas() const {
+    return m_impl->candidate_area_mm2;
+}
+const Triangles& DomeModel::candidate_triangles() const {
+    return m_impl->candidate_F;
+}
+const DomeModelOptions& DomeModel::options() const {
+    return m_impl->options;
 }
 
 } // namespace chromasim::mechanics

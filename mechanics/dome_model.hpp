@@ -7,6 +7,7 @@
 #include "mechanics/dome_geometry.hpp"
 #include "mechanics/elastic_body.hpp"
 #include "mechanics/linear_elasticity.hpp"
+#include "mechanics/surface_strain.hpp"
 #include "mechanics/tet_mesh.hpp"
 
 #include <array>
@@ -30,6 +31,11 @@ struct DomeModelOptions {
     std::filesystem::path cache_dir;
     /// Outer-surface nodes up to this polar angle may touch the object.
     double contact_candidate_angle_deg = 35.0;
+    /// How a frame without a previous frame reaches its load from rest (contact.hpp).
+    LoadPath load_path;
+    ContactOptions contact;
+    /// Grid of the surface strain eps_xx (FrameRequest::strain).
+    StrainGridSpec strain_grid;
 };
 
 /// A surface of the mesh: the mesh nodes it uses and its triangles in local indices.
@@ -57,6 +63,12 @@ struct FrameResult {
     Points coating_displacement_mm; ///< per coating_surface() vertex (empty unless requested)
     Points marker_points_mm;        ///< deformed MarkerDiscs::points (empty unless requested)
     Points node_displacement_mm;    ///< #V x 3, every node (empty unless requested)
+    /// Per candidate (candidate_nodes() order; empty unless requested): contact pressure
+    /// (normal force over tributary area) and tangential traction on the dome. The stick /
+    /// slip / free state per candidate is contact.state, the displacement contact.displacement_mm.
+    Eigen::VectorXd pressure_MPa;
+    RowVectors2 traction_MPa;
+    StrainGrid strain; ///< eps_xx over the contact (empty unless requested)
 };
 
 /// Which fields a frame computes. The coating and the markers come from the precomputed
@@ -66,6 +78,8 @@ struct FrameRequest {
     bool coating = false;    ///< coating displacement (images)
     bool markers = false;    ///< deformed marker discs (images, markers.csv)
     bool full_field = false; ///< every node's displacement (tests, tools)
+    bool surface = false;    ///< pressure and traction per candidate node
+    bool strain = false;     ///< eps_xx grid (seed 001, eq. 3)
 };
 
 class DomeModel {
@@ -75,15 +89,22 @@ public:
     explicit DomeModel(const DomeModelOptions& options);
     ~DomeModel();
 
-    /// Solves one quasi-static frame of `object` under `load`. Safe to call from several
-    /// threads.
+    /// Solves one quasi-static frame of `object` under `load`: from `previous` (the frame
+    /// before in a trial: its stick/slip history carries over) in options().load_path's
+    /// steps, or from rest along that path. Safe to call from several threads.
     FrameResult solve(const ContactLoad& load, const FrameRequest& request,
-                      const ObjectShape& object = {}) const;
+                      const ObjectShape& object = {}, const FrameResult* previous = nullptr) const;
 
     const TetMesh& mesh() const;
     const MarkerDiscs& markers() const;
     /// Inner face of the coating (interface of layers 3 and 4), normals towards the centre.
     const SurfacePatch& coating_surface() const;
+    /// Outer-surface nodes that may touch (mesh node ids), their tributary areas (mm^2), and
+    /// the outer triangles between them (indices into candidate_nodes()).
+    const std::vector<int>& candidate_nodes() const;
+    const std::vector<double>& candidate_areas() const;
+    const Triangles& candidate_triangles() const;
+    const DomeModelOptions& options() const;
     const PrecomputeStats& stats() const;
 
 private:

@@ -30,14 +30,14 @@ TEST_CASE("two springs against a plane: active set and force control are exact",
     Eigen::VectorXd gap(2);
     gap << 0.0, 0.1;
     SECTION("light load: one node in contact") {
-        const ContactSolution s = solve_contact(C, gap, {0.05, {0, 0}, 0.5});
+        const ContactSolution s = solve_contact_step(C, gap, {0.05, {0, 0}, 0.5}, nullptr);
         REQUIRE(s.converged);
         CHECK(s.active == std::vector<int>{0});
         CHECK(s.indentation_mm == Approx(0.05)); // d = c1 P
     }
     SECTION("heavy load: both nodes, d from c1 f1 = d, c2 f2 = d - 0.1, f1 + f2 = P") {
         const double P = 1.0;
-        const ContactSolution s = solve_contact(C, gap, {P, {0, 0}, 0.5});
+        const ContactSolution s = solve_contact_step(C, gap, {P, {0, 0}, 0.5}, nullptr);
         REQUIRE(s.converged);
         CHECK(s.active.size() == 2);
         const double d = (P + 0.1 / 2) / (1.0 + 0.5); // f1 = d, f2 = (d - 0.1) / 2

@@ -6,6 +6,11 @@
 
 using namespace chromasim::mechanics;
 
+namespace {
+/// Mindlin's assumption: normal load without friction, then the tangential load in one step.
+constexpr LoadPath kMindlin{1, 1, true};
+} // namespace
+
 TEST_CASE("Hertz formulas reproduce SENSOR.md's scale check", "[mechanics][hertz]") {
     // R = 13.2 mm, E = 0.4 MPa, nu = 0.5: a = 2.65 mm at 1 N, 3.8 mm at 3 N.
     CHECK(hertz(1.0, 13.2, 0.4, 0.5).a_mm == Approx(2.65).margin(0.005));
@@ -27,7 +32,7 @@ TEST_CASE("sphere on a near-incompressible block (nu = 0.49): Hertz a, approach,
     const ObjectShape sphere{ObjectShape::Kind::sphere, 10.0};
     for (double P : {1.0, 2.5}) {
         INFO("P = " << P);
-        const ContactSolution s = block.solve({P, {0, 0}, 0.5}, sphere);
+        const ContactSolution s = block.solve({P, {0, 0}, 0.5}, sphere, kMindlin);
         REQUIRE(s.converged);
         const HertzSolution h = hertz(P, 10.0, 1.0, nu);
         const ContactFit fit =
@@ -40,14 +45,14 @@ TEST_CASE("sphere on a near-incompressible block (nu = 0.49): Hertz a, approach,
     }
     // Cattaneo-Mindlin: normal load frictionless, then Q at Q / (mu P) = 0.25, 0.5, 0.75.
     const double P = 1.0, mu = 0.5;
-    const ContactSolution normal = block.solve({P, {0, 0}, mu}, sphere);
+    const ContactSolution normal = block.solve({P, {0, 0}, mu}, sphere, kMindlin);
     const ContactFit fit =
         fit_hertz_profile(block.candidate_positions(), block.candidate_areas(), normal);
     const double a = hertz(P, 10.0, 1.0, nu).a_mm;
     double last_c = a;
     for (double ratio : {0.25, 0.5, 0.75}) {
         INFO("Q / (mu P) = " << ratio);
-        const ContactSolution s = block.solve({P, {0.0, ratio * mu * P}, mu}, sphere);
+        const ContactSolution s = block.solve({P, {0.0, ratio * mu * P}, mu}, sphere, kMindlin);
         REQUIRE(s.converged);
         CHECK_FALSE(s.sliding);
         CHECK(s.tangential_force_N.y() == Approx(ratio * mu * P));
