@@ -264,7 +264,10 @@ ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::Vector
                     u.row(j).head<2>().transpose() - lin.w - anchor.row(j).transpose();
                 const Eigen::Vector2d tau = t - r_stiff(j) * g;
                 const double limit = mu * std::max(lin.lambda(j), 0.0);
-                const bool slips = tau.norm() > limit;
+                // A node on the cone's surface (|tau| = mu lambda to rounding) keeps its state:
+                // both give the same forces, and flipping would never settle.
+                const bool slips =
+                    tau.norm() > limit * (sets.slip[jj] ? 1.0 - 1e-10 : 1.0 + 1e-10);
                 const Eigen::Vector2d projected =
                     slips ? Eigen::Vector2d(limit * tau.normalized()) : tau;
                 law_error = std::max(law_error, (t - projected).norm());

@@ -206,9 +206,9 @@ FrameResult DomeModel::solve(const ContactLoad& load, const FrameRequest& reques
         r.contact_area_mm2 += m.candidate_area_mm2[j];
         r.at_candidate_edge = r.at_candidate_edge || m.candidate_edge[j];
     }
-    r.stick_area_mm2 = r.contact_area_mm2;
-    for (int j : r.contact.slipping)
-        r.stick_area_mm2 -= m.candidate_area_mm2[j];
+    for (int j : r.contact.active)
+        if (r.contact.state[std::size_t(j)] == NodeContact::stick)
+            r.stick_area_mm2 += m.candidate_area_mm2[std::size_t(j)];
     if (request.surface) {
         const Eigen::Index n = Eigen::Index(m.candidates.size());
         r.pressure_MPa.resize(n);

@@ -1,0 +1,192 @@
+// Coulomb friction with stick/slip history: analytic single-node cycles, force against
+// displacement control, a seed-001-style sliding ramp on the dome, per-node outputs and the
+// surface strain grid.
+#include "mechanics/contact.hpp"
+#include "mechanics/dome_model.hpp"
+#include "mechanics/surface_strain.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+
+using namespace chromasim::mechanics;
+
+namespace {
+
+const DomeModel& coarse_model() {
+    static const DomeModel model(DomeModelOptions{});
+    return model;
+}
+
+ContactLoad displaced(double P, double w, double mu) {
+    ContactLoad l{P, {0, 0}, mu};
+    l.tangential = TangentialControl::displacement;
+    l.tangential_displacement_mm = {w, 0};
+    return l;
+}
+
+} // namespace
+
+TEST_CASE("one node under a displacement cycle: elastic stick, slip at mu P, reverse slip",
+          "[mechanics][friction]") {
+    // One node, compliance 0.5 mm/N along x and y (stiffness k = 2 N/mm), 1 mm/N along z.
+    Eigen::MatrixXd C = Eigen::MatrixXd::Zero(3, 3);
+    C.diagonal() << 0.5, 0.5, 1.0;
+    const Eigen::VectorXd gap = Eigen::VectorXd::Zero(1);
+    const double P = 1.0, mu = 0.5, k = 2.0; // slip at w = mu P / k = 0.25 mm
+    ContactSolution s = solve_contact_step(C, gap, {P, {0, 0}, mu}, nullptr);
+    REQUIRE(s.converged);
+    // Tangential force for a displacement history, by hand: t = k (w - anchor), clamped at
+    // +-mu P, the anchor following the object while slipping.
+    double anchor = 0;
+    for (double w : {0.1, 0.2, 0.3, 0.6, 0.5, 0.4, 0.2, 0.0, -0.3, 0.0}) {
+        ContactSolution next = solve_contact_step(C, gap, displaced(P, w, mu), &s);
+        INFO("w = " << w);
+        REQUIRE(next.converged);
+        double t = k * (w - anchor);
+        if (std::abs(t) > mu * P) {
+            t = std::copysign(mu * P, t);
+            anchor = w - t / k;
+        }
+        CHECK(next.tangential_force_N.x() == Approx(t).margin(1e-12));
+        CHECK(next.state[0] ==
+              (std::abs(std::abs(t) - mu * P) < 1e-12 ? NodeContact::slip : NodeContact::stick));
+        CHECK(next.residual_N < 1e-12);
+        CHECK(next.residual_mm < 1e-12);
+        s = next;
+    }
+}
+
+TEST_CASE("force and displacement control agree; a zero increment changes nothing",
+          "[mechanics][friction]") {
+    const DomeModel& model = coarse_model();
+    const FrameResult f = model.solve({1.5, {0.5, 0.2}, 0.8}, {});
+    REQUIRE(f.contact.converged);
+    REQUIRE_FALSE(f.contact.sliding);
+    const Eigen::Vector2d w = f.contact.object_displacement_mm;
+    CHECK(w.x() > 0);
+    // The same object position under displacement control transmits the same force.
+    ContactLoad hold{1.5, {0, 0}, 0.8};
+    hold.tangential = TangentialControl::displacement;
+    hold.tangential_displacement_mm = w;
+    const FrameResult d = model.solve(hold, {}, {}, &f);
+    REQUIRE(d.contact.converged);
+    CHECK((d.contact.tangential_force_N - f.contact.tangential_force_N).norm() < 1e-9);
+    CHECK((d.contact.forces_N - f.contact.forces_N).cwiseAbs().maxCoeff() < 1e-9);
+    // And the same force again leaves the object where it is.
+    const FrameResult again = model.solve({1.5, {0.5, 0.2}, 0.8}, {}, {}, &f);
+    REQUIRE(again.contact.converged);
+    CHECK((again.contact.object_displacement_mm - w).norm() < 1e-9);
+    CHECK((again.contact.forces_N - f.contact.forces_N).cwiseAbs().maxCoeff() < 1e-9);
+    CHECK(again.contact.slipping.empty()); // nothing moves, so nothing slips in this frame
+}
+
+TEST_CASE("sliding ramp (seed 001): force rises to mu P, stick zone shrinks to nothing, Gamma "
+          "falls to 0; history matters on the way back",
+          "[mechanics][friction]") {
+    const DomeModel& model = coarse_model();
+    const double P = 1.2, mu = 0.8;
+    FrameResult frame = model.solve({P, {0, 0}, mu}, {true}); // grasp
+    REQUIRE(frame.contact.converged);
+    double last_ft = 0, last_stick = frame.stick_area_mm2, last_gamma = 1.0;
+    for (int i = 1; i <= 30; ++i) {
+        const double w = 2.0 * i / 30; // the plate travels 2 mm
+        FrameResult next =
+            model.solve(displaced(P, w, mu), {false, false, false, true}, {}, &frame);
+        INFO("w = " << w);
+        REQUIRE(next.contact.converged);
+        CHECK(next.contact.residual_mm < 1e-9);
+        CHECK(next.contact.residual_N < 1e-9);
+        const double ft = next.contact.tangential_force_N.norm();
+        CHECK(ft >= last_ft - 1e-9);
+        CHECK(next.stick_area_mm2 <= last_stick + 1e-9);
+        CHECK(next.contact.gamma <= last_gamma + 1e-9);
+        CHECK(ft <= mu * next.contact.normal_force_N * (1 + 1e-9));
+        // Per-node outputs integrate to the totals.
+        double fn = 0, fx = 0;
+        for (std::size_t j = 0; j < model.candidate_nodes().size(); ++j) {
+            fn += next.pressure_MPa(Eigen::Index(j)) * model.candidate_areas()[j];
+            fx += next.traction_MPa(Eigen::Index(j), 0) * model.candidate_areas()[j];
+        }
+        CHECK(fn == Approx(P).epsilon(1e-9));
+        CHECK(fx == Approx(next.contact.tangential_force_N.x()).epsilon(1e-9));
+        last_ft = ft;
+        last_stick = next.stick_area_mm2;
+        last_gamma = next.contact.gamma;
+        frame = std::move(next);
+    }
+    CHECK(frame.contact.sliding);
+    CHECK(frame.contact.gamma == 0.0);
+    CHECK(frame.stick_area_mm2 == 0.0);
+    // Every node slips at mu lambda; their directions differ a little (the object drifted
+    // sideways during the grasp), so the sum is within 1e-4 of mu P.
+    CHECK(frame.contact.tangential_force_N.x() == Approx(mu * P).epsilon(1e-4));
+    CHECK(frame.contact.tangential_force_N.norm() <= mu * P * (1 + 1e-12));
+    // Back by 0.3 mm: the contact sticks again and the force drops; it does not retrace the
+    // loading curve (at w = 1.7 mm on the way out the force was mu P).
+    const FrameResult back = model.solve(displaced(P, 1.7, mu), {}, {}, &frame);
+    REQUIRE(back.contact.converged);
+    CHECK_FALSE(back.contact.sliding);
+    CHECK(back.contact.tangential_force_N.x() < 0.9 * mu * P);
+    CHECK(back.stick_area_mm2 > 0);
+}
+
+TEST_CASE("friction during indentation: converges, obeys Coulomb, locks in traction; "
+          "Goodman's approximation leaves the normal problem frictionless",
+          "[mechanics][friction]") {
+    const DomeModel& model = coarse_model();
+    const FrameResult frictionless = model.solve({2.0, {0, 0}, 0.0}, {});
+    REQUIRE(frictionless.contact.converged);
+    for (double mu : {0.3, 0.8, 5.0}) {
+        INFO("mu = " << mu);
+        const FrameResult r = model.solve({2.0, {0, 0}, mu}, {true});
+        REQUIRE(r.contact.converged);
+        CHECK(r.contact.normal_force_N == Approx(2.0).epsilon(1e-12));
+        CHECK(r.contact.tangential_force_N.norm() < 1e-9); // no pull: tractions balance
+        double traction = 0;
+        for (int j : r.contact.active) {
+            const double t = r.contact.forces_N.row(j).head<2>().norm();
+            CHECK(t <= mu * -r.contact.forces_N(j, 2) * (1 + 1e-9) + 1e-15);
+            traction = std::max(traction, t);
+        }
+        CHECK(traction > 0); // radial tractions locked in by the indentation
+    }
+    DomeModelOptions goodman;
+    goodman.contact.coupled = false;
+    const DomeModel g(goodman);
+    const FrameResult r = g.solve({2.0, {0, 0}, 0.8}, {});
+    REQUIRE(r.contact.converged);
+    CHECK(r.contact.indentation_mm == Approx(frictionless.contact.indentation_mm).epsilon(1e-9));
+}
+
+TEST_CASE("surface strain: exact for a linear field, eq. 3's quadratic terms, signs under a pull",
+          "[mechanics][strain]") {
+    const DomeModel& model = coarse_model();
+    Points X(Eigen::Index(model.candidate_nodes().size()), 3);
+    for (Eigen::Index i = 0; i < X.rows(); ++i)
+        X.row(i) = model.mesh().V.row(model.candidate_nodes()[std::size_t(i)]);
+    const SurfaceStrainSampler sampler(X, model.candidate_triangles(), StrainGridSpec{});
+    Points u(X.rows(), 3);
+    const double a = 0.02, b = -0.01, c = 0.03, e = 0.005;
+    for (Eigen::Index i = 0; i < X.rows(); ++i)
+        u.row(i) << a * X(i, 0) + b * X(i, 1), c * X(i, 0) + e * X(i, 1), 0.1 * X(i, 0);
+    const StrainGrid grid = sampler.sample(u);
+    REQUIRE(grid.nx == 101);
+    REQUIRE(grid.ny == 76);
+    for (double v : grid.eps_xx)
+        REQUIRE(v == Approx(a + 0.5 * (a * a + c * c)).epsilon(1e-9));
+    StrainGridSpec too_wide;
+    too_wide.half_width_x_mm = 9.0;
+    CHECK_THROWS_WITH(SurfaceStrainSampler(X, model.candidate_triangles(), too_wide),
+                      Catch::Contains("outside the sampled surface patch"));
+
+    // Pulled along +x, the skin is stretched behind the contact and compressed ahead of it.
+    const FrameResult r = model.solve({1.5, {0.9, 0}, 0.8}, {false, false, false, false, true});
+    REQUIRE(r.strain.eps_xx.size() == 101u * 76u);
+    const int mid = r.strain.ny / 2;
+    const auto at_x = [&](double x) {
+        return r.strain.value(mid, int(std::lround((x - r.strain.x0_mm) / r.strain.dx_mm)));
+    };
+    CHECK(at_x(-3.0) > 0);
+    CHECK(at_x(3.0) < 0);
+}
