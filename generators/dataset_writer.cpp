@@ -93,7 +93,7 @@ void DatasetWriter::open_outputs() {
                             "tangential_force_x_N,tangential_force_y_N,"
                             "requested_tangential_force_N,mu,gamma,sliding,indentation_mm,"
                             "contact_area_mm2,stick_area_mm2,contact_nodes,solver_iterations,"
-                            "converged,status");
+                            "solver_residual_mm,solver_residual_N,converged,status");
     if (m_spec.outputs.markers)
         m_markers = open_csv(m_staging / "markers.csv",
                              "frame,layer,marker,x0_mm,y0_mm,z0_mm,ux_mm,uy_mm,uz_mm");
@@ -121,7 +121,8 @@ void DatasetWriter::write_label(const LabelRow& r) {
              << ',' << r.tangential_x_N << ',' << r.tangential_y_N << ','
              << r.requested_tangential_N << ',' << r.mu << ',' << r.gamma << ',' << int(r.sliding)
              << ',' << r.indentation_mm << ',' << r.contact_area_mm2 << ',' << r.stick_area_mm2
-             << ',' << r.contact_nodes << ',' << r.solver_iterations << ',' << int(r.converged)
+             << ',' << r.contact_nodes << ',' << r.solver_iterations << ',' << r.solver_residual_mm
+             << ',' << r.solver_residual_N << ',' << int(r.converged)
              << ',' << r.status << '\n';
     ++m_label_rows;
 }

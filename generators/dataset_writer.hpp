@@ -31,6 +31,7 @@ struct LabelRow {
     double mu = 0, gamma = 0, indentation_mm = 0, contact_area_mm2 = 0, stick_area_mm2 = 0;
     bool sliding = false, converged = false;
     int contact_nodes = 0, solver_iterations = 0;
+    double solver_residual_mm = 0, solver_residual_N = 0;
     std::string status;
 };
 

@@ -37,6 +37,8 @@ LabelRow label_row(const FramePlan& f, const mechanics::FrameResult& r) {
     row.stick_area_mm2 = r.stick_area_mm2;
     row.contact_nodes = int(r.contact.active.size());
     row.solver_iterations = r.contact.iterations;
+    row.solver_residual_mm = r.contact.residual_mm;
+    row.solver_residual_N = r.contact.residual_N;
     row.converged = r.contact.converged && !r.at_candidate_edge;
     row.status = r.at_candidate_edge ? "contact_at_candidate_edge" : r.contact.status;
     return row;
@@ -105,10 +107,12 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     const mechanics::ObjectShape object = object_shape(spec);
     render::SensorFrame sensor_frame;
     const render::RenderSettings settings{spec.render.samples_per_pixel, spec.seed};
+    // The frames form one trial: each starts from the stick/slip state the previous one left.
+    mechanics::FrameResult previous;
     for (const FramePlan& f : plan.frames) {
         t0 = Clock::now();
-        const mechanics::FrameResult r =
-            model.solve({f.normal_force_N, f.tangential_force_N, f.mu}, request, object);
+        mechanics::FrameResult r = model.solve({f.normal_force_N, f.tangential_force_N, f.mu},
+                                               request, object, f.index > 0 ? &previous : nullptr);
         report.mechanics_s += seconds_since(t0);
         LabelRow row = label_row(f, r);
         if (renderer) {
@@ -130,6 +134,7 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
             ++report.flagged_frames;
             log << "chromasim: warning: frame " << f.index << " flagged: " << row.status << '\n';
         }
+        previous = std::move(r);
         if (!options.quiet)
             log << "  frame " << f.index + 1 << "/" << plan.frames.size() << " " << f.phase
                 << "  Fn " << row.normal_force_N << " N  Ft "

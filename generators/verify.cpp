@@ -65,7 +65,7 @@ void hertz_cases(const std::string& level, const std::string& volumetric, double
     params.volumetric = volumetric == "element" ? mechanics::Volumetric::element
                                                 : mechanics::Volumetric::nodal_average;
     const mechanics::BlockModel block(params);
-    const mechanics::ObjectShape sphere{mechanics::ObjectShape::Kind::sphere, kRadius_mm};
+    const mechanics::ObjectShape sphere = mechanics::sphere_object(kRadius_mm);
     const double E = params.material.E_MPa;
     for (double P : {1.0, 2.5}) {
         const auto t0 = Clock::now();
@@ -122,9 +122,8 @@ void print_dome_curve(std::ostream& out) {
            "contact nodes |\n|---|---|---|---|---|---|---|\n"
         << std::setprecision(4);
     for (const double R_obj : {0.0, 45.0}) {
-        const mechanics::ObjectShape object{R_obj > 0 ? mechanics::ObjectShape::Kind::sphere
-                                                      : mechanics::ObjectShape::Kind::flat,
-                                            R_obj};
+        const mechanics::ObjectShape object =
+            R_obj > 0 ? mechanics::sphere_object(R_obj) : mechanics::ObjectShape{};
         // Two curved bodies: 1/R = 1/R1 + 1/R2 (a flat adds nothing).
         const double R = R_obj > 0 ? 1.0 / (1.0 / r.back() + 1.0 / R_obj) : r.back();
         for (double P : {0.25, 0.5, 1.0, 1.5, 2.0, 2.5, 3.2}) {

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
+#include <stdexcept>
 
 namespace chromasim::mechanics {
 
@@ -19,9 +21,15 @@ object_gap(const ObjectShape& object,
            const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& X,
            const Eigen::Vector2d& shift) {
     constexpr double kUnreachable_mm = 1e3;
+    if (object.kind == ObjectShape::Kind::mesh && !object.mesh)
+        throw std::invalid_argument("object_gap: a mesh object needs its height field");
     const Eigen::Index n = X.rows();
     // Object surface height above its lowest point, at (x, y) relative to the object's axis.
     auto height = [&](double x, double y) {
+        if (object.kind == ObjectShape::Kind::mesh) {
+            const std::optional<double> z = object.mesh->lowest_z(x, y);
+            return z ? *z : kUnreachable_mm;
+        }
         if (object.kind != ObjectShape::Kind::sphere) return 0.0;
         const double R = object.radius_mm, r2 = x * x + y * y;
         return r2 < R * R ? R - std::sqrt(R * R - r2) : kUnreachable_mm;
@@ -266,8 +274,7 @@ ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::Vector
                 const double limit = mu * std::max(lin.lambda(j), 0.0);
                 // A node on the cone's surface (|tau| = mu lambda to rounding) keeps its state:
                 // both give the same forces, and flipping would never settle.
-                const bool slips =
-                    tau.norm() > limit * (sets.slip[jj] ? 1.0 - 1e-10 : 1.0 + 1e-10);
+                const bool slips = tau.norm() > limit * (sets.slip[jj] ? 1.0 - 1e-10 : 1.0 + 1e-10);
                 const Eigen::Vector2d projected =
                     slips ? Eigen::Vector2d(limit * tau.normalized()) : tau;
                 law_error = std::max(law_error, (t - projected).norm());

@@ -23,9 +23,12 @@
 /// - under force control |Q| >= mu P is full slip: every contact node carries mu times its
 ///   normal force along the pull, the transmitted force is mu P, Gamma = 0, and the sliding
 ///   object's travel is left undefined (w is kept, the contact re-anchored where it is).
+#include "mechanics/object_mesh.hpp"
+
 #include <Eigen/Core>
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -34,12 +37,21 @@ namespace chromasim::mechanics {
 using RowForces = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 using RowVectors2 = Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>;
 
-/// Rigid object shapes, centred on the z axis, approaching along -z.
+/// Rigid objects approaching along -z: a plane, a sphere centred on the z axis, or a posed
+/// triangle mesh (its underside, as seen from below, is what touches).
 struct ObjectShape {
-    enum class Kind { flat, sphere };
+    enum class Kind { flat, sphere, mesh };
     Kind kind = Kind::flat;
-    double radius_mm = 45.0; ///< sphere radius (unused for a flat)
+    double radius_mm = 45.0;                     ///< sphere radius (sphere only)
+    std::shared_ptr<const MeshHeightField> mesh; ///< posed surface (mesh only)
 };
+
+inline ObjectShape sphere_object(double radius_mm) {
+    ObjectShape o;
+    o.kind = ObjectShape::Kind::sphere;
+    o.radius_mm = radius_mm;
+    return o;
+}
 
 /// Gap (mm) of candidate positions X (n x 3) to the object at first touch: >= 0, the highest
 /// node at 0. Nodes beyond a sphere's silhouette (r >= R) get an unreachable gap. With

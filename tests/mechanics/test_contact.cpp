@@ -161,7 +161,7 @@ TEST_CASE("object gaps: a flat touches the highest node, a sphere adds its sag",
     CHECK(flat(0) == 0.0);
     CHECK(flat(1) == 0.0);
     CHECK(flat(2) == Approx(0.5));
-    const Eigen::VectorXd sphere = object_gap({ObjectShape::Kind::sphere, 10.0}, X);
+    const Eigen::VectorXd sphere = object_gap(sphere_object(10.0), X);
     CHECK(sphere(0) == 0.0);
     CHECK(sphere(1) == Approx(10.0 - std::sqrt(75.0)));
     CHECK(sphere(2) == Approx(0.5 + 10.0 - std::sqrt(99.0)));
@@ -172,8 +172,8 @@ TEST_CASE("dome under a sphere: smaller contact than a flat, flat as the radius 
     const DomeModel& model = coarse_model();
     const ContactLoad load{1.5, {0, 0}, 0.8};
     const FrameResult flat = model.solve(load, {});
-    const FrameResult r45 = model.solve(load, {}, {ObjectShape::Kind::sphere, 45.0});
-    const FrameResult huge = model.solve(load, {}, {ObjectShape::Kind::sphere, 1e6});
+    const FrameResult r45 = model.solve(load, {}, sphere_object(45.0));
+    const FrameResult huge = model.solve(load, {}, sphere_object(1e6));
     REQUIRE(r45.contact.converged);
     CHECK(r45.contact.normal_force_N == Approx(1.5));
     CHECK(r45.contact_area_mm2 <= flat.contact_area_mm2); // nodal areas: coarse measure

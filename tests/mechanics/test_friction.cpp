@@ -190,3 +190,34 @@ TEST_CASE("surface strain: exact for a linear field, eq. 3's quadratic terms, si
     CHECK(at_x(-3.0) > 0);
     CHECK(at_x(3.0) < 0);
 }
+
+TEST_CASE("a tessellated 45 mm sphere presses like the analytic sphere; a posed plate like a "
+          "flat",
+          "[mechanics][object_mesh]") {
+    const DomeModel& model = coarse_model();
+    const ContactLoad load{1.5, {0.3, 0}, 0.8};
+    const FrameResult sphere = model.solve(load, {}, sphere_object(45.0));
+    ObjectShape cap;
+    cap.kind = ObjectShape::Kind::mesh;
+    // Cap of the sphere, lowest point at z = 20 mm (the gap is relative to first touch).
+    Pose pose;
+    pose.translation_mm = {0, 0, 20};
+    cap.mesh = std::make_shared<MeshHeightField>(make_sphere_cap(45.0, 30.0, 1.0), pose);
+    const FrameResult meshed = model.solve(load, {}, cap);
+    REQUIRE(meshed.contact.converged);
+    // Facets lie at most 0.0125 mm inside the sphere (test_object_mesh): same contact to that.
+    CHECK(meshed.contact.indentation_mm == Approx(sphere.contact.indentation_mm).margin(0.0125));
+    CHECK(meshed.contact.active.size() == Approx(double(sphere.contact.active.size())).margin(3));
+    ObjectShape plate;
+    plate.kind = ObjectShape::Kind::mesh;
+    plate.mesh = std::make_shared<MeshHeightField>(make_plate(40, 40, 4), pose);
+    const FrameResult flat = model.solve(load, {});
+    const FrameResult plated = model.solve(load, {}, plate);
+    // Gaps equal to rounding; the frictional problem need not have a unique solution, and the
+    // iterations may end on another one (both converged to 1e-15): equal to 1e-3.
+    CHECK(plated.contact.indentation_mm == Approx(flat.contact.indentation_mm).epsilon(1e-3));
+    CHECK(plated.contact.active == flat.contact.active);
+    ObjectShape hollow;
+    hollow.kind = ObjectShape::Kind::mesh; // no height field
+    CHECK_THROWS_AS(object_gap(hollow, Points::Zero(2, 3)), std::invalid_argument);
+}

@@ -29,7 +29,7 @@ TEST_CASE("sphere on a near-incompressible block (nu = 0.49): Hertz a, approach,
     BlockParams params = block_level("coarse"); // average nodal pressure: no locking
     params.material.nu = nu;
     const BlockModel block(params);
-    const ObjectShape sphere{ObjectShape::Kind::sphere, 10.0};
+    const ObjectShape sphere = sphere_object(10.0);
     for (double P : {1.0, 2.5}) {
         INFO("P = " << P);
         const ContactSolution s = block.solve({P, {0, 0}, 0.5}, sphere, kMindlin);
