@@ -19,7 +19,7 @@ using Clock = std::chrono::steady_clock;
 
 /// Mindlin's assumption: the normal load goes on without friction, then the tangential load
 /// in one monotonic step.
-constexpr mechanics::LoadPath kMindlinPath{1, 1, true};
+constexpr mechanics::LoadPath kMindlinPath{1, 1, true, 1};
 
 VerifyCase make_case(std::string key, const std::string& level, const std::string& volumetric,
                      double P, double nu, double measured, double reference, double target) {
@@ -56,7 +56,7 @@ void friction_indentation_cases(const mechanics::BlockModel& block,
         const mechanics::ContactLoad load{P, {0.5 * mu * P, 0}, mu};
         const auto t0 = Clock::now();
         const mechanics::ContactSolution with =
-            block.solve(load, sphere, mechanics::LoadPath{8, 4, false});
+            block.solve(load, sphere, mechanics::LoadPath{8, 4, false, 1});
         const double ms = 1e3 * std::chrono::duration<double>(Clock::now() - t0).count();
         const mechanics::ContactSolution without = block.solve(load, sphere, kMindlinPath);
         const auto [c_with, centre_with] = stick_zone(block, with);

@@ -204,18 +204,26 @@ ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::Vector
     if (previous)
         for (int j : previous->active)
             was_in_contact[std::size_t(j)] = 1;
+    const bool all_slip = full_slip || mu == 0;
     ActiveSets sets{{},
                     std::vector<char>(nz, 0),
                     std::vector<Eigen::Vector2d>(nz, pull),
                     std::vector<double>(nz, 0.0)};
     if (previous && !previous->active.empty()) {
-        sets.A = previous->active;
+        sets.A = previous->active; // warm start: the previous contact and slip sets
+        for (int j : sets.A) {
+            const Eigen::Vector2d t = previous->forces_N.row(j).head<2>().transpose();
+            if (all_slip || previous->state[std::size_t(j)] != NodeContact::slip || t.norm() == 0)
+                continue;
+            sets.slip[std::size_t(j)] = 1;
+            sets.dir[std::size_t(j)] = t.normalized();
+            sets.kappa[std::size_t(j)] = 1.0; // on the cone: t.n = mu lambda, slip along n
+        }
     } else {
         Eigen::Index first = 0;
         gap.minCoeff(&first);
         sets.A = {int(first)};
     }
-    const bool all_slip = full_slip || mu == 0;
     if (all_slip)
         std::fill(sets.slip.begin(), sets.slip.end(), 1); // kappa 0: traction mu lambda along pull
     Eigen::VectorXd r_stiff(n); // each node's own tangential stiffness 1 / C_tt
@@ -312,16 +320,19 @@ ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::Vector
     // Forces, displacements, states and anchors at the end of the step.
     sol.active = sets.A;
     sol.indentation_mm = lin.d;
+    const RowForces u_end = candidate_displacements(C, sets.A, lin, false);
     for (int j : sets.A) {
         sol.forces_N.row(j) << lin.t(j, 0), lin.t(j, 1), -lin.lambda(j);
-        const bool slips = sets.slip[std::size_t(j)] != 0;
+        // A node on the friction cone that did not move relative to the object sticks.
+        const double slip_mm = (u_end.row(j).head<2>() - lin.w.transpose() - anchor.row(j)).norm();
+        const bool slips = sets.slip[std::size_t(j)] != 0 && (all_slip || slip_mm > 1e-13);
         sol.state[std::size_t(j)] = slips ? NodeContact::slip : NodeContact::stick;
         if (slips) sol.slipping.push_back(j);
     }
     if (!full_slip) sol.object_displacement_mm = lin.w;
     sol.sliding = full_slip || (!force && !sets.A.empty() && sol.slipping.size() == sets.A.size() &&
                                 (sol.object_displacement_mm - w_prev).norm() > 0);
-    sol.displacement_mm = candidate_displacements(C, sets.A, lin, false);
+    sol.displacement_mm = u_end;
     const Eigen::Vector2d w = sol.object_displacement_mm;
     for (int j : sets.A)
         sol.anchor_mm.row(j) =
@@ -387,7 +398,7 @@ ContactSolution solve_contact_path(
         if (load.tangential == TangentialControl::force &&
             previous->load.tangential != TangentialControl::force)
             from.tangential_force_N = previous->tangential_force_N;
-        const int k = std::max({1, path.normal_steps, path.tangential_steps});
+        const int k = std::max(1, path.steps_from_previous);
         for (int i = 1; i <= k; ++i)
             steps.push_back(interpolate(from, load, double(i) / k));
     } else {

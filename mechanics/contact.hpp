@@ -130,10 +130,12 @@ struct LoadPath {
     int normal_steps = 4;
     int tangential_steps = 4;
     bool frictionless_indentation = false;
+    /// Steps from a previous frame (frames of a trial are small increments of each other).
+    int steps_from_previous = 1;
 };
 
 /// Steps from `previous` (nullptr: rest, following `path`) to `load`: from a previous state
-/// the loads ramp linearly in max(normal_steps, tangential_steps) steps. The object's gap is
+/// the loads ramp linearly in `path.steps_from_previous` steps. The object's gap is
 /// re-evaluated at each step's start for its tangential travel so far.
 ContactSolution solve_contact_path(
     const Eigen::MatrixXd& C, const ObjectShape& object,

@@ -72,7 +72,9 @@ int main(int argc, char** argv) {
     auto* bench = app.add_subcommand("bench", "print speed and accuracy tables (medians)");
     bench->require_subcommand(1);
     gen::DomeBenchOptions dome_bench;
-    auto* bench_dome = bench->add_subcommand("dome", "mesh level vs accuracy and time");
+    auto* bench_dome =
+        bench->add_subcommand("mechanics", "dome mesh level vs accuracy, time and memory");
+    bench_dome->alias("dome");
     bench_dome->add_option("--levels", dome_bench.levels, "mesh levels; the last is the reference")
         ->delimiter(',')
         ->check(CLI::IsMember({"coarse", "medium", "fine"}));

@@ -8,7 +8,7 @@ using namespace chromasim::mechanics;
 
 namespace {
 /// Mindlin's assumption: normal load without friction, then the tangential load in one step.
-constexpr LoadPath kMindlin{1, 1, true};
+constexpr LoadPath kMindlin{1, 1, true, 1};
 } // namespace
 
 TEST_CASE("Hertz formulas reproduce SENSOR.md's scale check", "[mechanics][hertz]") {
