@@ -158,10 +158,14 @@ RowForces candidate_displacements(const Eigen::MatrixXd& C, const std::vector<in
 
 } // namespace
 
-ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap,
+ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_mm,
                                    const ContactLoad& load, const ContactSolution* previous,
-                                   const ContactOptions& options) {
-    const int n = int(gap.size());
+                                   const ContactOptions& options, const RowForces* extra_mm) {
+    const int n = int(gap_mm.size());
+    // Internally the displacement is the part the contact forces cause through C: the extra
+    // displacement moves the gaps and anchors.
+    Eigen::VectorXd gap = gap_mm;
+    if (extra_mm) gap -= extra_mm->col(2);
     const std::size_t nz = std::size_t(n);
     ContactSolution sol;
     sol.load = load;
@@ -199,6 +203,7 @@ ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::Vector
                                 ? Eigen::RowVector2d(previous->anchor_mm.row(i))
                                 : Eigen::RowVector2d(previous->displacement_mm.row(i).head<2>() -
                                                      w_prev.transpose());
+    if (extra_mm) anchor -= extra_mm->leftCols<2>();
 
     std::vector<char> was_in_contact(nz, 0);
     if (previous)
@@ -369,6 +374,11 @@ ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::Vector
         res_N = std::max(res_N, (sol.tangential_force_N - load.tangential_force_N).norm());
     sol.residual_mm = res_mm;
     sol.residual_N = res_N;
+    if (extra_mm) { // back to total displacements
+        sol.displacement_mm += *extra_mm;
+        for (int j : sets.A)
+            sol.anchor_mm.row(j) += extra_mm->row(j).head<2>();
+    }
     return sol;
 }
 
@@ -386,11 +396,8 @@ ContactLoad interpolate(const ContactLoad& a, const ContactLoad& b, double s) {
 
 } // namespace
 
-ContactSolution solve_contact_path(
-    const Eigen::MatrixXd& C, const ObjectShape& object,
-    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& X,
-    const ContactLoad& load, const LoadPath& path, const ContactSolution* previous,
-    const ContactOptions& options) {
+std::vector<ContactLoad> load_steps(const ContactLoad& load, const LoadPath& path,
+                                    const ContactSolution* previous) {
     std::vector<ContactLoad> steps;
     if (previous) {
         ContactLoad from = previous->load;
@@ -422,6 +429,15 @@ ContactSolution solve_contact_path(
                 steps.push_back(interpolate(grasp, load, double(i) / kt));
         }
     }
+    return steps;
+}
+
+ContactSolution solve_contact_path(
+    const Eigen::MatrixXd& C, const ObjectShape& object,
+    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& X,
+    const ContactLoad& load, const LoadPath& path, const ContactSolution* previous,
+    const ContactOptions& options) {
+    const std::vector<ContactLoad> steps = load_steps(load, path, previous);
     // A step that does not converge is split in two halves (from the same start), down to
     // 1/64 of a step: the stick/slip sets then change little per step.
     int iterations = 0;

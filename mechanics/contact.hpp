@@ -117,10 +117,13 @@ double safety_margin(double mu, double normal_force_N, double tangential_force_N
 /// One quasi-static step from `previous` (nullptr: the undeformed, unloaded body) to `load`.
 /// `C` is the 3n x 3n compliance of the n candidate nodes (mm/N, dofs x, y, z per node),
 /// `gap_mm` their gap to the object in its position at the start of the step (object_gap,
-/// shifted by the previous step's object displacement).
+/// shifted by the previous step's object displacement). `extra_mm` (n x 3, optional) is a
+/// displacement of the candidates that the contact forces do not cause (the nonlinear
+/// correction of a hyperelastic solve): the total displacement is C F + extra.
 ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_mm,
                                    const ContactLoad& load, const ContactSolution* previous,
-                                   const ContactOptions& options = {});
+                                   const ContactOptions& options = {},
+                                   const RowForces* extra_mm = nullptr);
 
 /// How a frame's load is reached from rest: the normal force ramps up in `normal_steps` equal
 /// steps with the tangential load at zero, then the tangential load ramps up in
@@ -133,6 +136,10 @@ struct LoadPath {
     /// Steps from a previous frame (frames of a trial are small increments of each other).
     int steps_from_previous = 1;
 };
+
+/// The loads of the steps that take `previous` (nullptr: rest) to `load` along `path`.
+std::vector<ContactLoad> load_steps(const ContactLoad& load, const LoadPath& path,
+                                    const ContactSolution* previous);
 
 /// Steps from `previous` (nullptr: rest, following `path`) to `load`: from a previous state
 /// the loads ramp linearly in `path.steps_from_previous` steps. The object's gap is

@@ -47,6 +47,12 @@ struct DomeModel::Impl {
     Triangles candidate_F;              ///< outer triangles among the candidates (local ids)
     mutable std::once_flag strain_once; ///< the strain sampler is built on first request
     mutable std::unique_ptr<SurfaceStrainSampler> strain;
+    mutable std::once_flag hyper_once; ///< neo-Hookean energy and marker embedding, on demand
+    mutable std::unique_ptr<HyperelasticContact> hyper;
+    mutable Embedding marker_embedding;
+
+    void solve_hyperelastic(const ContactLoad& load, const ObjectShape& object,
+                            const FrameResult* previous, FrameResult& r) const;
     std::unique_ptr<ElasticBody> body;
     PrecomputeStats stats;
 
@@ -195,13 +201,52 @@ DomeModel::DomeModel(const DomeModelOptions& options) : m_impl(std::make_unique<
 
 DomeModel::~DomeModel() = default;
 
+void DomeModel::Impl::solve_hyperelastic(const ContactLoad& load, const ObjectShape& object,
+                                         const FrameResult* previous, FrameResult& r) const {
+    std::call_once(hyper_once, [this] {
+        hyper = std::make_unique<HyperelasticContact>(
+            mesh, std::vector<Material>(options.materials.begin(), options.materials.end()),
+            options.volumetric, *body);
+        marker_embedding = embed(mesh, markers.points, "marker point");
+    });
+    const ContactSolution* last = previous ? &previous->contact : nullptr;
+    Eigen::VectorXd u;
+    if (previous && previous->node_displacement_mm.rows() == mesh.V.rows())
+        u = Eigen::Map<const Eigen::VectorXd>(previous->node_displacement_mm.data(),
+                                              3 * mesh.V.rows());
+    int contact_iterations = 0;
+    HyperelasticStep step;
+    for (const ContactLoad& target : load_steps(load, options.load_path, last)) {
+        const Eigen::Vector2d shift = last ? last->object_displacement_mm : Eigen::Vector2d::Zero();
+        step = hyper->step(object_gap(object, candidate_X, shift), target, last,
+                           u.size() ? &u : nullptr, options.hyperelastic, options.contact);
+        r.material_iterations += step.iterations;
+        contact_iterations += step.contact.iterations;
+        r.contact = step.contact;
+        last = &r.contact;
+        u = step.u;
+        if (!step.converged) break;
+    }
+    r.contact.iterations = contact_iterations;
+    r.min_jacobian = step.min_jacobian;
+    if (!step.converged) {
+        r.contact.converged = false;
+        r.contact.status = "hyperelastic_" + step.status;
+    }
+    r.node_displacement_mm = Eigen::Map<const Points>(u.data(), mesh.V.rows(), 3);
+}
+
 FrameResult DomeModel::solve(const ContactLoad& load, const FrameRequest& request,
                              const ObjectShape& object, const FrameResult* previous) const {
     const Impl& m = *m_impl;
     FrameResult r;
-    r.contact =
-        solve_contact_path(m.body->compliance(), object, m.candidate_X, load, m.options.load_path,
-                           previous ? &previous->contact : nullptr, m.options.contact);
+    const bool hyperelastic = m.options.material == MaterialModel::neo_hookean;
+    if (hyperelastic)
+        m.solve_hyperelastic(load, object, previous, r);
+    else
+        r.contact = solve_contact_path(m.body->compliance(), object, m.candidate_X, load,
+                                       m.options.load_path, previous ? &previous->contact : nullptr,
+                                       m.options.contact);
     for (int j : r.contact.active) {
         r.contact_area_mm2 += m.candidate_area_mm2[j];
         r.at_candidate_edge = r.at_candidate_edge || m.candidate_edge[j];
@@ -225,6 +270,23 @@ FrameResult DomeModel::solve(const ContactLoad& load, const FrameRequest& reques
                                                               m.options.strain_grid);
         });
         r.strain = m.strain->sample(r.contact.displacement_mm);
+    }
+    if (hyperelastic) { // observed points from the full field
+        const Points& U = r.node_displacement_mm;
+        if (request.coating) {
+            r.coating_displacement_mm.resize(Eigen::Index(m.coating.nodes.size()), 3);
+            for (std::size_t i = 0; i < m.coating.nodes.size(); ++i)
+                r.coating_displacement_mm.row(Eigen::Index(i)) = U.row(m.coating.nodes[i]);
+        }
+        if (request.markers) {
+            r.marker_points_mm = m.markers.points;
+            for (std::size_t p = 0; p < m.marker_embedding.tet.size(); ++p)
+                for (int a = 0; a < 4; ++a)
+                    r.marker_points_mm.row(Eigen::Index(p)) +=
+                        m.marker_embedding.weights[p](a) *
+                        U.row(m.mesh.T(m.marker_embedding.tet[p], a));
+        }
+        return r;
     }
     if (request.full_field)
         r.node_displacement_mm = m.body->full_displacement(r.contact.forces_N, r.contact.active);

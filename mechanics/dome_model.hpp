@@ -6,6 +6,7 @@
 #include "mechanics/contact.hpp"
 #include "mechanics/dome_geometry.hpp"
 #include "mechanics/elastic_body.hpp"
+#include "mechanics/hyperelastic_contact.hpp"
 #include "mechanics/linear_elasticity.hpp"
 #include "mechanics/surface_strain.hpp"
 #include "mechanics/tet_mesh.hpp"
@@ -17,6 +18,12 @@
 
 namespace chromasim::mechanics {
 
+/// Constitutive model of the layers.
+enum class MaterialModel {
+    linear,     ///< small strain: a frame is a contact solve on precomputed responses
+    neo_hookean ///< compressible neo-Hookean, large deformation (hyperelastic_contact.hpp)
+};
+
 struct DomeModelOptions {
     DomeParams dome;
     std::string mesh_level = "coarse";
@@ -26,6 +33,8 @@ struct DomeModelOptions {
     /// Volumetric integration (linear_elasticity.hpp): nodal averaging relieves the locking of
     /// nearly incompressible layers.
     Volumetric volumetric = Volumetric::nodal_average;
+    MaterialModel material = MaterialModel::linear;
+    HyperelasticOptions hyperelastic;
     /// Folder of the on-disk cache of mesh and responses (empty: no cache). Entries are keyed
     /// by a hash of everything above and the chromasim version.
     std::filesystem::path cache_dir;
@@ -69,6 +78,10 @@ struct FrameResult {
     Eigen::VectorXd pressure_MPa;
     RowVectors2 traction_MPa;
     StrainGrid strain; ///< eps_xx over the contact (empty unless requested)
+    /// Neo-Hookean frames: relaxed fixed-point iterations over the frame's steps, and the
+    /// smallest tet or nodal J reached (1 for linear frames).
+    int material_iterations = 0;
+    double min_jacobian = 1.0;
 };
 
 /// Which fields a frame computes. The coating and the markers come from the precomputed
@@ -91,7 +104,8 @@ public:
 
     /// Solves one quasi-static frame of `object` under `load`: from `previous` (the frame
     /// before in a trial: its stick/slip history carries over) in options().load_path's
-    /// steps, or from rest along that path. Safe to call from several threads.
+    /// steps, or from rest along that path. Neo-Hookean frames always fill
+    /// node_displacement_mm (the next frame starts from it). Safe to call from several threads.
     FrameResult solve(const ContactLoad& load, const FrameRequest& request,
                       const ObjectShape& object = {}, const FrameResult* previous = nullptr) const;
 

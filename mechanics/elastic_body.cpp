@@ -169,6 +169,20 @@ Points ElasticBody::observed_displacement(const Eigen::Ref<const Points>& forces
     return Eigen::Map<const Points>(u.data(), R.rows() / 3, 3);
 }
 
+Eigen::VectorXd ElasticBody::solve(const Eigen::VectorXd& f_full) const {
+    Impl& m = *m_impl;
+    const std::lock_guard<std::mutex> lock(m.solver_mutex);
+    if (!m.factorized) m.factorize();
+    Eigen::VectorXd f(m.stats.free_dofs);
+    for (std::size_t d = 0; d < m.free_of_dof.size(); ++d)
+        if (m.free_of_dof[d] >= 0) f(m.free_of_dof[d]) = f_full(Eigen::Index(d));
+    const Eigen::VectorXd u_free = m.solver.solve(f);
+    Eigen::VectorXd u = Eigen::VectorXd::Zero(f_full.size());
+    for (std::size_t d = 0; d < m.free_of_dof.size(); ++d)
+        if (m.free_of_dof[d] >= 0) u(Eigen::Index(d)) = u_free(m.free_of_dof[d]);
+    return u;
+}
+
 Points ElasticBody::full_displacement(const Eigen::Ref<const Points>& forces_N,
                                       const std::vector<int>& active) const {
     Impl& m = *m_impl;

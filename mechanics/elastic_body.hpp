@@ -65,6 +65,11 @@ public:
     Points full_displacement(const Eigen::Ref<const Points>& forces_N,
                              const std::vector<int>& active) const;
 
+    /// Solves K u = f for a full-size force vector (3 #V, N; entries on clamped dofs are
+    /// ignored) and returns the full-size displacement (mm; clamped dofs 0): one sparse
+    /// back-substitution (after a factorization, the first time, for a body built from cached
+    /// responses). Thread safe (calls are serialized).
+    Eigen::VectorXd solve(const Eigen::VectorXd& f_full) const;
     const ElasticBodyStats& stats() const;
 
 private:

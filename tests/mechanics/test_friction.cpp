@@ -221,3 +221,37 @@ TEST_CASE("a tessellated 45 mm sphere presses like the analytic sphere; a posed 
     hollow.kind = ObjectShape::Kind::mesh; // no height field
     CHECK_THROWS_AS(object_gap(hollow, Points::Zero(2, 3)), std::invalid_argument);
 }
+
+TEST_CASE("neo-Hookean frames: the linear answer at small load, deeper and still invertible at "
+          "3.2 N, trial frames from the previous state",
+          "[mechanics][hyperelastic]") {
+    const DomeModel& linear = coarse_model();
+    DomeModelOptions options;
+    options.material = MaterialModel::neo_hookean;
+    const DomeModel nh(options);
+    const ContactLoad small{0.02, {0.005, 0}, 0.8};
+    const FrameResult a = linear.solve(small, {false, true});
+    const FrameResult b = nh.solve(small, {false, true});
+    REQUIRE(b.contact.converged);
+    CHECK(b.material_iterations > 0);
+    CHECK(b.contact.indentation_mm == Approx(a.contact.indentation_mm).epsilon(0.01));
+    const double uz_lin = a.marker_points_mm(0, 2) - linear.markers().points(0, 2);
+    const double uz_nh = b.marker_points_mm(0, 2) - nh.markers().points(0, 2);
+    CHECK(uz_nh == Approx(uz_lin).epsilon(0.01));
+
+    // Several millimetres of indentation: converged, no element near inversion, force balance.
+    const ContactLoad big{3.2, {0, 0}, 0.8};
+    const FrameResult deep = nh.solve(big, {true, true});
+    REQUIRE(deep.contact.converged);
+    CHECK(deep.contact.indentation_mm > 2.0);
+    CHECK(deep.contact.indentation_mm > linear.solve(big, {}).contact.indentation_mm);
+    CHECK(deep.min_jacobian > 0.5);
+    CHECK(deep.contact.normal_force_N == Approx(3.2).epsilon(1e-9));
+    CHECK(deep.marker_points_mm.allFinite());
+    CHECK(deep.coating_displacement_mm.allFinite());
+    // The next frame of a trial pulls a little: one step from the previous state.
+    const FrameResult next = nh.solve({3.2, {0.4, 0}, 0.8}, {}, {}, &deep);
+    REQUIRE(next.contact.converged);
+    CHECK(next.contact.tangential_force_N.x() == Approx(0.4).epsilon(1e-9));
+    CHECK(next.contact.object_displacement_mm.x() > 0);
+}

@@ -1,0 +1,68 @@
+#pragma once
+/// Large-deformation frames: the body as a compressible neo-Hookean solid (neo_hookean.hpp)
+/// under the same frictional contact as the linear model (contact.hpp).
+///
+/// Method: an initial-stiffness iteration (modified Newton) on the linear factorization that
+/// the linear model already holds. The neo-Hookean internal force is split as
+/// f_int(u) = K0 u + r(u), with K0 the small-strain stiffness (the neo-Hookean Hessian at
+/// rest) and r the nonlinear remainder. Each iteration moves r to the right-hand side:
+///   u_r = -K0^-1 r(u_k)                       (one back-substitution)
+///   contact forces F on the candidates from the compliance C of K0, with u_r as an extra
+///     displacement of the candidates (solve_contact_step: history, friction, force control)
+///   u* = u_r + K0^-1 B' F                     (one back-substitution)
+/// and accelerates the sequence with Anderson mixing over the last 6 iterations; the update is
+/// shortened while any tet's (or nodal) J would fall below `min_jacobian`: the iteration never
+/// leaves the set det F > 0. At the fixed point f_int(u) = B' F and the contact conditions hold on
+/// u. No tangent factorization per iteration, so a frame costs about two back-substitutions,
+/// one gradient and one contact solve per iteration.
+#include "mechanics/contact.hpp"
+#include "mechanics/elastic_body.hpp"
+#include "mechanics/neo_hookean.hpp"
+
+#include <Eigen/SparseCore>
+
+namespace chromasim::mechanics {
+
+struct HyperelasticOptions {
+    int max_iterations = 200;
+    /// Converged when an iteration changes no displacement by more than this (mm).
+    double tolerance_mm = 1e-6;
+    /// The relaxation keeps every tet's J (and nodal J) at or above this.
+    double min_jacobian = 0.05;
+};
+
+/// One step's result.
+struct HyperelasticStep {
+    ContactSolution contact; ///< displacements there are total (mm)
+    Eigen::VectorXd u;       ///< every node's displacement, 3 #V (mm)
+    int iterations = 0;
+    double increment_mm = 0; ///< largest displacement change of the last iteration
+    double min_jacobian = 1; ///< smallest tet or nodal J of u
+    bool converged = false;
+    std::string status = "ok"; ///< ok | max_iterations | contact: <status> | inverted
+};
+
+class HyperelasticContact {
+public:
+    /// `body` holds the linear factorization and the candidates' compliance of the same mesh,
+    /// materials and volumetric formulation. Keeps references to `mesh` and `body`.
+    HyperelasticContact(const TetMesh& mesh, const std::vector<Material>& materials,
+                        Volumetric volumetric, const ElasticBody& body);
+
+    /// One quasi-static step to `load` from `previous` (its contact history and its full
+    /// displacement `u_previous`, 3 #V; both null: rest). `gap_mm` as for solve_contact_step.
+    /// Thread safe.
+    HyperelasticStep step(const Eigen::VectorXd& gap_mm, const ContactLoad& load,
+                          const ContactSolution* previous, const Eigen::VectorXd* u_previous,
+                          const HyperelasticOptions& options = {},
+                          const ContactOptions& contact_options = {}) const;
+
+    const NeoHookean& energy() const { return m_energy; }
+
+private:
+    const ElasticBody& m_body;
+    NeoHookean m_energy;
+    Eigen::SparseMatrix<double> m_K0; ///< neo-Hookean Hessian at rest (= the linear K)
+};
+
+} // namespace chromasim::mechanics
