@@ -122,8 +122,7 @@ void DatasetWriter::write_label(const LabelRow& r) {
              << r.requested_tangential_N << ',' << r.mu << ',' << r.gamma << ',' << int(r.sliding)
              << ',' << r.indentation_mm << ',' << r.contact_area_mm2 << ',' << r.stick_area_mm2
              << ',' << r.contact_nodes << ',' << r.solver_iterations << ',' << r.solver_residual_mm
-             << ',' << r.solver_residual_N << ',' << int(r.converged)
-             << ',' << r.status << '\n';
+             << ',' << r.solver_residual_N << ',' << int(r.converged) << ',' << r.status << '\n';
     ++m_label_rows;
 }
 

@@ -31,6 +31,9 @@ void fill_fans(const mechanics::Points& points, int markers, int per_marker, int
 mechanics::DomeModelOptions dome_options(const Spec& spec) {
     mechanics::DomeModelOptions o;
     o.mesh_level = spec.sensor.mesh_level;
+    o.material = spec.sensor.material_model == "neo_hookean" ? mechanics::MaterialModel::neo_hookean
+                                                             : mechanics::MaterialModel::linear;
+    o.load_path.normal_steps = o.load_path.tangential_steps = spec.sensor.contact_steps;
     o.volumetric = spec.sensor.volumetric == "element" ? mechanics::Volumetric::element
                                                        : mechanics::Volumetric::nodal_average;
     o.materials = {material(spec.sensor.inner_marker_layer), material(spec.sensor.clear_layer),

@@ -152,6 +152,15 @@ void add_sensor_mechanics(std::vector<SchemaEntry>& out) {
                          "nodal pressure, no locking of nearly incompressible layers) or element "
                          "(standard linear tets: too stiff as nu approaches 0.5; faster).",
                          CHROMASIM_FIELD(sensor.volumetric)));
+    out.push_back(choice("sensor.material_model", "linear", {"linear", "neo_hookean"},
+                         "Constitutive model of the layers: linear (small strain; a frame is a "
+                         "small contact solve, milliseconds) or neo_hookean (compressible, large "
+                         "deformation; about 0.1 to 0.5 s per trial frame on the coarse mesh).",
+                         CHROMASIM_FIELD(sensor.material_model)));
+    out.push_back(integer("sensor.contact_steps", 4, closed(1, 1000), "",
+                          "Steps of the first frame's load path from rest: the grip force ramps "
+                          "up in this many steps with friction on, then the tangential load.",
+                          CHROMASIM_FIELD(sensor.contact_steps)));
     out.push_back(number("sensor.contact_candidate_angle_deg", 35, closed(5, 80), "deg",
                          "Polar angle of the outer-surface cap whose nodes may touch the object.",
                          CHROMASIM_FIELD(sensor.contact_candidate_angle_deg)));

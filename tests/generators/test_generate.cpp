@@ -1,6 +1,7 @@
 // End to end: the quickstart spec through mechanics, render and writers, read back from disk.
 #include "generators/generate.hpp"
 #include "generators/image_io.hpp"
+#include "generators/sensor_bridge.hpp"
 #include "generators/spec.hpp"
 
 #include <catch2/catch.hpp>
@@ -22,8 +23,8 @@ namespace {
 
 fs::path fresh_dir(const std::string& name) {
     // One folder per process: CTest may run test cases in parallel processes.
-    const fs::path p = fs::temp_directory_path() /
-                       ("chromasim_test_" + name + "_" + std::to_string(::getpid()));
+    const fs::path p =
+        fs::temp_directory_path() / ("chromasim_test_" + name + "_" + std::to_string(::getpid()));
     fs::remove_all(p);
     return p;
 }
@@ -222,4 +223,17 @@ TEST_CASE("the spec's object reaches the mechanics: a sphere indents deeper than
     const double flat = indentation("{shape: flat}");
     const double sphere = indentation("{shape: sphere, radius_mm: 45}");
     CHECK(sphere > flat * 1.01);
+}
+
+TEST_CASE("the spec's material model and load steps reach the mechanics", "[generators]") {
+    const Spec spec = parse_spec(
+        "name: s\nsensor: {material_model: neo_hookean, contact_steps: 7}\n", "inline.yaml");
+    const chromasim::mechanics::DomeModelOptions o = dome_options(spec);
+    CHECK(o.material == chromasim::mechanics::MaterialModel::neo_hookean);
+    CHECK(o.load_path.normal_steps == 7);
+    CHECK(o.load_path.tangential_steps == 7);
+    const chromasim::mechanics::DomeModelOptions d =
+        dome_options(parse_spec("name: s\n", "x.yaml"));
+    CHECK(d.material == chromasim::mechanics::MaterialModel::linear);
+    CHECK(d.load_path.normal_steps == 4);
 }
