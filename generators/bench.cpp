@@ -54,6 +54,8 @@ LevelRow bench_level(const std::string& level, const DomeBenchOptions& o) {
     options.mesh_level = level;
     options.volumetric = o.volumetric == "element" ? mechanics::Volumetric::element
                                                    : mechanics::Volumetric::nodal_average;
+    options.material = o.material == "neo_hookean" ? mechanics::MaterialModel::neo_hookean
+                                                   : mechanics::MaterialModel::linear;
     const mechanics::DomeModel model(options);
     LevelRow row{level, model.stats()};
     row.volume_error =
@@ -63,13 +65,15 @@ LevelRow bench_level(const std::string& level, const DomeBenchOptions& o) {
     row.frame_fields_ms = 1e3 * time_median(o.repeats, [&] {
                               model.solve(load, {true, true, false});
                           });
-    // A trial: 10 frames pressing to P, then 30 pulling to Q, each one step from the previous
-    // frame (labels only); median time per frame. Then the same without friction.
+    // A trial: a quarter of the frames pressing to P, then pulling to Q, each one step from
+    // the previous frame (labels only); median time per frame. Then the same without friction.
+    const int frames = std::max(4, o.trial_frames), press = frames / 4;
     for (const double mu : {o.mu, 0.0}) {
         std::vector<double> times;
         mechanics::FrameResult previous;
-        for (int k = 0; k < 40; ++k) {
-            const double s = k < 10 ? (k + 1) / 10.0 : 1.0, q = k < 10 ? 0.0 : (k - 9) / 30.0;
+        for (int k = 0; k < frames; ++k) {
+            const double s = k < press ? double(k + 1) / press : 1.0;
+            const double q = k < press ? 0.0 : double(k - press + 1) / (frames - press);
             const mechanics::ContactLoad step{
                 s * o.normal_force_N, {q * o.tangential_force_N, 0.0}, mu};
             const auto t0 = Clock::now();
@@ -94,11 +98,11 @@ void bench_dome(const DomeBenchOptions& o, std::ostream& out) {
         rows.push_back(bench_level(level, o));
     const LevelRow& ref = rows.back();
     out << "dome under a flat, P = " << o.normal_force_N << " N, Q = " << o.tangential_force_N
-        << " N, mu = " << o.mu << ", volumetric " << o.volumetric
+        << " N, mu = " << o.mu << ", material " << o.material << ", volumetric " << o.volumetric
         << "; reference level: " << ref.level << "; a frame from rest follows the default "
         << "load path (4 normal + 4 tangential steps), median of " << o.repeats
-        << "; a trial frame is one step from the previous frame (10 press + 30 pull frames, "
-        << "median)\n\n"
+        << "; a trial frame is one step from the previous frame (" << o.trial_frames
+        << " frames, a quarter pressing, median)\n\n"
         << "| level | nodes | tets | volume err | mesh s | assemble s | factorize s | "
            "compliance s | frame from rest ms (labels) | (+fields) | trial frame ms | "
            "(mu = 0) | indentation mm | vs ref | apex u_z mm | vs ref | peak RSS MiB |\n"

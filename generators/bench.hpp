@@ -14,6 +14,8 @@ struct DomeBenchOptions {
     double tangential_force_N = 0.6;
     double mu = 0.8;
     std::string volumetric = "nodal_average"; ///< nodal_average | element
+    std::string material = "linear";          ///< linear | neo_hookean
+    int trial_frames = 40; ///< frames of the timed trial (a quarter pressing, then pulling)
 };
 
 /// Mesh level vs accuracy and time: nodes, tets, meshed volume error, precompute breakdown,

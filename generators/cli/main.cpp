@@ -78,6 +78,10 @@ int main(int argc, char** argv) {
     bench_dome->add_option("--levels", dome_bench.levels, "mesh levels; the last is the reference")
         ->delimiter(',')
         ->check(CLI::IsMember({"coarse", "medium", "fine"}));
+    bench_dome->add_option("--material", dome_bench.material, "material model")
+        ->check(CLI::IsMember({"linear", "neo_hookean"}));
+    bench_dome->add_option("--trial-frames", dome_bench.trial_frames, "frames of the timed trial")
+        ->check(CLI::Range(4, 100000));
     bench_dome->add_option("--volumetric", dome_bench.volumetric, "volumetric formulation")
         ->check(CLI::IsMember({"nodal_average", "element"}));
     bench_dome->add_option("--repeat", dome_bench.repeats, "timed frames per level")
