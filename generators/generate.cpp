@@ -81,6 +81,8 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
             << " already holds this dataset (same resolved spec); nothing to do.\n";
         return report;
     }
+    // A mesh object's file is read before any work: a bad file stops here, nothing written.
+    const mechanics::ObjectShape object = object_shape(spec);
     DatasetWriter writer(options.out_dir, spec, options.overwrite);
     const Plan plan = make_plan(spec);
 
@@ -104,7 +106,6 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     mechanics::FrameRequest request;
     request.coating = spec.outputs.images;
     request.markers = spec.outputs.images || spec.outputs.markers;
-    const mechanics::ObjectShape object = object_shape(spec);
     render::SensorFrame sensor_frame;
     const render::RenderSettings settings{spec.render.samples_per_pixel, spec.seed};
     // The frames form one trial: each starts from the stick/slip state the previous one left.

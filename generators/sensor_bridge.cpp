@@ -1,5 +1,7 @@
 #include "generators/sensor_bridge.hpp"
 
+#include "generators/gltf_io.hpp"
+
 #include <stdexcept>
 
 namespace chromasim::generators {
@@ -47,6 +49,15 @@ mechanics::ObjectShape object_shape(const Spec& spec) {
     o.kind = spec.object.shape == "sphere" ? mechanics::ObjectShape::Kind::sphere
                                            : mechanics::ObjectShape::Kind::flat;
     o.radius_mm = spec.object.radius_mm;
+    if (spec.object.shape == "mesh") {
+        o.kind = mechanics::ObjectShape::Kind::mesh;
+        mechanics::Pose pose;
+        pose.rotation = mechanics::rotation_from_roll_pitch_yaw_deg(
+            spec.object.roll_deg, spec.object.pitch_deg, spec.object.yaw_deg);
+        pose.translation_mm = {spec.object.offset_x_mm, spec.object.offset_y_mm, 0.0};
+        o.mesh = std::make_shared<mechanics::MeshHeightField>(
+            load_gltf_surface(resolve_spec_path(spec, spec.object.mesh_file)), pose);
+    }
     return o;
 }
 

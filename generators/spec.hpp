@@ -55,9 +55,12 @@ struct Spec {
     } sensor;
 
     struct Object {
-        std::string shape = "flat"; ///< flat (rigid plane) | sphere
+        std::string shape = "flat"; ///< flat (rigid plane) | sphere | mesh
         double radius_mm = 45.0;    ///< sphere radius
         double mu = 0.8;            ///< Coulomb friction coefficient
+        std::string mesh_file;      ///< glTF file of a mesh object (relative: to the spec file)
+        double offset_x_mm = 0, offset_y_mm = 0;         ///< mesh object's origin in x-y
+        double roll_deg = 0, pitch_deg = 0, yaw_deg = 0; ///< its rotation (x, then y, then z)
     } object;
 
     struct Press {
@@ -88,6 +91,10 @@ struct Spec {
     /// the dataset and hashed to tell whether an existing output came from the same spec.
     std::string resolved_yaml;
 };
+
+/// A path written in the spec, resolved: relative paths start at the spec file's folder
+/// (the working directory for a spec parsed from text).
+std::filesystem::path resolve_spec_path(const Spec& spec, const std::filesystem::path& written);
 
 /// Reads, validates and resolves a spec file. Throws SpecError (with file:line:column, key,
 /// value and what is allowed) on malformed YAML, unknown keys, wrong types, out-of-range or

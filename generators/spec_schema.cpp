@@ -207,10 +207,31 @@ void add_sensor_optics(std::vector<SchemaEntry>& out) {
 }
 
 void add_object_and_protocol(std::vector<SchemaEntry>& out) {
-    out.push_back(choice("object.shape", "flat", {"flat", "sphere"},
-                         "Shape of the rigid object, centred on the dome axis: a plane, or a "
-                         "sphere of radius object.radius_mm (meshes come later).",
+    out.push_back(choice("object.shape", "flat", {"flat", "sphere", "mesh"},
+                         "Shape of the rigid object: a plane, a sphere of radius "
+                         "object.radius_mm centred on the dome axis, or the triangle mesh of "
+                         "object.mesh_file (its underside touches).",
                          CHROMASIM_FIELD(object.shape)));
+    out.push_back(text("object.mesh_file", "",
+                       "glTF 2.0 file (.gltf or .glb, metres) of a mesh object; a relative path "
+                       "starts at the spec file's folder (assets/objects/ has a 45 mm sphere cap "
+                       "and a 40 mm plate).",
+                       CHROMASIM_FIELD(object.mesh_file)));
+    out.push_back(number("object.offset_x_mm", 0, closed(-20, 20), "mm",
+                         "Mesh object: x of its frame's origin in the sensor frame.",
+                         CHROMASIM_FIELD(object.offset_x_mm)));
+    out.push_back(number("object.offset_y_mm", 0, closed(-20, 20), "mm",
+                         "Mesh object: y of its frame's origin in the sensor frame.",
+                         CHROMASIM_FIELD(object.offset_y_mm)));
+    out.push_back(number("object.roll_deg", 0, closed(-180, 180), "deg",
+                         "Mesh object: rotation about the sensor's x axis (applied first).",
+                         CHROMASIM_FIELD(object.roll_deg)));
+    out.push_back(number("object.pitch_deg", 0, closed(-180, 180), "deg",
+                         "Mesh object: rotation about the sensor's y axis (applied second).",
+                         CHROMASIM_FIELD(object.pitch_deg)));
+    out.push_back(number("object.yaw_deg", 0, closed(-180, 180), "deg",
+                         "Mesh object: rotation about the sensor's z axis (applied last).",
+                         CHROMASIM_FIELD(object.yaw_deg)));
     out.push_back(number("object.radius_mm", 45, left_open(0, 1e4), "mm",
                          "Sphere radius (seed 000's curved object: 45 mm); unused for a flat.",
                          CHROMASIM_FIELD(object.radius_mm)));
@@ -276,7 +297,17 @@ std::vector<SchemaRule> build_rules() {
     };
     outputs.problem = "enables no output";
     outputs.allowed = "at least one of outputs.images, outputs.labels, outputs.markers is true";
-    return {outputs};
+    SchemaRule mesh;
+    mesh.key = "object.mesh_file";
+    mesh.holds = [](const Spec& s) {
+        if (s.object.shape != "mesh") return true;
+        std::error_code ec;
+        return !s.object.mesh_file.empty() &&
+               std::filesystem::is_regular_file(resolve_spec_path(s, s.object.mesh_file), ec);
+    };
+    mesh.problem = "names no existing file, and object.shape is mesh";
+    mesh.allowed = "a .gltf or .glb file; a relative path starts at the spec file's folder";
+    return {outputs, mesh};
 }
 
 // ---- Converting scalar text -----------------------------------------------------------------
@@ -425,7 +456,7 @@ std::string allowed_cell(const SchemaEntry& e) {
     case ValueType::Enum:
         return join(e.choices, ", ", "`");
     case ValueType::String:
-        return "non-empty";
+        return std::get<std::string>(e.default_value).empty() ? "text (may be empty)" : "non-empty";
     case ValueType::Rgb:
         return "3 numbers, each in " + range_text(e);
     }
@@ -532,7 +563,9 @@ ScalarCheck check_scalar(const SchemaEntry& entry, std::string_view text, bool q
     case ValueType::Enum:
         return detail::check_enum(entry, text);
     case ValueType::String:
-        if (text.empty()) return {std::string(), "is empty"};
+        // Text whose default is empty may stay empty (an optional path); other text may not.
+        if (text.empty() && !std::get<std::string>(entry.default_value).empty())
+            return {std::string(), "is empty"};
         return {std::string(text), ""};
     }
     return {0.0, "has an unknown type"};
@@ -550,7 +583,8 @@ std::string describe_allowed(const SchemaEntry& entry) {
     case ValueType::Enum:
         return "one of " + detail::join(entry.choices, ", ");
     case ValueType::String:
-        return "non-empty string";
+        return std::get<std::string>(entry.default_value).empty() ? "text (may be empty)"
+                                                                  : "non-empty string";
     case ValueType::Rgb:
         return "list of 3 numbers, each in " + detail::range_text(entry) + unit;
     }

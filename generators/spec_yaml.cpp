@@ -201,6 +201,8 @@ YAML::Node parse_document(const SpecReader& r, const std::string& text) {
 
 /// "{images: false, labels: false, markers: false}": the resolved values under a section.
 std::string resolved_text(const Spec& spec, const std::string& section) {
+    if (const SchemaEntry* leaf = find_schema_entry(section))
+        return value_to_yaml(leaf->get(spec), leaf->type);
     std::string out;
     for (const SchemaEntry& e : spec_schema()) {
         if (e.key.compare(0, section.size() + 1, section + ".") != 0) continue;
@@ -236,6 +238,11 @@ std::string read_file(const std::filesystem::path& path) {
 } // namespace
 } // namespace detail
 
+std::filesystem::path resolve_spec_path(const Spec& spec, const std::filesystem::path& written) {
+    if (written.is_absolute()) return written;
+    return spec.source_path.parent_path() / written;
+}
+
 Spec parse_spec(const std::string& yaml_text, const std::string& display_name) {
     detail::SpecReader reader{display_name, {}, {}};
     detail::read_map(reader, detail::parse_document(reader, yaml_text), "");
@@ -243,7 +250,9 @@ Spec parse_spec(const std::string& yaml_text, const std::string& display_name) {
     for (const auto& [entry, value] : reader.values) {
         entry->set(spec, value);
     }
+    spec.source_path = display_name; // relative paths in the spec start at its folder
     detail::check_rules(reader, spec);
+    spec.source_path.clear(); // set by load_spec only
     spec.resolved_yaml = resolved_spec_yaml(spec);
     return spec;
 }

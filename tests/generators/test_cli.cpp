@@ -21,8 +21,8 @@ struct Run {
 Run run_chromasim(const std::string& args) {
     const char* exe = std::getenv("CHROMASIM_EXE");
     REQUIRE(exe != nullptr); // set by CTest (tests/CMakeLists.txt)
-    const fs::path log = fs::temp_directory_path() /
-                         ("chromasim_cli_test_" + std::to_string(::getpid()) + ".log");
+    const fs::path log =
+        fs::temp_directory_path() / ("chromasim_cli_test_" + std::to_string(::getpid()) + ".log");
     const std::string cmd = std::string(exe) + " " + args + " >" + log.string() + " 2>&1";
     const int status = std::system(cmd.c_str());
     std::ifstream in(log);

@@ -237,3 +237,39 @@ TEST_CASE("the spec's material model and load steps reach the mechanics", "[gene
     CHECK(d.material == chromasim::mechanics::MaterialModel::linear);
     CHECK(d.load_path.normal_steps == 4);
 }
+
+TEST_CASE("a glTF mesh object from the spec presses like the analytic sphere it tessellates; a "
+          "missing or broken file stops before any work",
+          "[generators][e2e]") {
+    const std::string asset = CHROMASIM_SOURCE_DIR "/assets/objects/sphere_cap_r45.glb";
+    auto indentation = [](const std::string& object) {
+        const Spec spec = parse_spec("name: s\nobject: " + object +
+                                         "\nprotocol: {press: {frames: 1}, pull: {frames: 0}}\n"
+                                         "outputs: {images: false, markers: false}\n",
+                                     "inline.yaml");
+        const fs::path out = fresh_dir("mesh_object");
+        std::ostringstream log;
+        generate(spec, {out, false, true, {}}, log);
+        const auto rows = read_csv(out / "labels.csv");
+        fs::remove_all(out);
+        REQUIRE(rows.size() == 1);
+        return num(rows[0], "indentation_mm");
+    };
+    const double sphere = indentation("{shape: sphere, radius_mm: 45}");
+    const double mesh = indentation("{shape: mesh, mesh_file: '" + asset + "'}");
+    CHECK(mesh == Approx(sphere).margin(0.0125)); // facets lie within 0.0125 mm of the sphere
+
+    CHECK_THROWS_WITH(
+        parse_spec("name: s\nobject: {shape: mesh, mesh_file: no/such.glb}\n", "inline.yaml"),
+        Catch::Contains("object.mesh_file") && Catch::Contains("no existing file"));
+    const fs::path dir = fresh_dir("broken_mesh");
+    fs::create_directories(dir);
+    std::ofstream(dir / "broken.glb") << "not a glTF file";
+    std::ofstream(dir / "spec.yaml") << "name: s\nobject: {shape: mesh, mesh_file: broken.glb}\n";
+    const Spec spec = load_spec(dir / "spec.yaml"); // exists: the spec is valid
+    std::ostringstream log;
+    CHECK_THROWS_WITH(generate(spec, {dir / "out", false, true, {}}, log),
+                      Catch::Contains("broken.glb"));
+    CHECK_FALSE(fs::exists(dir / "out"));
+    fs::remove_all(dir);
+}

@@ -198,7 +198,7 @@ TEST_CASE("a value of the wrong type is rejected", "[generators][spec]") {
               "integer in [0, 2147483647]");
         CHECK(error_of("object:\n  shape: [flat]\n") ==
               "bad.yaml:2:10: object.shape: value '[flat]' is a list, not a single value; "
-              "allowed: one of flat, sphere");
+              "allowed: one of flat, sphere, mesh");
     }
     SECTION("a single value for a section") {
         CHECK(error_of("render: 5\n") ==
