@@ -35,6 +35,7 @@ struct Spec {
         std::string mesh_level = "coarse";        ///< coarse | medium | fine
         std::string volumetric = "nodal_average"; ///< nodal_average | element
         std::string material_model = "linear";    ///< linear | neo_hookean
+        std::string interior = "hollow";          ///< hollow | rigid_core
         int contact_steps = 4; ///< load steps from rest to the first frame, per phase
         LayerMaterial inner_marker_layer{0.8, 0.45};
         LayerMaterial clear_layer{0.3, 0.45};

@@ -152,6 +152,10 @@ void add_sensor_mechanics(std::vector<SchemaEntry>& out) {
                          "nodal pressure, no locking of nearly incompressible layers) or element "
                          "(standard linear tets: too stiff as nu approaches 0.5; faster).",
                          CHROMASIM_FIELD(sensor.volumetric)));
+    out.push_back(choice("sensor.interior", "hollow", {"hollow", "rigid_core"},
+                         "Inside the inner layer: hollow (air; camera and LEDs sit there) or a "
+                         "rigid core bonded to the inner surface (a stiffer fingertip).",
+                         CHROMASIM_FIELD(sensor.interior)));
     out.push_back(choice("sensor.material_model", "linear", {"linear", "neo_hookean"},
                          "Constitutive model of the layers: linear (small strain; a frame is a "
                          "small contact solve, milliseconds) or neo_hookean (compressible, large "

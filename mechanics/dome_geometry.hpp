@@ -14,7 +14,8 @@ enum Layer : int { kInnerMarkerLayer = 1, kClearLayer = 2, kOuterMarkerLayer = 3
 inline constexpr int kLayerCount = 4;
 
 /// Dimensions of the dome. The dome is a hemisphere about +z, centred at the origin, clamped
-/// at its rim in the plane z = 0; the interior (r < inner radius) is hollow.
+/// at its rim in the plane z = 0; the interior (r < inner radius) is not meshed (hollow, or a
+/// rigid core: DomeModelOptions::interior).
 struct DomeParams {
     /// Interface radii in mm, innermost first: 5 spheres bounding the 4 layers [K].
     std::array<double, kLayerCount + 1> radii_mm{10.5, 11.0, 12.2, 12.7, 13.2};

@@ -84,9 +84,10 @@ std::uint64_t cache_key(const DomeModelOptions& o) {
     const MeshLevel level = mesh_level(o.mesh_level);
     TetgenOptions tg;
     tg.max_volume_mm3 = level.max_volume_mm3;
-    std::snprintf(buf, sizeof buf, "mesh %s %.17g %s\nvolumetric %d\ncandidates %.17g\n",
+    std::snprintf(buf, sizeof buf,
+                  "mesh %s %.17g %s\nvolumetric %d\ncandidates %.17g\ninterior %d\n",
                   o.mesh_level.c_str(), level.edge_mm, tetgen_switches(tg).c_str(),
-                  int(o.volumetric), o.contact_candidate_angle_deg);
+                  int(o.volumetric), o.contact_candidate_angle_deg, int(o.interior));
     return fnv1a64(text + buf);
 }
 
@@ -147,10 +148,14 @@ void DomeModel::Impl::find_candidates() {
 }
 
 std::vector<bool> DomeModel::Impl::clamped_nodes() const {
-    // Clamp the rim: every node in the plane z = 0.
+    const double r_inner = options.dome.radii_mm.front();
+    const bool core = options.interior == DomeModelOptions::Interior::rigid_core;
+    // Clamp the rim (every node in the plane z = 0) and, on a rigid core, the inner surface.
     std::vector<bool> clamped(std::size_t(mesh.V.rows()));
     for (int v = 0; v < mesh.V.rows(); ++v)
-        clamped[std::size_t(v)] = mesh.V(v, 2) <= 1e-9;
+        clamped[std::size_t(v)] =
+            mesh.V(v, 2) <= 1e-9 ||
+            (core && std::abs(mesh.V.row(v).norm() - r_inner) <= 1e-9 * r_inner);
     return clamped;
 }
 

@@ -40,6 +40,10 @@ struct DomeModelOptions {
     std::filesystem::path cache_dir;
     /// Outer-surface nodes up to this polar angle may touch the object.
     double contact_candidate_angle_deg = 35.0;
+    /// Interior (r < the inner radius): hollow (air, the default) or a rigid core to which the
+    /// inner surface is bonded (every node of the inner surface clamped). A soft fill is not
+    /// modelled yet.
+    enum class Interior { hollow, rigid_core } interior = Interior::hollow;
     /// How a frame without a previous frame reaches its load from rest (contact.hpp).
     LoadPath load_path;
     ContactOptions contact;

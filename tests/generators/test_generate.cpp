@@ -225,13 +225,16 @@ TEST_CASE("the spec's object reaches the mechanics: a sphere indents deeper than
     CHECK(sphere > flat * 1.01);
 }
 
-TEST_CASE("the spec's material model and load steps reach the mechanics", "[generators]") {
+TEST_CASE("the spec's material model, load steps and interior reach the mechanics",
+          "[generators]") {
     const Spec spec = parse_spec(
-        "name: s\nsensor: {material_model: neo_hookean, contact_steps: 7}\n", "inline.yaml");
+        "name: s\nsensor: {material_model: neo_hookean, contact_steps: 7, interior: rigid_core}\n",
+        "inline.yaml");
     const chromasim::mechanics::DomeModelOptions o = dome_options(spec);
     CHECK(o.material == chromasim::mechanics::MaterialModel::neo_hookean);
     CHECK(o.load_path.normal_steps == 7);
     CHECK(o.load_path.tangential_steps == 7);
+    CHECK(o.interior == chromasim::mechanics::DomeModelOptions::Interior::rigid_core);
     const chromasim::mechanics::DomeModelOptions d =
         dome_options(parse_spec("name: s\n", "x.yaml"));
     CHECK(d.material == chromasim::mechanics::MaterialModel::linear);

@@ -218,3 +218,22 @@ TEST_CASE("stiff cases: nu = 0.4999 and a 1000:1 layer stiffness ratio stay fini
         }
     }
 }
+
+TEST_CASE("a rigid core under the shell: stiffer, the inner surface does not move",
+          "[mechanics][contact]") {
+    DomeModelOptions options;
+    options.interior = DomeModelOptions::Interior::rigid_core;
+    const DomeModel core(options);
+    const ContactLoad load{1.5, {0.3, 0}, 0.8};
+    const FrameResult r = core.solve(load, {false, false, true});
+    REQUIRE(r.contact.converged);
+    CHECK(r.contact.indentation_mm < 0.5 * coarse_model().solve(load, {}).contact.indentation_mm);
+    const double r_inner = options.dome.radii_mm.front();
+    int inner = 0;
+    for (int v = 0; v < core.mesh().V.rows(); ++v)
+        if (std::abs(core.mesh().V.row(v).norm() - r_inner) <= 1e-9 * r_inner) {
+            ++inner;
+            CHECK(r.node_displacement_mm.row(v).norm() == 0.0);
+        }
+    CHECK(inner > 100);
+}
