@@ -92,6 +92,7 @@ void DatasetWriter::open_outputs() {
                             "frame,phase,image,normal_force_N,tangential_force_N,"
                             "tangential_force_x_N,tangential_force_y_N,"
                             "requested_tangential_force_N,mu,gamma,sliding,indentation_mm,"
+                            "object_travel_x_mm,object_travel_y_mm,"
                             "contact_area_mm2,stick_area_mm2,contact_nodes,solver_iterations,"
                             "solver_residual_mm,solver_residual_N,converged,status");
     if (m_spec.outputs.markers)
@@ -120,9 +121,10 @@ void DatasetWriter::write_label(const LabelRow& r) {
     m_labels << r.frame << ',' << r.phase << ',' << r.image << ',' << r.normal_force_N << ',' << ft
              << ',' << r.tangential_x_N << ',' << r.tangential_y_N << ','
              << r.requested_tangential_N << ',' << r.mu << ',' << r.gamma << ',' << int(r.sliding)
-             << ',' << r.indentation_mm << ',' << r.contact_area_mm2 << ',' << r.stick_area_mm2
-             << ',' << r.contact_nodes << ',' << r.solver_iterations << ',' << r.solver_residual_mm
-             << ',' << r.solver_residual_N << ',' << int(r.converged) << ',' << r.status << '\n';
+             << ',' << r.indentation_mm << ',' << r.object_travel_x_mm << ','
+             << r.object_travel_y_mm << ',' << r.contact_area_mm2 << ',' << r.stick_area_mm2 << ','
+             << r.contact_nodes << ',' << r.solver_iterations << ',' << r.solver_residual_mm << ','
+             << r.solver_residual_N << ',' << int(r.converged) << ',' << r.status << '\n';
     ++m_label_rows;
 }
 

@@ -32,6 +32,7 @@ struct LabelRow {
     bool sliding = false, converged = false;
     int contact_nodes = 0, solver_iterations = 0;
     double solver_residual_mm = 0, solver_residual_N = 0;
+    double object_travel_x_mm = 0, object_travel_y_mm = 0;
     std::string status;
 };
 

@@ -39,6 +39,8 @@ LabelRow label_row(const FramePlan& f, const mechanics::FrameResult& r) {
     row.solver_iterations = r.contact.iterations;
     row.solver_residual_mm = r.contact.residual_mm;
     row.solver_residual_N = r.contact.residual_N;
+    row.object_travel_x_mm = r.contact.object_displacement_mm.x();
+    row.object_travel_y_mm = r.contact.object_displacement_mm.y();
     row.converged = r.contact.converged && !r.at_candidate_edge;
     row.status = r.at_candidate_edge ? "contact_at_candidate_edge" : r.contact.status;
     return row;
@@ -112,8 +114,13 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     mechanics::FrameResult previous;
     for (const FramePlan& f : plan.frames) {
         t0 = Clock::now();
-        mechanics::FrameResult r = model.solve({f.normal_force_N, f.tangential_force_N, f.mu},
-                                               request, object, f.index > 0 ? &previous : nullptr);
+        mechanics::ContactLoad load{f.normal_force_N, f.tangential_force_N, f.mu};
+        if (f.displacement_control) {
+            load.tangential = mechanics::TangentialControl::displacement;
+            load.tangential_displacement_mm = f.travel_mm;
+        }
+        mechanics::FrameResult r =
+            model.solve(load, request, object, f.index > 0 ? &previous : nullptr);
         report.mechanics_s += seconds_since(t0);
         LabelRow row = label_row(f, r);
         if (renderer) {

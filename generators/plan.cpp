@@ -14,10 +14,16 @@ Plan make_plan(const Spec& spec) {
     }
     const double a = spec.pull.direction_deg * std::numbers::pi / 180.0;
     const Eigen::Vector2d dir(std::cos(a), std::sin(a));
+    const bool displacement = spec.pull.control == "displacement";
     for (int k = 0; k < spec.pull.frames; ++k) {
         const double s = double(k + 1) / spec.pull.frames;
-        plan.frames.push_back({int(plan.frames.size()), "pull", P,
-                               s * spec.pull.tangential_force_N * dir, spec.object.mu});
+        FramePlan f{int(plan.frames.size()), "pull", P, {0, 0}, spec.object.mu};
+        f.displacement_control = displacement;
+        if (displacement)
+            f.travel_mm = s * spec.pull.displacement_mm * dir;
+        else
+            f.tangential_force_N = s * spec.pull.tangential_force_N * dir;
+        plan.frames.push_back(f);
     }
     return plan;
 }

@@ -70,7 +70,9 @@ struct Spec {
     } press;
 
     struct Pull {
+        std::string control = "force";   ///< force | displacement
         double tangential_force_N = 0.5; ///< tangential load reached at the end of the pull
+        double displacement_mm = 1.0;    ///< object travel at the end of a displacement pull
         double direction_deg = 0.0;      ///< direction of the pull in the x-y plane, from +x
         int frames = 3;                  ///< frames of the linear tangential ramp (0: no pull)
     } pull;

@@ -249,9 +249,18 @@ void add_object_and_protocol(std::vector<SchemaEntry>& out) {
     out.push_back(integer("protocol.press.frames", 2, closed(1, 10000), "",
                           "Frames of the linear normal-force ramp (the last one at full force).",
                           CHROMASIM_FIELD(press.frames)));
+    out.push_back(choice("protocol.pull.control", "force", {"force", "displacement"},
+                         "force: the object is pulled with a force ramping to "
+                         "tangential_force_N (it slides once that exceeds mu f_n); displacement: "
+                         "the object travels sideways to displacement_mm (seed 001's sliding "
+                         "plate) and the force is found.",
+                         CHROMASIM_FIELD(pull.control)));
     out.push_back(number("protocol.pull.tangential_force_N", 0.5, closed(0, 50), "N",
-                         "Tangential load reached at the end of the pull.",
+                         "Tangential load reached at the end of a force-controlled pull.",
                          CHROMASIM_FIELD(pull.tangential_force_N)));
+    out.push_back(number("protocol.pull.displacement_mm", 1.0, closed(0, 50), "mm",
+                         "Object travel reached at the end of a displacement-controlled pull.",
+                         CHROMASIM_FIELD(pull.displacement_mm)));
     out.push_back(number("protocol.pull.direction_deg", 0, closed(-360, 360), "deg",
                          "Direction of the pull in the x-y plane, from +x.",
                          CHROMASIM_FIELD(pull.direction_deg)));

@@ -156,6 +156,9 @@ std::vector<VerifyCase> verify_mechanics(const VerifyOptions& options) {
 void print_dome_curve(std::ostream& out) {
     const mechanics::DomeModelOptions options;
     const mechanics::DomeModel model(options);
+    mechanics::DomeModelOptions nh_options = options;
+    nh_options.material = mechanics::MaterialModel::neo_hookean;
+    const mechanics::DomeModel nh_model(nh_options);
     const auto& r = options.dome.radii_mm;
     double E = 0, nu = 0;
     for (int l = 0; l < mechanics::kLayerCount; ++l) {
@@ -168,8 +171,12 @@ void print_dome_curve(std::ostream& out) {
                                                                        : "element")
         << ") beside Hertz for a solid sphere R = " << r.back() << " mm, E = " << E
         << " MPa, nu = " << nu << " (thickness-weighted)\n\n"
-        << "| object | P N | indentation mm | Hertz delta mm | contact radius mm | Hertz a mm | "
-           "contact nodes |\n|---|---|---|---|---|---|---|\n"
+        << "Each load from rest: grip force in 4 steps with friction on (mu = 0.8). Neo-Hookean: "
+           "the "
+           "same dome with the compressible neo-Hookean model.\n\n"
+        << "| object | P N | indentation mm | neo-Hookean mm | Hertz delta mm | contact radius mm "
+           "| "
+           "neo-Hookean mm | Hertz a mm | contact nodes |\n|---|---|---|---|---|---|---|---|---|\n"
         << std::setprecision(4);
     for (const double R_obj : {0.0, 45.0}) {
         const mechanics::ObjectShape object =
@@ -178,11 +185,15 @@ void print_dome_curve(std::ostream& out) {
         const double R = R_obj > 0 ? 1.0 / (1.0 / r.back() + 1.0 / R_obj) : r.back();
         for (double P : {0.25, 0.5, 1.0, 1.5, 2.0, 2.5, 3.2}) {
             const mechanics::FrameResult f = model.solve({P, {0, 0}, 0.8}, {}, object);
+            const mechanics::FrameResult g = nh_model.solve({P, {0, 0}, 0.8}, {}, object);
             const mechanics::HertzSolution h = mechanics::hertz(P, R, E, nu);
             out << "| " << (R_obj > 0 ? "sphere 45 mm" : "flat") << " | " << P << " | "
-                << f.contact.indentation_mm << " | " << h.delta_mm << " | "
-                << std::sqrt(f.contact_area_mm2 / std::numbers::pi) << " | " << h.a_mm << " | "
-                << f.contact.active.size() << " |\n";
+                << f.contact.indentation_mm << " | "
+                << (g.contact.converged ? std::to_string(g.contact.indentation_mm).substr(0, 6)
+                                        : g.contact.status)
+                << " | " << h.delta_mm << " | " << std::sqrt(f.contact_area_mm2 / std::numbers::pi)
+                << " | " << std::sqrt(g.contact_area_mm2 / std::numbers::pi) << " | " << h.a_mm
+                << " | " << f.contact.active.size() << " |\n";
         }
     }
 }

@@ -276,3 +276,30 @@ TEST_CASE("a glTF mesh object from the spec presses like the analytic sphere it 
     CHECK_FALSE(fs::exists(dir / "out"));
     fs::remove_all(dir);
 }
+
+TEST_CASE("a displacement-controlled pull (seed 001's sliding plate): the object travels as "
+          "asked, the force rises to mu f_n and the contact ends sliding",
+          "[generators][e2e]") {
+    const Spec spec = parse_spec(
+        "name: s\nobject: {mu: 0.5}\nprotocol: {press: {normal_force_N: 1.2, frames: 1}, "
+        "pull: {control: displacement, displacement_mm: 2.0, frames: 8}}\n"
+        "outputs: {images: false, markers: false}\n",
+        "inline.yaml");
+    const fs::path out = fresh_dir("sliding_plate");
+    std::ostringstream log;
+    generate(spec, {out, false, true, {}}, log);
+    const auto rows = read_csv(out / "labels.csv");
+    fs::remove_all(out);
+    REQUIRE(rows.size() == 9);
+    double last_ft = 0;
+    for (std::size_t i = 1; i < rows.size(); ++i) {
+        CHECK(num(rows[i], "object_travel_x_mm") == Approx(2.0 * double(i) / 8));
+        CHECK(num(rows[i], "requested_tangential_force_N") == 0.0);
+        CHECK(num(rows[i], "tangential_force_N") >= last_ft - 1e-9);
+        CHECK(num(rows[i], "converged") == 1.0);
+        last_ft = num(rows[i], "tangential_force_N");
+    }
+    CHECK(last_ft == Approx(0.5 * 1.2).epsilon(1e-3));
+    CHECK(num(rows.back(), "sliding") == 1.0);
+    CHECK(num(rows.back(), "gamma") == 0.0);
+}
