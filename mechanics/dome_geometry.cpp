@@ -2,7 +2,9 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <cmath>
+#include <functional>
 #include <numbers>
 #include <stdexcept>
 
@@ -22,6 +24,40 @@ double deg(double d) {
 struct AngularGrid {
     std::vector<std::vector<Eigen::Vector3d>> rings; ///< unit directions per ring
 };
+
+/// Rings of constant polar angle; `edge_at(theta)` is the target edge there (mm). Each ring
+/// has about 2 pi R sin(theta) / edge points; rings are one local edge apart (marching from
+/// half an edge off the apex, then stretched so that the last ring lies in z = 0).
+AngularGrid graded_angular_grid(double R, const std::function<double(double)>& edge_at) {
+    constexpr double kAzimuthOffset = 0.1234;
+    std::vector<double> thetas{0.5 * edge_at(0.0) / R};
+    while (thetas.back() < 0.5 * kPi) {
+        const double t = thetas.back();
+        thetas.push_back(t + edge_at(t) / R);
+    }
+    // The last ring goes to pi/2: drop an overshooting ring that would sit less than half a
+    // gap beyond it, then stretch the others so that the last one lands in z = 0.
+    if (thetas.size() > 2 &&
+        (thetas.back() - 0.5 * kPi) > 0.5 * (thetas.back() - thetas[thetas.size() - 2]))
+        thetas.pop_back();
+    const double stretch = (0.5 * kPi) / thetas.back();
+    AngularGrid grid;
+    for (std::size_t i = 0; i < thetas.size(); ++i) {
+        const bool last = i + 1 == thetas.size();
+        const double theta = last ? 0.5 * kPi : thetas[i] * stretch;
+        int m = std::max(5, int(std::lround(2 * kPi * std::sin(theta) * R / edge_at(theta))));
+        if (i == 0) m |= 1; // odd: no chord of the top polygon passes through the axis
+        std::vector<Eigen::Vector3d> ring;
+        const double phase = ((i + 1) % 2) * 0.5;
+        for (int j = 0; j < m; ++j) {
+            const double phi = 2 * kPi * (j + phase) / m + kAzimuthOffset;
+            ring.emplace_back(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi),
+                              last ? 0.0 : std::cos(theta));
+        }
+        grid.rings.push_back(std::move(ring));
+    }
+    return grid;
+}
 
 AngularGrid angular_grid(double outer_radius_mm, double edge_mm) {
     constexpr double kAzimuthOffset = 0.1234;
@@ -72,6 +108,53 @@ void zip_rings(const std::vector<int>& a, const std::vector<int>& b,
     }
 }
 
+Plc dome_plc_from_grid(const DomeParams& dome, const AngularGrid& grid) {
+    std::vector<Eigen::Vector3d> dirs;
+    std::vector<std::vector<int>> ring_ids; // direction indices per ring
+    for (const auto& ring : grid.rings) {
+        ring_ids.emplace_back();
+        for (const auto& d : ring) {
+            ring_ids.back().push_back(int(dirs.size()));
+            dirs.push_back(d);
+        }
+    }
+    std::vector<std::array<int, 3>> cap; // triangles in direction indices
+    for (std::size_t i = 0; i + 1 < ring_ids.size(); ++i)
+        zip_rings(ring_ids[i], ring_ids[i + 1], dirs, cap);
+
+    const int nd = int(dirs.size());
+    const int ns = kLayerCount + 1;
+    Plc plc;
+    plc.points.resize(std::size_t(nd) * ns, 3);
+    for (int s = 0; s < ns; ++s)
+        for (int d = 0; d < nd; ++d)
+            plc.points.row(s * nd + d) = dome.radii_mm[s] * dirs[d];
+    for (int s = 0; s < ns; ++s) {
+        std::vector<int> top; // the flat top polygon (first ring) closing the cap
+        for (int d : ring_ids.front())
+            top.push_back(s * nd + d);
+        plc.facets.push_back(top);
+        plc.facet_markers.push_back(s + 1);
+        for (const auto& tri : cap) {
+            plc.facets.push_back({s * nd + tri[0], s * nd + tri[1], s * nd + tri[2]});
+            plc.facet_markers.push_back(s + 1);
+        }
+    }
+    // Rim annuli in z = 0: one planar quad per rim segment between neighbouring spheres.
+    const auto& rim = ring_ids.back();
+    for (int s = 0; s + 1 < ns; ++s)
+        for (std::size_t j = 0; j < rim.size(); ++j) {
+            const int a = rim[j], b = rim[(j + 1) % rim.size()];
+            plc.facets.push_back({s * nd + a, s * nd + b, (s + 1) * nd + b, (s + 1) * nd + a});
+            plc.facet_markers.push_back(10 + s);
+        }
+    // Region seeds at mid-thickness, 45 degrees off the axis, between two grid directions.
+    const Eigen::Vector3d seed_dir = Eigen::Vector3d(0.3, 0.2, 1.0).normalized();
+    for (int l = 0; l < kLayerCount; ++l)
+        plc.regions.push_back({0.5 * (dome.radii_mm[l] + dome.radii_mm[l + 1]) * seed_dir, l + 1});
+    return plc;
+}
+
 } // namespace
 
 MeshLevel mesh_level(const std::string& name) {
@@ -80,7 +163,10 @@ MeshLevel mesh_level(const std::string& name) {
     if (name == "coarse") return {name, 1.2, 0.30};
     if (name == "medium") return {name, 0.8, 0.09};
     if (name == "fine") return {name, 0.5, 0.025};
-    throw std::invalid_argument("unknown mesh level '" + name + "'; allowed: coarse, medium, fine");
+    if (name == "refined") return {name, 1.2, 0.30, 0.5, 40};
+    if (name == "reference") return {name, 0.8, 0.09, 0.3, 40};
+    throw std::invalid_argument("unknown mesh level '" + name +
+                                "'; allowed: coarse, medium, fine, refined, reference");
 }
 
 std::vector<Eigen::Vector3d> marker_directions(const DomeParams& dome) {
@@ -126,52 +212,27 @@ MarkerDiscs marker_discs(const DomeParams& dome) {
     return discs;
 }
 
-Plc dome_plc(const DomeParams& dome, double edge_mm) {
-    const AngularGrid grid = angular_grid(dome.radii_mm.back(), edge_mm);
-    std::vector<Eigen::Vector3d> dirs;
-    std::vector<std::vector<int>> ring_ids; // direction indices per ring
-    for (const auto& ring : grid.rings) {
-        ring_ids.emplace_back();
-        for (const auto& d : ring) {
-            ring_ids.back().push_back(int(dirs.size()));
-            dirs.push_back(d);
-        }
+Plc dome_plc(const DomeParams& dome, const MeshLevel& level) {
+    const double R = dome.radii_mm.back();
+    if (!(level.contact_edge_mm > 0) || level.contact_edge_mm >= level.edge_mm)
+        return dome_plc(dome, level.edge_mm);
+    const double theta_c = level.contact_angle_deg * kPi / 180;
+    const auto edge_at = [&](double theta) {
+        const double beyond = std::max(0.0, theta - theta_c) * R; // arc length past the cap
+        return std::min(level.edge_mm, level.contact_edge_mm + 0.25 * beyond);
+    };
+    Plc plc = dome_plc_from_grid(dome, graded_angular_grid(R, edge_at));
+    plc.point_size_mm.resize(std::size_t(plc.points.rows()));
+    for (Eigen::Index i = 0; i < plc.points.rows(); ++i) {
+        const Eigen::Vector3d p = plc.points.row(i);
+        plc.point_size_mm[std::size_t(i)] =
+            edge_at(std::acos(std::clamp(p.z() / p.norm(), -1.0, 1.0)));
     }
-    std::vector<std::array<int, 3>> cap; // triangles in direction indices
-    for (std::size_t i = 0; i + 1 < ring_ids.size(); ++i)
-        zip_rings(ring_ids[i], ring_ids[i + 1], dirs, cap);
-
-    const int nd = int(dirs.size());
-    const int ns = kLayerCount + 1;
-    Plc plc;
-    plc.points.resize(std::size_t(nd) * ns, 3);
-    for (int s = 0; s < ns; ++s)
-        for (int d = 0; d < nd; ++d)
-            plc.points.row(s * nd + d) = dome.radii_mm[s] * dirs[d];
-    for (int s = 0; s < ns; ++s) {
-        std::vector<int> top; // the flat top polygon (first ring) closing the cap
-        for (int d : ring_ids.front())
-            top.push_back(s * nd + d);
-        plc.facets.push_back(top);
-        plc.facet_markers.push_back(s + 1);
-        for (const auto& tri : cap) {
-            plc.facets.push_back({s * nd + tri[0], s * nd + tri[1], s * nd + tri[2]});
-            plc.facet_markers.push_back(s + 1);
-        }
-    }
-    // Rim annuli in z = 0: one planar quad per rim segment between neighbouring spheres.
-    const auto& rim = ring_ids.back();
-    for (int s = 0; s + 1 < ns; ++s)
-        for (std::size_t j = 0; j < rim.size(); ++j) {
-            const int a = rim[j], b = rim[(j + 1) % rim.size()];
-            plc.facets.push_back({s * nd + a, s * nd + b, (s + 1) * nd + b, (s + 1) * nd + a});
-            plc.facet_markers.push_back(10 + s);
-        }
-    // Region seeds at mid-thickness, 45 degrees off the axis, between two grid directions.
-    const Eigen::Vector3d seed_dir = Eigen::Vector3d(0.3, 0.2, 1.0).normalized();
-    for (int l = 0; l < kLayerCount; ++l)
-        plc.regions.push_back({0.5 * (dome.radii_mm[l] + dome.radii_mm[l + 1]) * seed_dir, l + 1});
     return plc;
+}
+
+Plc dome_plc(const DomeParams& dome, double edge_mm) {
+    return dome_plc_from_grid(dome, angular_grid(dome.radii_mm.back(), edge_mm));
 }
 
 double dome_layer_volume(const DomeParams& dome, int layer) {

@@ -31,8 +31,16 @@ struct MeshLevel {
     std::string name;
     double edge_mm;        ///< target edge length of the surface triangulation
     double max_volume_mm3; ///< TetGen -a bound
+    /// Local refinement where contact happens: edge length within `contact_angle_deg` of the
+    /// apex (equal to edge_mm: uniform). Beyond, the edge grows by 25 % of the distance
+    /// travelled until it reaches edge_mm; the interior follows (TetGen sizing at the points).
+    double contact_edge_mm = 0;
+    double contact_angle_deg = 40;
 };
-/// The named level ("coarse", "medium", "fine"); throws std::invalid_argument otherwise.
+/// The named level: uniform "coarse" (1.2 mm), "medium" (0.8 mm), "fine" (0.5 mm), or
+/// locally refined "refined" (0.5 mm over the contact cap, 1.2 mm far from it) and
+/// "reference" (0.3 mm over the contact cap, 0.8 mm far); throws std::invalid_argument
+/// otherwise.
 MeshLevel mesh_level(const std::string& name);
 
 /// Unit directions of the markers of one layer: apex + rings k = 1..ring_count at polar angle
@@ -52,6 +60,9 @@ MarkerDiscs marker_discs(const DomeParams& dome);
 /// angular triangulation (edge about `edge_mm` on the outer sphere), annular rim facets in
 /// z = 0 between them, and one region seed per layer.
 Plc dome_plc(const DomeParams& dome, double edge_mm);
+/// The same for a mesh level: uniform, or graded from level.contact_edge_mm over the contact
+/// cap to level.edge_mm, with the local edge length as each point's size.
+Plc dome_plc(const DomeParams& dome, const MeshLevel& level);
 
 /// Analytic volume of layer `layer` (1..4), or of the whole shell for layer = -1, in mm^3.
 double dome_layer_volume(const DomeParams& dome, int layer = -1);

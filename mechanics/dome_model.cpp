@@ -98,7 +98,7 @@ void DomeModel::Impl::build_mesh() {
     const MeshLevel level = mesh_level(options.mesh_level);
     TetgenOptions tg;
     tg.max_volume_mm3 = level.max_volume_mm3;
-    mesh = tetrahedralize(dome_plc(options.dome, level.edge_mm), tg);
+    mesh = tetrahedralize(dome_plc(options.dome, level), tg);
     stats.mesh_s = seconds_since(t0);
 }
 

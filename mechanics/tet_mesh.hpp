@@ -19,6 +19,9 @@ struct Plc {
     Points points;
     std::vector<std::vector<int>> facets; ///< each a planar polygon (point indices)
     std::vector<int> facet_markers;       ///< one per facet, copied nowhere yet: for debugging
+    /// Optional target edge length (mm) at each point: the mesher grades the interior between
+    /// them (local refinement). Empty: one global volume bound only.
+    std::vector<double> point_size_mm;
     struct Region {
         Eigen::Vector3d seed_mm; ///< a point strictly inside the region
         int attribute;           ///< region id copied to every tet in the region

@@ -20,7 +20,7 @@ std::string tetgen_switches(const TetgenOptions& options) {
     char volume[64];
     std::snprintf(volume, sizeof volume, "a%.6g", options.max_volume_mm3);
     return std::string("p") + quality + volume + "A" + (options.preserve_surface ? "Y" : "") +
-           (options.extra_points.rows() > 0 ? "i" : "") + "Q";
+           (options.extra_points.rows() > 0 ? "i" : "") + (options.sized ? "m" : "") + "Q";
 }
 
 namespace {
@@ -51,6 +51,14 @@ void fill_input(const Plc& plc, tetgenio& in) {
         in.facetmarkerlist[f] = f < plc.facet_markers.size() ? plc.facet_markers[f] : 0;
     }
 
+    if (!plc.point_size_mm.empty()) { // sizing function at the input points (-m)
+        if (plc.point_size_mm.size() != std::size_t(plc.points.rows()))
+            throw std::invalid_argument("PLC point sizes: one per point needed");
+        in.numberofpointmtrs = 1;
+        in.pointmtrlist = new REAL[plc.point_size_mm.size()];
+        for (std::size_t i = 0; i < plc.point_size_mm.size(); ++i)
+            in.pointmtrlist[i] = plc.point_size_mm[i];
+    }
     in.numberofregions = int(plc.regions.size());
     in.regionlist = new REAL[5 * plc.regions.size()];
     for (std::size_t r = 0; r < plc.regions.size(); ++r) {
@@ -83,7 +91,9 @@ TetMesh read_output(const tetgenio& out) {
 
 } // namespace
 
-TetMesh tetrahedralize(const Plc& plc, const TetgenOptions& options) {
+TetMesh tetrahedralize(const Plc& plc, const TetgenOptions& options_in) {
+    TetgenOptions options = options_in;
+    options.sized = !plc.point_size_mm.empty();
     tetgenio in, out, addin;
     fill_input(plc, in);
     if (options.extra_points.rows() > 0) {

@@ -16,6 +16,9 @@ struct TetgenOptions {
     /// -i: extra points (mm) inserted into the mesh, e.g. a fine grid where contact happens
     /// (local refinement). Points outside the PLC are ignored by TetGen.
     Points extra_points;
+    /// -m: the PLC's point_size_mm are a sizing function (set by tetrahedralize when the PLC
+    /// has sizes; recorded here so that tetgen_switches names it).
+    bool sized = false;
 };
 
 /// Tetrahedralizes a PLC with quality switches on and one region attribute per tet.

@@ -77,7 +77,7 @@ int main(int argc, char** argv) {
     bench_dome->alias("dome");
     bench_dome->add_option("--levels", dome_bench.levels, "mesh levels; the last is the reference")
         ->delimiter(',')
-        ->check(CLI::IsMember({"coarse", "medium", "fine"}));
+        ->check(CLI::IsMember({"coarse", "medium", "fine", "refined", "reference"}));
     bench_dome->add_option("--material", dome_bench.material, "material model")
         ->check(CLI::IsMember({"linear", "neo_hookean"}));
     bench_dome->add_option("--trial-frames", dome_bench.trial_frames, "frames of the timed trial")

@@ -92,3 +92,37 @@ TEST_CASE("coating interface is the 12.7 mm sphere, facing the centre", "[mechan
     }
     CHECK(area == Approx(2 * M_PI * 12.7 * 12.7).epsilon(0.01));
 }
+
+TEST_CASE("refined level: graded where contact happens, volume within 1 %, every marker inside "
+          "its own layer",
+          "[mechanics][mesh]") {
+    const MeshLevel level = mesh_level("refined");
+    TetgenOptions options;
+    options.max_volume_mm3 = level.max_volume_mm3;
+    const Plc plc = dome_plc(DomeParams{}, level);
+    REQUIRE(plc.point_size_mm.size() == std::size_t(plc.points.rows()));
+    const TetMesh mesh = tetrahedralize(plc, options);
+    const DomeParams dome;
+    CHECK(mesh_volume(mesh) == Approx(dome_layer_volume(dome)).epsilon(0.01));
+    // Outer-surface nodes per unit area: within 30 deg of the apex against beyond 60 deg.
+    const double R = dome.radii_mm.back();
+    int near = 0, far = 0;
+    for (int v = 0; v < mesh.V.rows(); ++v) {
+        const Eigen::Vector3d p = mesh.V.row(v);
+        if (std::abs(p.norm() - R) > 1e-6) continue;
+        const double theta = std::acos(std::clamp(p.z() / R, -1.0, 1.0)) * 180 / M_PI;
+        near += theta < 30;
+        far += theta > 60 && p.z() > 1e-9;
+    }
+    const double cap_near = 1 - std::cos(30 * M_PI / 180), band_far = std::cos(60 * M_PI / 180);
+    CHECK(near / cap_near > 4.0 * far / band_far); // (1.2 / 0.5)^2 = 5.8 times denser
+    const MarkerDiscs discs = marker_discs(dome);
+    const TetLocator locator(mesh);
+    for (int i = 0; i < discs.points.rows(); ++i) {
+        const int t = locator.locate(discs.points.row(i).transpose());
+        REQUIRE(t >= 0);
+        CHECK(mesh.region(t) ==
+              (i < discs.points.rows() / 2 ? kInnerMarkerLayer : kOuterMarkerLayer));
+    }
+    CHECK_THROWS_WITH(mesh_level("ultra"), Catch::Contains("refined, reference"));
+}
