@@ -266,10 +266,10 @@ TEST_CASE("a value out of its range is rejected", "[generators][spec]") {
 TEST_CASE("a value outside an enum is rejected", "[generators][spec]") {
     CHECK(error_of("sensor:\n  mesh_level: ultra\n") ==
           "bad.yaml:2:15: sensor.mesh_level: value 'ultra' is not one of the allowed values; "
-          "allowed: one of coarse, medium, fine");
+          "allowed: one of coarse, medium, fine, refined, reference");
     CHECK(error_of("sensor:\n  mesh_level: Fine\n") ==
           "bad.yaml:2:15: sensor.mesh_level: value 'Fine' is not one of the allowed values (did "
-          "you mean 'fine'?); allowed: one of coarse, medium, fine");
+          "you mean 'fine'?); allowed: one of coarse, medium, fine, refined, reference");
 }
 
 TEST_CASE("an rgb must be a list of exactly 3 numbers in range", "[generators][spec]") {
