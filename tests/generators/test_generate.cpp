@@ -203,25 +203,36 @@ TEST_CASE("an output folder with other content is never overwritten silently",
     fs::remove_all(out);
 }
 
+namespace {
+
+/// Label rows of a labels-only run of `spec_text` (no images, no markers.csv written).
+std::vector<CsvRow> labels_only(const std::string& spec_text) {
+    const Spec spec =
+        parse_spec(spec_text + "outputs: {images: false, markers: false}\n", "inline.yaml");
+    const fs::path out = fresh_dir("labels_only");
+    std::ostringstream log;
+    generate(spec, {out, false, true, {}}, log);
+    const auto rows = read_csv(out / "labels.csv");
+    CHECK_FALSE(fs::exists(out / "images"));
+    CHECK_FALSE(fs::exists(out / "markers.csv"));
+    fs::remove_all(out);
+    return rows;
+}
+
+/// Indentation (mm) of one press frame of `object` (a YAML flow map).
+double press_indentation(const std::string& object) {
+    const auto rows = labels_only("name: s\nobject: " + object +
+                                  "\nprotocol: {press: {frames: 1}, pull: {frames: 0}}\n");
+    REQUIRE(rows.size() == 1);
+    return num(rows[0], "indentation_mm");
+}
+
+} // namespace
+
 TEST_CASE("the spec's object reaches the mechanics: a sphere indents deeper than a flat",
           "[generators][e2e]") {
-    auto indentation = [](const std::string& object) {
-        const Spec spec = parse_spec("name: s\nobject: " + object +
-                                         "\nprotocol: {press: {frames: 1}, pull: {frames: 0}}\n"
-                                         "outputs: {images: false, markers: false}\n",
-                                     "inline.yaml");
-        const fs::path out = fresh_dir("object");
-        std::ostringstream log;
-        generate(spec, {out, false, true, {}}, log);
-        const auto rows = read_csv(out / "labels.csv");
-        REQUIRE(rows.size() == 1);
-        CHECK_FALSE(fs::exists(out / "images"));
-        CHECK_FALSE(fs::exists(out / "markers.csv"));
-        fs::remove_all(out);
-        return num(rows[0], "indentation_mm");
-    };
-    const double flat = indentation("{shape: flat}");
-    const double sphere = indentation("{shape: sphere, radius_mm: 45}");
+    const double flat = press_indentation("{shape: flat}");
+    const double sphere = press_indentation("{shape: sphere, radius_mm: 45}");
     CHECK(sphere > flat * 1.01);
 }
 
@@ -245,21 +256,8 @@ TEST_CASE("a glTF mesh object from the spec presses like the analytic sphere it 
           "missing or broken file stops before any work",
           "[generators][e2e]") {
     const std::string asset = CHROMASIM_SOURCE_DIR "/assets/objects/sphere_cap_r45.glb";
-    auto indentation = [](const std::string& object) {
-        const Spec spec = parse_spec("name: s\nobject: " + object +
-                                         "\nprotocol: {press: {frames: 1}, pull: {frames: 0}}\n"
-                                         "outputs: {images: false, markers: false}\n",
-                                     "inline.yaml");
-        const fs::path out = fresh_dir("mesh_object");
-        std::ostringstream log;
-        generate(spec, {out, false, true, {}}, log);
-        const auto rows = read_csv(out / "labels.csv");
-        fs::remove_all(out);
-        REQUIRE(rows.size() == 1);
-        return num(rows[0], "indentation_mm");
-    };
-    const double sphere = indentation("{shape: sphere, radius_mm: 45}");
-    const double mesh = indentation("{shape: mesh, mesh_file: '" + asset + "'}");
+    const double sphere = press_indentation("{shape: sphere, radius_mm: 45}");
+    const double mesh = press_indentation("{shape: mesh, mesh_file: '" + asset + "'}");
     CHECK(mesh == Approx(sphere).margin(0.0125)); // facets lie within 0.0125 mm of the sphere
 
     CHECK_THROWS_WITH(
@@ -280,16 +278,9 @@ TEST_CASE("a glTF mesh object from the spec presses like the analytic sphere it 
 TEST_CASE("a displacement-controlled pull (seed 001's sliding plate): the object travels as "
           "asked, the force rises to mu f_n and the contact ends sliding",
           "[generators][e2e]") {
-    const Spec spec = parse_spec(
+    const auto rows = labels_only(
         "name: s\nobject: {mu: 0.5}\nprotocol: {press: {normal_force_N: 1.2, frames: 1}, "
-        "pull: {control: displacement, displacement_mm: 2.0, frames: 8}}\n"
-        "outputs: {images: false, markers: false}\n",
-        "inline.yaml");
-    const fs::path out = fresh_dir("sliding_plate");
-    std::ostringstream log;
-    generate(spec, {out, false, true, {}}, log);
-    const auto rows = read_csv(out / "labels.csv");
-    fs::remove_all(out);
+        "pull: {control: displacement, displacement_mm: 2.0, frames: 8}}\n");
     REQUIRE(rows.size() == 9);
     double last_ft = 0;
     for (std::size_t i = 1; i < rows.size(); ++i) {
