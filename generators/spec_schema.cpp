@@ -163,7 +163,7 @@ void add_sensor_mechanics(std::vector<SchemaEntry>& out) {
     out.push_back(choice("sensor.material_model", "linear", {"linear", "neo_hookean"},
                          "Constitutive model of the layers: linear (small strain; a frame is a "
                          "small contact solve, milliseconds) or neo_hookean (compressible, large "
-                         "deformation; about 0.1 to 0.5 s per trial frame on the coarse mesh).",
+                         "deformation; about 0.06 to 0.25 s per trial frame on the coarse mesh).",
                          CHROMASIM_FIELD(sensor.material_model)));
     out.push_back(integer("sensor.contact_steps", 4, closed(1, 1000), "",
                           "Steps of the first frame's load path from rest: the grip force ramps "

@@ -26,7 +26,7 @@ namespace chromasim::mechanics {
 struct HyperelasticOptions {
     int max_iterations = 200;
     /// Converged when an iteration changes no displacement by more than this (mm).
-    double tolerance_mm = 1e-6;
+    double tolerance_mm = 1e-5;
     /// The relaxation keeps every tet's J (and nodal J) at or above this.
     double min_jacobian = 0.05;
 };
