@@ -42,13 +42,33 @@ object_gap(const ObjectShape& object,
     return g_shifted.array() - g.minCoeff();
 }
 
+FrictionLaw friction_law(const Eigen::Vector2d& t, double lambda, const Eigen::Vector2d& g,
+                         double mu, double r, bool slip) {
+    FrictionLaw law;
+    const Eigen::Vector2d tau = t - r * g;
+    if (!slip || tau.norm() == 0) { // inside the disc: phi = t - tau = r g
+        law.residual = r * g;
+        law.d_t.setZero();
+        law.d_g = r * Eigen::Matrix2d::Identity();
+        law.d_lambda.setZero();
+        return law;
+    }
+    const Eigen::Vector2d n = tau.normalized();
+    const Eigen::Matrix2d P = Eigen::Matrix2d::Identity() - n * n.transpose();
+    const double kappa = mu * lambda / tau.norm(); // d(tau/|tau|)/d tau = P / |tau|
+    law.residual = t - mu * lambda * n;
+    law.d_t = Eigen::Matrix2d::Identity() - kappa * P;
+    law.d_g = kappa * r * P;
+    law.d_lambda = -mu * n;
+    return law;
+}
+
 namespace {
 /// Which nodes touch, and the linearized friction law of those that slip.
 struct ActiveSets {
-    std::vector<int> A;               ///< in contact, sorted
-    std::vector<char> slip;           ///< per candidate
-    std::vector<Eigen::Vector2d> dir; ///< per candidate: unit trial-traction direction n
-    std::vector<double> kappa;        ///< per candidate: mu lambda / |tau| (0: fixed direction)
+    std::vector<int> A;           ///< in contact, sorted
+    std::vector<char> slip;       ///< per candidate
+    std::vector<FrictionLaw> law; ///< per slipping candidate: its row d_t t + d_g g + d_l l = 0
 };
 
 /// Unknowns of the linear system for fixed sets, and its solution.
@@ -63,15 +83,15 @@ struct LinearSolution {
 /// (not while fully sliding). Forces on the body F_j = (t_j, -lambda_j); u_i = sum_j C_ij F_j;
 /// slip g_j = u_t,j - w - a_j. Rows: u_z,i + d = gap_i on A (contact closed); g_j = 0 for a
 /// stick node; for a slip node the Alart-Curnier law t = mu lambda tau / |tau|, tau = t - r g,
-/// linearized at the last iterate: (I - kappa P) t + kappa r P g - mu lambda n = 0 with
-/// P = I - n n' (kappa = 0: traction along a fixed n); sum lambda = P; under force control
+/// linearized at the last iterate (friction_law: (I - kappa P) t + kappa r P g - mu n lambda =
+/// 0, P = I - n n', or a fixed direction when everything slides); sum lambda = P; under force
+/// control
 /// sum t = Q. Goodman: the z rows ignore the tangential forces. Dense LU (not symmetric).
 bool solve_linear(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, const RowVectors2& anchor,
-                  const Eigen::VectorXd& r_stiff, const ActiveSets& sets, const ContactLoad& load,
-                  bool full_slip, bool coupled, LinearSolution& out) {
+                  const ActiveSets& sets, const ContactLoad& load, bool full_slip, bool coupled,
+                  LinearSolution& out) {
     const std::vector<int>& A = sets.A;
     const Eigen::Index m = Eigen::Index(A.size());
-    const double mu = std::max(0.0, load.mu);
     const bool force = load.tangential == TangentialControl::force && !full_slip;
     const Eigen::Index nw = force ? 2 : 0, N = 3 * m + 1 + nw;
     const Eigen::Index col_d = 3 * m, col_w = 3 * m + 1;
@@ -106,16 +126,13 @@ bool solve_linear(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, const Ro
             M.block(row, 0, 2, 3 * m) = Gg;
             if (force) M.block<2, 2>(row, col_w) = -Eigen::Matrix2d::Identity();
             b.segment<2>(row) = -g_const;
-        } else { // (I - kappa P) t + kappa r P g - mu n lambda = 0
-            const Eigen::Vector2d n = sets.dir[j];
-            const Eigen::Matrix2d Pn = Eigen::Matrix2d::Identity() - n * n.transpose();
-            const double kappa = sets.kappa[j], r = r_stiff(Eigen::Index(j));
-            const Eigen::Matrix2d KP = kappa * r * Pn;
-            M.block(row, 0, 2, 3 * m) = KP * Gg;
-            M.block<2, 2>(row, m + 2 * i) += Eigen::Matrix2d::Identity() - kappa * Pn;
-            M.block<2, 1>(row, i) -= mu * n;
-            if (force) M.block<2, 2>(row, col_w) = -KP;
-            b.segment<2>(row) = -KP * g_const;
+        } else { // the linearized friction law: d_t t + d_g g + d_lambda lambda = 0
+            const FrictionLaw& law = sets.law[j];
+            M.block(row, 0, 2, 3 * m) = law.d_g * Gg;
+            M.block<2, 2>(row, m + 2 * i) += law.d_t;
+            M.block<2, 1>(row, i) += law.d_lambda;
+            if (force) M.block<2, 2>(row, col_w) = -law.d_g;
+            b.segment<2>(row) = -law.d_g * g_const;
         }
         row += 2;
     }
@@ -210,19 +227,22 @@ ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::Vector
         for (int j : previous->active)
             was_in_contact[std::size_t(j)] = 1;
     const bool all_slip = full_slip || mu == 0;
-    ActiveSets sets{{},
-                    std::vector<char>(nz, 0),
-                    std::vector<Eigen::Vector2d>(nz, pull),
-                    std::vector<double>(nz, 0.0)};
+    Eigen::VectorXd r_stiff(n); // each node's own tangential stiffness 1 / C_tt
+    for (int j = 0; j < n; ++j)
+        r_stiff(j) = 2.0 / (C(3 * j, 3 * j) + C(3 * j + 1, 3 * j + 1));
+    // Fixed-direction row (full slip, or no friction): t = mu lambda along the pull.
+    const FrictionLaw along_pull{Eigen::Vector2d::Zero(), Eigen::Matrix2d::Identity(),
+                                 Eigen::Matrix2d::Zero(), -mu * pull};
+    ActiveSets sets{{}, std::vector<char>(nz, 0), std::vector<FrictionLaw>(nz, along_pull)};
     if (previous && !previous->active.empty()) {
         sets.A = previous->active; // warm start: the previous contact and slip sets
         for (int j : sets.A) {
             const Eigen::Vector2d t = previous->forces_N.row(j).head<2>().transpose();
             if (all_slip || previous->state[std::size_t(j)] != NodeContact::slip || t.norm() == 0)
                 continue;
-            sets.slip[std::size_t(j)] = 1;
-            sets.dir[std::size_t(j)] = t.normalized();
-            sets.kappa[std::size_t(j)] = 1.0; // on the cone: t.n = mu lambda, slip along n
+            sets.slip[std::size_t(j)] = 1; // on the cone: linearized there, slip along t
+            sets.law[std::size_t(j)] = friction_law(t, -previous->forces_N(j, 2),
+                                                    Eigen::Vector2d::Zero(), mu, r_stiff(j), true);
         }
     } else {
         Eigen::Index first = 0;
@@ -231,16 +251,13 @@ ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::Vector
     }
     if (all_slip)
         std::fill(sets.slip.begin(), sets.slip.end(), 1); // kappa 0: traction mu lambda along pull
-    Eigen::VectorXd r_stiff(n); // each node's own tangential stiffness 1 / C_tt
-    for (int j = 0; j < n; ++j)
-        r_stiff(j) = 2.0 / (C(3 * j, 3 * j) + C(3 * j + 1, 3 * j + 1));
 
     LinearSolution lin{Eigen::VectorXd::Zero(n), RowVectors2::Zero(n, 2)};
     sol.status = "max_iterations";
     const double tol_mm = 1e-9 * std::max(1.0, std::min(gap.maxCoeff(), 1e2));
     for (int it = 0; it < options.max_iterations; ++it) {
         ++sol.iterations;
-        if (!solve_linear(C, gap, anchor, r_stiff, sets, load, full_slip, options.coupled, lin)) {
+        if (!solve_linear(C, gap, anchor, sets, load, full_slip, options.coupled, lin)) {
             sol.status = "singular";
             break;
         }
@@ -293,10 +310,9 @@ ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::Vector
                 law_error = std::max(law_error, (t - projected).norm());
                 changed = changed || slips != (sets.slip[jj] != 0);
                 sets.slip[jj] = slips;
-                if (slips) {
-                    sets.dir[jj] = tau.normalized();
-                    sets.kappa[jj] = limit / tau.norm();
-                }
+                if (slips)
+                    sets.law[jj] =
+                        friction_law(t, std::max(lin.lambda(j), 0.0), g, mu, r_stiff(j), true);
             }
         }
         for (const auto& [value, j] : release) {

@@ -111,6 +111,21 @@ struct ContactSolution {
     std::string status = "ok";
 };
 
+/// Coulomb's law of one contact node in Alart-Curnier form, as the solver linearizes it:
+/// residual phi = t - proj(tau), tau = t - r g, proj onto the disc |.| <= mu lambda; t the
+/// tangential force on the node (N), lambda its normal force (N), g its slip from its anchor
+/// (mm), r > 0 a stiffness (N/mm). `slip` picks the branch: the disc's boundary
+/// (proj = mu lambda tau / |tau|) or its inside (proj = tau, phi = r g). phi is positively
+/// homogeneous of degree 1 in (t, lambda, g), so phi = d_t t + d_g g + d_lambda lambda: the
+/// Newton rows d_t t + d_g g + d_lambda lambda = 0 need no right-hand side.
+struct FrictionLaw {
+    Eigen::Vector2d residual;
+    Eigen::Matrix2d d_t, d_g;
+    Eigen::Vector2d d_lambda;
+};
+FrictionLaw friction_law(const Eigen::Vector2d& t, double lambda, const Eigen::Vector2d& g,
+                         double mu, double r, bool slip);
+
 /// Safety margin (mu P - |f_t|) / (mu P), clamped at 0 while sliding; 0 when mu P = 0.
 double safety_margin(double mu, double normal_force_N, double tangential_force_N);
 

@@ -8,6 +8,8 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <tuple>
+#include <vector>
 
 using namespace chromasim::mechanics;
 
@@ -254,4 +256,41 @@ TEST_CASE("neo-Hookean frames: the linear answer at small load, deeper and still
     REQUIRE(next.contact.converged);
     CHECK(next.contact.tangential_force_N.x() == Approx(0.4).epsilon(1e-9));
     CHECK(next.contact.object_displacement_mm.x() > 0);
+}
+
+TEST_CASE("friction law: the solver's linearization against central finite differences; Euler's "
+          "identity makes the Newton rows homogeneous",
+          "[mechanics][friction]") {
+    const double mu = 0.7, r = 3.0, h = 1e-6;
+    const std::vector<std::tuple<Eigen::Vector2d, double, Eigen::Vector2d>> points{
+        {{0.4, -0.1}, 0.5, {0.08, 0.03}},   // slipping: |t - r g| > mu lambda
+        {{-0.2, 0.3}, 0.2, {-0.05, 0.12}},  // slipping, another quadrant
+        {{0.05, 0.02}, 1.0, {0.01, -0.01}}, // inside the disc (sticking)
+    };
+    for (const auto& [t, lambda, g] : points) {
+        const bool slip = (t - r * g).norm() > mu * lambda;
+        INFO("t " << t.transpose() << " lambda " << lambda << " slip " << slip);
+        const FrictionLaw law = friction_law(t, lambda, g, mu, r, slip);
+        // Residual: t - proj(t - r g) onto the disc of radius mu lambda.
+        const Eigen::Vector2d tau = t - r * g;
+        const Eigen::Vector2d proj = slip ? Eigen::Vector2d(mu * lambda * tau.normalized()) : tau;
+        CHECK((law.residual - (t - proj)).norm() < 1e-15);
+        for (int k = 0; k < 2; ++k) {
+            const Eigen::Vector2d e = Eigen::Vector2d::Unit(k);
+            const Eigen::Vector2d dt = (friction_law(t + h * e, lambda, g, mu, r, slip).residual -
+                                        friction_law(t - h * e, lambda, g, mu, r, slip).residual) /
+                                       (2 * h);
+            const Eigen::Vector2d dg = (friction_law(t, lambda, g + h * e, mu, r, slip).residual -
+                                        friction_law(t, lambda, g - h * e, mu, r, slip).residual) /
+                                       (2 * h);
+            CHECK((dt - law.d_t.col(k)).norm() < 1e-8);
+            CHECK((dg - law.d_g.col(k)).norm() < 1e-8);
+        }
+        const Eigen::Vector2d dl = (friction_law(t, lambda + h, g, mu, r, slip).residual -
+                                    friction_law(t, lambda - h, g, mu, r, slip).residual) /
+                                   (2 * h);
+        CHECK((dl - law.d_lambda).norm() < 1e-8);
+        // Positive homogeneity: phi = d_t t + d_g g + d_lambda lambda.
+        CHECK((law.d_t * t + law.d_g * g + law.d_lambda * lambda - law.residual).norm() < 1e-14);
+    }
 }
