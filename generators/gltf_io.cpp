@@ -337,14 +337,7 @@ mechanics::TriangleSurface SurfaceBuilder::finish() const {
         fail(m_file, what + "; an object needs TRIANGLES, TRIANGLE_STRIP or TRIANGLE_FAN "
                             "primitives with a non-zero area");
     }
-    mechanics::TriangleSurface s;
-    s.V.resize(Eigen::Index(m_V.size()), 3);
-    for (std::size_t v = 0; v < m_V.size(); ++v)
-        s.V.row(Eigen::Index(v)) = m_V[v];
-    s.F.resize(Eigen::Index(m_F.size()), 3);
-    for (std::size_t f = 0; f < m_F.size(); ++f)
-        s.F.row(Eigen::Index(f)) = m_F[f];
-    return s;
+    return mechanics::triangle_surface(m_V, m_F);
 }
 
 // ---- Writing --------------------------------------------------------------------------------

@@ -123,6 +123,18 @@ void validate_pose(const Pose& pose) {
     }
 }
 
+TriangleSurface triangle_surface(const std::vector<Eigen::Vector3d>& vertices,
+                                 const std::vector<Eigen::Vector3i>& triangles) {
+    TriangleSurface out;
+    out.V.resize(Eigen::Index(vertices.size()), 3);
+    for (std::size_t v = 0; v < vertices.size(); ++v)
+        out.V.row(Eigen::Index(v)) = vertices[v];
+    out.F.resize(Eigen::Index(triangles.size()), 3);
+    for (std::size_t f = 0; f < triangles.size(); ++f)
+        out.F.row(Eigen::Index(f)) = triangles[f];
+    return out;
+}
+
 TriangleSurface posed_surface(const TriangleSurface& surface, const Pose& pose) {
     TriangleSurface out;
     out.V = (surface.V * pose.rotation.transpose()).rowwise() + pose.translation_mm.transpose();
@@ -157,15 +169,7 @@ TriangleSurface make_sphere_cap(double radius_mm, double cap_angle_deg, double e
     std::vector<Eigen::Vector3i> triangles;
     for (int k = 0; k < rings; ++k)
         join_rings(vertices, first[k], count[k], first[k + 1], count[k + 1], triangles);
-
-    TriangleSurface out;
-    out.V.resize(Eigen::Index(vertices.size()), 3);
-    for (std::size_t v = 0; v < vertices.size(); ++v)
-        out.V.row(Eigen::Index(v)) = vertices[v];
-    out.F.resize(Eigen::Index(triangles.size()), 3);
-    for (std::size_t f = 0; f < triangles.size(); ++f)
-        out.F.row(Eigen::Index(f)) = triangles[f];
-    return out;
+    return triangle_surface(vertices, triangles);
 }
 
 TriangleSurface make_plate(double width_mm, double depth_mm, int divisions) {

@@ -23,6 +23,10 @@ struct TriangleSurface {
     Triangles F;
 };
 
+/// A surface from vertex and triangle lists (no validation: see validate_surface).
+TriangleSurface triangle_surface(const std::vector<Eigen::Vector3d>& vertices,
+                                 const std::vector<Eigen::Vector3i>& triangles);
+
 /// Rigid placement of an object: sensor-frame position x = rotation * p + translation_mm for a
 /// point p of the object's frame.
 struct Pose {
