@@ -36,9 +36,11 @@ mechanics::DomeModelOptions dome_options(const Spec& spec) {
     o.material = spec.sensor.material_model == "neo_hookean" ? mechanics::MaterialModel::neo_hookean
                                                              : mechanics::MaterialModel::linear;
     o.load_path.normal_steps = o.load_path.tangential_steps = spec.sensor.contact_steps;
-    o.interior = spec.sensor.interior == "rigid_core"
-                     ? mechanics::DomeModelOptions::Interior::rigid_core
-                     : mechanics::DomeModelOptions::Interior::hollow;
+    using Interior = mechanics::DomeModelOptions::Interior;
+    o.interior = spec.sensor.interior == "rigid_core"  ? Interior::rigid_core
+                 : spec.sensor.interior == "soft_fill" ? Interior::soft_fill
+                                                       : Interior::hollow;
+    o.fill = material(spec.sensor.fill);
     o.volumetric = spec.sensor.volumetric == "element" ? mechanics::Volumetric::element
                                                        : mechanics::Volumetric::nodal_average;
     o.materials = {material(spec.sensor.inner_marker_layer), material(spec.sensor.clear_layer),

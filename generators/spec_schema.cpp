@@ -151,14 +151,21 @@ void add_sensor_mechanics(std::vector<SchemaEntry>& out) {
               CHROMASIM_FIELD(sensor.outer_marker_layer));
     add_layer(out, "coating", 1.0, "white diffusing coating (pigmented silicone: about 1 MPa)",
               CHROMASIM_FIELD(sensor.coating));
+    add_layer(out, "fill", 0.05,
+              "soft fill inside the dome (clear silicone gel, used only when sensor.interior "
+              "is soft_fill: about 0.02 to 0.1 MPa)",
+              CHROMASIM_FIELD(sensor.fill));
     out.push_back(choice("sensor.volumetric", "nodal_average", {"nodal_average", "element"},
                          "How the volumetric strain energy is integrated: nodal_average (average "
                          "nodal pressure, no locking of nearly incompressible layers) or element "
                          "(standard linear tets: too stiff as nu approaches 0.5; faster).",
                          CHROMASIM_FIELD(sensor.volumetric)));
-    out.push_back(choice("sensor.interior", "hollow", {"hollow", "rigid_core"},
-                         "Inside the inner layer: hollow (air; camera and LEDs sit there) or a "
-                         "rigid core bonded to the inner surface (a stiffer fingertip).",
+    out.push_back(choice("sensor.interior", "hollow", {"hollow", "rigid_core", "soft_fill"},
+                         "Inside the inner layer: hollow (air; camera and LEDs sit there), a "
+                         "rigid core bonded to the inner surface (a stiffer fingertip), or "
+                         "soft_fill (a meshed gel of sensor.materials.fill bonded to the inner "
+                         "layer, clamped on the base plane; mechanics only, the renderer still "
+                         "sees a hollow dome).",
                          CHROMASIM_FIELD(sensor.interior)));
     out.push_back(choice("sensor.material_model", "linear", {"linear", "neo_hookean"},
                          "Constitutive model of the layers: linear (small strain; a frame is a "

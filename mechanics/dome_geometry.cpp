@@ -108,7 +108,54 @@ void zip_rings(const std::vector<int>& a, const std::vector<int>& b,
     }
 }
 
-Plc dome_plc_from_grid(const DomeParams& dome, const AngularGrid& grid) {
+/// The disk z = 0, r <= r_inner closing the soft fill: concentric rings about `edge_mm` apart,
+/// the outermost being the inner sphere's rim ring (points `rim` of plc), zipped; the
+/// innermost ring is a small polygon. New points are appended to plc.points.
+void add_fill_base(Plc& plc, const std::vector<int>& rim, double r_inner, double edge_mm) {
+    constexpr double kAzimuthOffset = 0.1234;
+    std::vector<Eigen::Vector3d> pos;    // local vertices
+    std::vector<int> plc_id;             // local vertex -> plc point
+    std::vector<std::vector<int>> rings; // local ids per ring, outermost first
+    rings.emplace_back();
+    for (int p : rim) {
+        rings.back().push_back(int(pos.size()));
+        pos.push_back(plc.points.row(p).transpose());
+        plc_id.push_back(p);
+    }
+    const int n = std::max(2, int(std::lround(r_inner / edge_mm)));
+    int next_id = int(plc.points.rows());
+    for (int k = 1; k < n; ++k) {
+        const double r = r_inner * (n - k) / n;
+        int m = std::max(5, int(std::lround(2 * kPi * r / edge_mm)));
+        if (k + 1 == n) m |= 1; // odd: no chord of the centre polygon passes through the axis
+        const double phase = (k % 2) * 0.5;
+        rings.emplace_back();
+        for (int j = 0; j < m; ++j) {
+            const double phi = 2 * kPi * (j + phase) / m + kAzimuthOffset;
+            rings.back().push_back(int(pos.size()));
+            pos.emplace_back(r * std::cos(phi), r * std::sin(phi), 0.0);
+            plc_id.push_back(next_id++);
+        }
+    }
+    plc.points.conservativeResize(next_id, 3);
+    for (std::size_t v = rim.size(); v < pos.size(); ++v)
+        plc.points.row(plc_id[v]) = pos[v].transpose();
+    std::vector<std::array<int, 3>> tris;
+    for (std::size_t i = 0; i + 1 < rings.size(); ++i)
+        zip_rings(rings[i], rings[i + 1], pos, tris);
+    for (const auto& t : tris) {
+        plc.facets.push_back({plc_id[t[0]], plc_id[t[1]], plc_id[t[2]]});
+        plc.facet_markers.push_back(20);
+    }
+    std::vector<int> centre;
+    for (int v : rings.back())
+        centre.push_back(plc_id[v]);
+    plc.facets.push_back(centre);
+    plc.facet_markers.push_back(20);
+}
+
+Plc dome_plc_from_grid(const DomeParams& dome, const AngularGrid& grid, bool fill,
+                       double base_edge_mm) {
     std::vector<Eigen::Vector3d> dirs;
     std::vector<std::vector<int>> ring_ids; // direction indices per ring
     for (const auto& ring : grid.rings) {
@@ -152,6 +199,10 @@ Plc dome_plc_from_grid(const DomeParams& dome, const AngularGrid& grid) {
     const Eigen::Vector3d seed_dir = Eigen::Vector3d(0.3, 0.2, 1.0).normalized();
     for (int l = 0; l < kLayerCount; ++l)
         plc.regions.push_back({0.5 * (dome.radii_mm[l] + dome.radii_mm[l + 1]) * seed_dir, l + 1});
+    if (fill) { // on sphere s = 0 the point ids are the direction ids
+        add_fill_base(plc, rim, dome.radii_mm[0], base_edge_mm);
+        plc.regions.push_back({0.5 * dome.radii_mm[0] * seed_dir, kFill});
+    }
     return plc;
 }
 
@@ -212,32 +263,35 @@ MarkerDiscs marker_discs(const DomeParams& dome) {
     return discs;
 }
 
-Plc dome_plc(const DomeParams& dome, const MeshLevel& level) {
+Plc dome_plc(const DomeParams& dome, const MeshLevel& level, bool fill) {
     const double R = dome.radii_mm.back();
     if (!(level.contact_edge_mm > 0) || level.contact_edge_mm >= level.edge_mm)
-        return dome_plc(dome, level.edge_mm);
+        return dome_plc(dome, level.edge_mm, fill);
     const double theta_c = level.contact_angle_deg * kPi / 180;
     const auto edge_at = [&](double theta) {
         const double beyond = std::max(0.0, theta - theta_c) * R; // arc length past the cap
         return std::min(level.edge_mm, level.contact_edge_mm + 0.25 * beyond);
     };
-    Plc plc = dome_plc_from_grid(dome, graded_angular_grid(R, edge_at));
+    Plc plc = dome_plc_from_grid(dome, graded_angular_grid(R, edge_at), fill, level.edge_mm);
     plc.point_size_mm.resize(std::size_t(plc.points.rows()));
     for (Eigen::Index i = 0; i < plc.points.rows(); ++i) {
         const Eigen::Vector3d p = plc.points.row(i);
+        // Points of the fill's base disk (inside the inner rim) take the far edge length.
+        const bool base = p.z() == 0.0 && p.norm() < dome.radii_mm[0] * (1 - 1e-9);
         plc.point_size_mm[std::size_t(i)] =
-            edge_at(std::acos(std::clamp(p.z() / p.norm(), -1.0, 1.0)));
+            base ? level.edge_mm : edge_at(std::acos(std::clamp(p.z() / p.norm(), -1.0, 1.0)));
     }
     return plc;
 }
 
-Plc dome_plc(const DomeParams& dome, double edge_mm) {
-    return dome_plc_from_grid(dome, angular_grid(dome.radii_mm.back(), edge_mm));
+Plc dome_plc(const DomeParams& dome, double edge_mm, bool fill) {
+    return dome_plc_from_grid(dome, angular_grid(dome.radii_mm.back(), edge_mm), fill, edge_mm);
 }
 
 double dome_layer_volume(const DomeParams& dome, int layer) {
     auto hemi = [](double r) { return 2.0 / 3.0 * kPi * r * r * r; };
     if (layer < 0) return hemi(dome.radii_mm.back()) - hemi(dome.radii_mm.front());
+    if (layer == kFill) return hemi(dome.radii_mm.front());
     return hemi(dome.radii_mm[layer]) - hemi(dome.radii_mm[layer - 1]);
 }
 

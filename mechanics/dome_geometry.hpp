@@ -12,10 +12,13 @@ namespace chromasim::mechanics {
 /// Region attributes of the four solid layers, innermost first.
 enum Layer : int { kInnerMarkerLayer = 1, kClearLayer = 2, kOuterMarkerLayer = 3, kCoating = 4 };
 inline constexpr int kLayerCount = 4;
+/// Region attribute of the soft fill inside the inner layer (meshed only when asked for).
+inline constexpr int kFill = 5;
 
 /// Dimensions of the dome. The dome is a hemisphere about +z, centred at the origin, clamped
-/// at its rim in the plane z = 0; the interior (r < inner radius) is not meshed (hollow, or a
-/// rigid core: DomeModelOptions::interior).
+/// at its rim in the plane z = 0. The interior (r < inner radius) is meshed only for a soft
+/// fill (region kFill, bonded to the inner layer, its base in z = 0 clamped); a hollow or
+/// rigid-core interior is not meshed (DomeModelOptions::interior).
 struct DomeParams {
     /// Interface radii in mm, innermost first: 5 spheres bounding the 4 layers [K].
     std::array<double, kLayerCount + 1> radii_mm{10.5, 11.0, 12.2, 12.7, 13.2};
@@ -58,13 +61,16 @@ MarkerDiscs marker_discs(const DomeParams& dome);
 
 /// The layered hemispherical shell as a PLC: five concentric hemispheres sharing one
 /// angular triangulation (edge about `edge_mm` on the outer sphere), annular rim facets in
-/// z = 0 between them, and one region seed per layer.
-Plc dome_plc(const DomeParams& dome, double edge_mm);
+/// z = 0 between them, and one region seed per layer. With `fill`, also the disk in z = 0
+/// inside the inner rim (concentric rings about `edge_mm` apart) and a region seed kFill
+/// inside the inner hemisphere.
+Plc dome_plc(const DomeParams& dome, double edge_mm, bool fill = false);
 /// The same for a mesh level: uniform, or graded from level.contact_edge_mm over the contact
 /// cap to level.edge_mm, with the local edge length as each point's size.
-Plc dome_plc(const DomeParams& dome, const MeshLevel& level);
+Plc dome_plc(const DomeParams& dome, const MeshLevel& level, bool fill = false);
 
-/// Analytic volume of layer `layer` (1..4), or of the whole shell for layer = -1, in mm^3.
+/// Analytic volume of layer `layer` (1..4; kFill: the inner hemisphere), or of the whole
+/// shell for layer = -1, in mm^3.
 double dome_layer_volume(const DomeParams& dome, int layer = -1);
 
 } // namespace chromasim::mechanics

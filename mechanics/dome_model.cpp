@@ -66,6 +66,13 @@ struct DomeModel::Impl {
 
 namespace {
 
+/// Material per region attribute - 1: the layers, then the fill (unused unless meshed).
+std::vector<Material> material_list(const DomeModelOptions& o) {
+    std::vector<Material> list(o.materials.begin(), o.materials.end());
+    list.push_back(o.fill);
+    return list;
+}
+
 /// Everything the cached mesh and responses depend on, as text, hashed into the cache key.
 std::uint64_t cache_key(const DomeModelOptions& o) {
     std::string text = "chromasim " CHROMASIM_VERSION " dome-model-cache 1\n";
@@ -88,7 +95,12 @@ std::uint64_t cache_key(const DomeModelOptions& o) {
                   "mesh %s %.17g %s\nvolumetric %d\ncandidates %.17g\ninterior %d\n",
                   o.mesh_level.c_str(), level.edge_mm, tetgen_switches(tg).c_str(),
                   int(o.volumetric), o.contact_candidate_angle_deg, int(o.interior));
-    return fnv1a64(text + buf);
+    text += buf;
+    if (o.interior == DomeModelOptions::Interior::soft_fill) {
+        std::snprintf(buf, sizeof buf, "fill %.17g %.17g\n", o.fill.E_MPa, o.fill.nu);
+        text += buf;
+    }
+    return fnv1a64(text);
 }
 
 } // namespace
@@ -98,7 +110,10 @@ void DomeModel::Impl::build_mesh() {
     const MeshLevel level = mesh_level(options.mesh_level);
     TetgenOptions tg;
     tg.max_volume_mm3 = level.max_volume_mm3;
-    mesh = tetrahedralize(dome_plc(options.dome, level), tg);
+    mesh = tetrahedralize(
+        dome_plc(options.dome, level,
+                 options.interior == DomeModelOptions::Interior::soft_fill),
+        tg);
     stats.mesh_s = seconds_since(t0);
 }
 
@@ -167,7 +182,7 @@ bool DomeModel::Impl::load_from_cache(std::uint64_t key) {
     mesh = std::move(cached->mesh);
     derive_from_mesh();
     body = std::make_unique<ElasticBody>(
-        mesh, std::vector<Material>(options.materials.begin(), options.materials.end()),
+        mesh, material_list(options),
         clamped_nodes(), candidates, options.volumetric, std::move(cached->responses));
     stats.cache_s = seconds_since(t0);
     stats.cache = "hit";
@@ -176,7 +191,7 @@ bool DomeModel::Impl::load_from_cache(std::uint64_t key) {
 
 void DomeModel::Impl::build_body() {
     body = std::make_unique<ElasticBody>(
-        mesh, std::vector<Material>(options.materials.begin(), options.materials.end()),
+        mesh, material_list(options),
         clamped_nodes(), candidates, coating.nodes, embed(mesh, markers.points, "marker point"),
         options.volumetric);
     const ElasticBodyStats& b = body->stats();
@@ -210,7 +225,7 @@ void DomeModel::Impl::solve_hyperelastic(const ContactLoad& load, const ObjectSh
                                          const FrameResult* previous, FrameResult& r) const {
     std::call_once(hyper_once, [this] {
         hyper = std::make_unique<HyperelasticContact>(
-            mesh, std::vector<Material>(options.materials.begin(), options.materials.end()),
+            mesh, material_list(options),
             options.volumetric, *body);
         marker_embedding = embed(mesh, markers.points, "marker point");
     });

@@ -27,7 +27,7 @@ enum class MaterialModel {
 struct DomeModelOptions {
     DomeParams dome;
     std::string mesh_level = "coarse";
-    /// Materials of the layers, innermost first (indexed by Layer - 1).
+    /// Materials of the layers, innermost first (indexed by Layer - 1); the fill's is `fill`.
     std::array<Material, kLayerCount> materials{
         {{0.8, 0.45}, {0.3, 0.45}, {0.8, 0.45}, {1.0, 0.45}}};
     /// Volumetric integration (linear_elasticity.hpp): nodal averaging relieves the locking of
@@ -40,10 +40,11 @@ struct DomeModelOptions {
     std::filesystem::path cache_dir;
     /// Outer-surface nodes up to this polar angle may touch the object.
     double contact_candidate_angle_deg = 35.0;
-    /// Interior (r < the inner radius): hollow (air, the default) or a rigid core to which the
-    /// inner surface is bonded (every node of the inner surface clamped). A soft fill is not
-    /// modelled yet.
-    enum class Interior { hollow, rigid_core } interior = Interior::hollow;
+    /// Interior (r < the inner radius): hollow (air, the default), a rigid core to which the
+    /// inner surface is bonded (every node of the inner surface clamped), or a soft fill:
+    /// a meshed solid of material `fill` bonded to the inner layer, its base (z = 0) clamped.
+    enum class Interior { hollow, rigid_core, soft_fill } interior = Interior::hollow;
+    Material fill{0.05, 0.45};
     /// How a frame without a previous frame reaches its load from rest (contact.hpp).
     LoadPath load_path;
     ContactOptions contact;

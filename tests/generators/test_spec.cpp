@@ -156,7 +156,7 @@ TEST_CASE("an unknown key is named with its position and the allowed keys", "[ge
     CHECK(error_of("sensor:\n  materials:\n    coatng:\n      E_MPa: 1\n") ==
           "bad.yaml:3:5: sensor.materials.coatng: unknown key 'coatng' (did you mean "
           "'coating'?); allowed keys in 'sensor.materials': inner_marker_layer, clear_layer, "
-          "outer_marker_layer, coating");
+          "outer_marker_layer, coating, fill");
     CHECK(error_of("render:\n  widht_px: 300\n") ==
           "bad.yaml:2:3: render.widht_px: unknown key 'widht_px' (did you mean 'width_px'?); "
           "allowed keys in 'render': width_px, height_px, samples_per_pixel, exposure");

@@ -237,3 +237,45 @@ TEST_CASE("a rigid core under the shell: stiffer, the inner surface does not mov
         }
     CHECK(inner > 100);
 }
+
+TEST_CASE("a soft fill: meshed inside the shell, between hollow and rigid core, tends to both "
+          "limits",
+          "[mechanics][contact]") {
+    const ContactLoad load{1.5, {0.3, 0}, 0.8};
+    const double hollow = coarse_model().solve(load, {}).contact.indentation_mm;
+    DomeModelOptions core_options;
+    core_options.interior = DomeModelOptions::Interior::rigid_core;
+    const double core = DomeModel(core_options).solve(load, {}).contact.indentation_mm;
+
+    DomeModelOptions options;
+    options.interior = DomeModelOptions::Interior::soft_fill;
+    const DomeModel gel(options); // 0.05 MPa: a clear silicone gel
+    const TetMesh& mesh = gel.mesh();
+    const double fill_volume = dome_layer_volume(options.dome, kFill);
+    CHECK(mesh_volume(mesh, kFill) == Approx(fill_volume).epsilon(0.01));
+    CHECK(mesh_volume(mesh) - mesh_volume(mesh, kFill) ==
+          Approx(dome_layer_volume(options.dome)).epsilon(0.01));
+    const FrameResult r = gel.solve(load, {false, false, true});
+    REQUIRE(r.contact.converged);
+    const double soft = r.contact.indentation_mm;
+    CHECK(soft < 0.98 * hollow);
+    CHECK(soft > 1.5 * core);
+    // The fill's base does not move; the inner surface (bonded to the fill) does.
+    const double r_inner = options.dome.radii_mm.front();
+    double inner_max = 0;
+    for (int v = 0; v < mesh.V.rows(); ++v) {
+        CHECK(mesh.V(v, 2) >= 0.0);
+        if (mesh.V(v, 2) == 0.0) CHECK(r.node_displacement_mm.row(v).norm() == 0.0);
+        if (std::abs(mesh.V.row(v).norm() - r_inner) <= 1e-9 * r_inner)
+            inner_max = std::max(inner_max, r.node_displacement_mm.row(v).norm());
+    }
+    CHECK(inner_max > 0.1);
+
+    // Limits: a fill 500 times softer than the gel is nearly air; a 1000 MPa fill is nearly a
+    // rigid core.
+    options.fill.E_MPa = 1e-4;
+    CHECK(DomeModel(options).solve(load, {}).contact.indentation_mm ==
+          Approx(hollow).epsilon(0.01));
+    options.fill.E_MPa = 1000;
+    CHECK(DomeModel(options).solve(load, {}).contact.indentation_mm == Approx(core).epsilon(0.05));
+}
