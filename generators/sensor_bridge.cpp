@@ -1,6 +1,7 @@
 #include "generators/sensor_bridge.hpp"
 
 #include "generators/gltf_io.hpp"
+#include "render/fisheye_camera.hpp"
 
 #include <stdexcept>
 
@@ -67,7 +68,29 @@ mechanics::ObjectShape object_shape(const Spec& spec) {
 }
 
 render::CameraParams camera_params(const Spec& spec) {
-    return {spec.render.width_px, spec.render.height_px, spec.sensor.camera_half_fov_deg};
+    const Spec::Sensor& s = spec.sensor;
+    render::CameraParams c;
+    c.width_px = spec.render.width_px;
+    c.height_px = spec.render.height_px;
+    c.half_fov_deg = s.camera_half_fov_deg;
+    if (s.camera_model == "kannala_brandt") {
+        // A spec value of 0 stands for the equidistant camera's value (spec_schema.cpp).
+        const render::CameraParams equidistant = render::with_equidistant_intrinsics(c);
+        const auto or_derived = [](double given, double derived) {
+            return given != 0.0 ? given : derived;
+        };
+        c.model = render::CameraModel::kannala_brandt;
+        c.fx_px = or_derived(s.camera_fx_px, equidistant.fx_px);
+        c.fy_px = or_derived(s.camera_fy_px, equidistant.fy_px);
+        c.cx_px = or_derived(s.camera_cx_px, equidistant.cx_px);
+        c.cy_px = or_derived(s.camera_cy_px, equidistant.cy_px);
+        c.k1 = s.camera_k1, c.k2 = s.camera_k2, c.k3 = s.camera_k3, c.k4 = s.camera_k4;
+    }
+    c.position_mm = {s.camera_position_mm[0], s.camera_position_mm[1], s.camera_position_mm[2]};
+    c.roll_deg = s.camera_roll_deg;
+    c.pitch_deg = s.camera_pitch_deg;
+    c.yaw_deg = s.camera_yaw_deg;
+    return c;
 }
 
 render::OpticsParams optics_params(const Spec& spec) {

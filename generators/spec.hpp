@@ -44,6 +44,13 @@ struct Spec {
         LayerMaterial fill{0.05, 0.45}; ///< used only with interior soft_fill
         double contact_candidate_angle_deg = 35.0;
         double camera_half_fov_deg = 84.0;
+        std::string camera_model = "equidistant"; ///< equidistant | kannala_brandt
+        /// Kannala-Brandt intrinsics, OpenCV convention; 0: derived from the image size and
+        /// camera_half_fov_deg (the equidistant camera's values).
+        double camera_fx_px = 0, camera_fy_px = 0, camera_cx_px = 0, camera_cy_px = 0;
+        double camera_k1 = 0, camera_k2 = 0, camera_k3 = 0, camera_k4 = 0;
+        std::array<double, 3> camera_position_mm{0.0, 0.0, 0.0}; ///< in the dome frame
+        double camera_roll_deg = 0, camera_pitch_deg = 0, camera_yaw_deg = 0;
         int led_count = 6;
         double led_ring_radius_mm = 10.0;
         double led_z_mm = -1.0;

@@ -1,9 +1,12 @@
 #include "generators/spec_schema.hpp"
 
+#include "render/fisheye_camera.hpp"
+
 #include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <numbers>
 #include <type_traits>
 
 namespace chromasim::generators {
@@ -96,6 +99,13 @@ SchemaEntry rgb(std::string key, Rgb def, Range range, std::string unit, std::st
                       access);
 }
 
+template <class Access>
+SchemaEntry vec3(std::string key, Rgb def, Range range, std::string unit, std::string doc,
+                 Access access) {
+    return make_entry(std::move(key), ValueType::Vec3, def, std::move(unit), range, std::move(doc),
+                      access);
+}
+
 // ---- The table ------------------------------------------------------------------------------
 
 // The accessor of one Spec field, for both Spec& and const Spec& (see make_entry).
@@ -181,10 +191,61 @@ void add_sensor_mechanics(std::vector<SchemaEntry>& out) {
                          CHROMASIM_FIELD(sensor.contact_candidate_angle_deg)));
 }
 
+/// The sensor.camera keys after half_fov_deg: projection model, OpenCV intrinsics, pose.
+void add_camera_model(std::vector<SchemaEntry>& out) {
+    out.push_back(choice("sensor.camera.model", "equidistant", {"equidistant", "kannala_brandt"},
+                         "Projection: equidistant (r = theta / half_fov_deg * min(width, height) "
+                         "/ 2 px, the lens at the dome centre) or kannala_brandt (OpenCV's "
+                         "cv::fisheye model, a user's calibration: fx_px ... k4; rays beyond "
+                         "half_fov_deg stay black).",
+                         CHROMASIM_FIELD(sensor.camera_model)));
+    const std::string derived = " (OpenCV convention: pixel centres at integers); 0: derived "
+                                "from the image size and half_fov_deg, as the equidistant camera.";
+    out.push_back(number("sensor.camera.fx_px", 0, closed(0, 1e4), "px",
+                         "Kannala-Brandt focal length along x, K(0, 0)" + derived,
+                         CHROMASIM_FIELD(sensor.camera_fx_px)));
+    out.push_back(number("sensor.camera.fy_px", 0, closed(0, 1e4), "px",
+                         "Kannala-Brandt focal length along y, K(1, 1)" + derived,
+                         CHROMASIM_FIELD(sensor.camera_fy_px)));
+    out.push_back(number("sensor.camera.cx_px", 0, closed(-1e4, 1e4), "px",
+                         "Kannala-Brandt principal point x, K(0, 2)" + derived,
+                         CHROMASIM_FIELD(sensor.camera_cx_px)));
+    out.push_back(number("sensor.camera.cy_px", 0, closed(-1e4, 1e4), "px",
+                         "Kannala-Brandt principal point y, K(1, 2)" + derived,
+                         CHROMASIM_FIELD(sensor.camera_cy_px)));
+    const auto k = [&out](const std::string& name, int index, auto access) {
+        out.push_back(number("sensor.camera." + name, 0, closed(-100, 100), "",
+                             "Kannala-Brandt distortion D[" + std::to_string(index) +
+                                 "]: theta_d = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 "
+                                 "+ k4 theta^8), theta in rad.",
+                             access));
+    };
+    k("k1", 0, CHROMASIM_FIELD(sensor.camera_k1));
+    k("k2", 1, CHROMASIM_FIELD(sensor.camera_k2));
+    k("k3", 2, CHROMASIM_FIELD(sensor.camera_k3));
+    k("k4", 3, CHROMASIM_FIELD(sensor.camera_k4));
+    out.push_back(vec3("sensor.camera.position_mm", {0.0, 0.0, 0.0}, closed(-10, 10), "mm",
+                       "Camera position in the dome frame (origin: the dome centre; the inner "
+                       "surface has radius 10.5 mm), both models.",
+                       CHROMASIM_FIELD(sensor.camera_position_mm)));
+    out.push_back(number("sensor.camera.roll_deg", 0, closed(-180, 180), "deg",
+                         "Camera rotation about the dome's x axis (applied first; 0, 0, 0: "
+                         "looking along +z, image x along +x).",
+                         CHROMASIM_FIELD(sensor.camera_roll_deg)));
+    out.push_back(number("sensor.camera.pitch_deg", 0, closed(-180, 180), "deg",
+                         "Camera rotation about the dome's y axis (applied second).",
+                         CHROMASIM_FIELD(sensor.camera_pitch_deg)));
+    out.push_back(number("sensor.camera.yaw_deg", 0, closed(-180, 180), "deg",
+                         "Camera rotation about the dome's z axis (applied last).",
+                         CHROMASIM_FIELD(sensor.camera_yaw_deg)));
+}
+
 void add_sensor_optics(std::vector<SchemaEntry>& out) {
     out.push_back(number("sensor.camera.half_fov_deg", 84, left_open(10, 100), "deg",
-                         "Equidistant fisheye half field of view at the image-circle edge.",
+                         "Half field of view: the polar angle at the image-circle edge "
+                         "(equidistant) or of the imaged field (kannala_brandt).",
                          CHROMASIM_FIELD(sensor.camera_half_fov_deg)));
+    add_camera_model(out);
     out.push_back(integer("sensor.led.count", 6, closed(1, 64), "",
                           "Number of LEDs on the ring (6 on the real board).",
                           CHROMASIM_FIELD(sensor.led_count)));
@@ -331,7 +392,21 @@ std::vector<SchemaRule> build_rules() {
     };
     mesh.problem = "names no existing file, and object.shape is mesh";
     mesh.allowed = "a .gltf or .glb file; a relative path starts at the spec file's folder";
-    return {outputs, mesh};
+    SchemaRule camera;
+    camera.key = "sensor.camera";
+    camera.holds = [](const Spec& s) {
+        if (s.sensor.camera_model != "kannala_brandt") return true;
+        const auto& c = s.sensor;
+        return render::kannala_brandt_min_slope(c.camera_k1, c.camera_k2, c.camera_k3, c.camera_k4,
+                                                c.camera_half_fov_deg * std::numbers::pi / 180)
+                   .slope > 0.0;
+    };
+    camera.problem = "has k1..k4 whose theta_d(theta) stops increasing before half_fov_deg, so "
+                     "pixels cannot be mapped back to rays";
+    camera.allowed = "k1..k4 with 1 + 3 k1 t^2 + 5 k2 t^4 + 7 k3 t^6 + 9 k4 t^8 > 0 for every "
+                     "polar angle t (rad) up to half_fov_deg, or a smaller half_fov_deg (the "
+                     "field the calibration covers)";
+    return {outputs, mesh, camera};
 }
 
 // ---- Converting scalar text -----------------------------------------------------------------
@@ -463,6 +538,8 @@ const char* type_name(ValueType type) {
         return "string";
     case ValueType::Rgb:
         return "rgb";
+    case ValueType::Vec3:
+        return "vec3";
     }
     return "?";
 }
@@ -482,6 +559,7 @@ std::string allowed_cell(const SchemaEntry& e) {
     case ValueType::String:
         return std::get<std::string>(e.default_value).empty() ? "text (may be empty)" : "non-empty";
     case ValueType::Rgb:
+    case ValueType::Vec3:
         return "3 numbers, each in " + range_text(e);
     }
     return "";
@@ -511,6 +589,7 @@ Reading rules (an error names the file, line:column, key, value and what is allo
 - `bool`: exactly `true` or `false` (`yes`, `no`, `on`, `off`, `True` are rejected).
 - Quoted text (`"1.5"`) is a string: it is never taken as a number or a bool.
 - `rgb`: a list of exactly 3 numbers in red, green, blue order, e.g. `[0.85, 0.85, 0.85]`.
+- `vec3`: a list of exactly 3 numbers x, y, z, e.g. `[0.0, 0.0, -1.5]`.
 - Ranges: `[a, b]` includes both ends, `(a, b]` excludes `a`.
 - A key given twice in the same mapping is an error.
 - [G] marks an assumption: a default to override when better data exist.
@@ -579,6 +658,7 @@ ScalarCheck check_scalar(const SchemaEntry& entry, std::string_view text, bool q
     switch (entry.type) {
     case ValueType::Number:
     case ValueType::Rgb:
+    case ValueType::Vec3:
         return detail::check_number(entry, text, quoted);
     case ValueType::Integer:
         return detail::check_integer(entry, text, quoted);
@@ -610,6 +690,7 @@ std::string describe_allowed(const SchemaEntry& entry) {
         return std::get<std::string>(entry.default_value).empty() ? "text (may be empty)"
                                                                   : "non-empty string";
     case ValueType::Rgb:
+    case ValueType::Vec3:
         return "list of 3 numbers, each in " + detail::range_text(entry) + unit;
     }
     return "";
@@ -633,7 +714,8 @@ std::string value_to_yaml(const SpecValue& value, ValueType type) {
         return std::get<std::string>(value);
     case ValueType::String:
         return detail::quote_yaml(std::get<std::string>(value));
-    case ValueType::Rgb: {
+    case ValueType::Rgb:
+    case ValueType::Vec3: {
         const Rgb& c = std::get<Rgb>(value);
         return "[" + format_number(c[0]) + ", " + format_number(c[1]) + ", " + format_number(c[2]) +
                "]";

@@ -22,10 +22,12 @@ enum class ValueType {
     Enum,    ///< one of a fixed list of words
     String,  ///< any non-empty text
     Rgb,     ///< a list of exactly 3 numbers, each range-checked
+    Vec3,    ///< a list of exactly 3 numbers (x, y, z of a point), each range-checked
 };
 
 /// A validated value; the alternative matches the entry's ValueType (Number -> double,
-/// Integer -> int64_t, Bool -> bool, Enum and String -> string, Rgb -> Rgb).
+/// Integer -> int64_t, Bool -> bool, Enum and String -> string, Rgb and Vec3 -> Rgb, the
+/// std::array<double, 3> both are stored in).
 using SpecValue = std::variant<double, std::int64_t, bool, std::string, Rgb>;
 
 /// An interval of allowed numbers; each end is inclusive ("[") or exclusive ("(").
@@ -45,7 +47,7 @@ struct SchemaEntry {
     ValueType type = ValueType::Number;
     SpecValue default_value;
     std::string unit;                                 ///< e.g. "MPa", "deg"; empty when unitless
-    Range range;                                      ///< Number, Integer, and each Rgb component
+    Range range;                                      ///< Number, Integer, each Rgb/Vec3 item
     std::vector<std::string> choices;                 ///< Enum only
     std::string doc;                                  ///< one line for the manual
     std::function<void(Spec&, const SpecValue&)> set; ///< stores a value of the right type

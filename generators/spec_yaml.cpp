@@ -160,9 +160,9 @@ void read_entry(SpecReader& r, const std::string& section, const YAML::Node& key
     }
     if (!name.empty() && name.find('.') == std::string::npos) {
         if (const SchemaEntry* entry = find_schema_entry(key)) {
-            r.values.emplace_back(entry, entry->type == ValueType::Rgb
-                                             ? read_rgb(r, *entry, key_node, value)
-                                             : read_scalar(r, *entry, key, key_node, value));
+            const bool list = entry->type == ValueType::Rgb || entry->type == ValueType::Vec3;
+            r.values.emplace_back(entry, list ? read_rgb(r, *entry, key_node, value)
+                                              : read_scalar(r, *entry, key, key_node, value));
             return;
         }
         if (is_schema_section(key)) return read_section(r, key, value);

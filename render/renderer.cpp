@@ -3,15 +3,16 @@
 //
 // Shading model (linear RGB per channel; a full spectral path tracer comes later)
 // -------------------------------------------------------------------------------
-// Camera. Equidistant fisheye at the origin looking along +z (FisheyeCamera). Each pixel
-// averages `samples_per_pixel` jittered samples, one per stratum of an nx x ny grid (nx the
-// largest divisor of the count not above its square root). Samples outside the image circle
-// are black. The sample positions come from a SplitMix64 stream seeded with
+// Camera. FisheyeCamera: by default the equidistant fisheye at the origin looking along +z;
+// or OpenCV's Kannala-Brandt model, at any pose in the dome frame. Each pixel averages
+// `samples_per_pixel` jittered samples, one per stratum of an nx x ny grid (nx the largest
+// divisor of the count not above its square root). Samples outside the field (the image
+// circle) are black. The sample positions come from a SplitMix64 stream seeded with
 // (settings.seed, pixel index), so an image depends on neither the thread count nor the
 // order in which TBB runs the rows.
 //
-// Camera ray. Traced from the origin through the scene, surface after surface (closest hit,
-// then again from kHitGap_mm past it, at most kMaxHits surfaces), with an RGB throughput that
+// Camera ray. Traced from the camera position through the scene, surface after surface (closest
+// hit, then again from kHitGap_mm past it, at most kMaxHits surfaces), with an RGB throughput that
 // starts at 1. Normals are the triangles' geometric normals turned to face the camera ray,
 // so triangle winding never matters; cos is the cosine between ray and that normal.
 //   - inner marker (magenta, translucent filter): throughput *= exp(-a_in * L),
@@ -151,7 +152,7 @@ struct Renderer::Impl {
                 const double u = (sx + rng.uniform()) / nx;
                 const double v = (sy + rng.uniform()) / ny;
                 const auto direction = camera.direction(Eigen::Vector2d(x + u, y + v));
-                if (direction) sum += shading.radiance(scene, Vec3::Zero(), *direction);
+                if (direction) sum += shading.radiance(scene, camera.origin_mm(), *direction);
             }
         }
         return sum * (scale / settings.samples_per_pixel);

@@ -38,12 +38,45 @@ struct SensorFrame {
     int triangles_per_marker = 0;
 };
 
-/// Equidistant fisheye camera at the origin looking along +z: a ray at polar angle theta lands
-/// at radius r = theta / half_fov * min(width, height) / 2 pixels from the image centre.
+/// Projection model of the fisheye camera (render/fisheye_camera.hpp has the formulas).
+enum class CameraModel {
+    /// r = theta / half_fov * min(width, height) / 2 px from the image centre: the ideal lens
+    /// at the dome centre (SENSOR.md 1).
+    equidistant,
+    /// OpenCV's cv::fisheye model: fx, fy, cx, cy and k1..k4, as cv::fisheye::calibrate gives
+    /// them.
+    kannala_brandt,
+};
+
+/// The camera: its projection model, image size and pose in the dome frame. The defaults are
+/// the equidistant fisheye at the origin looking along +z: a ray at polar angle theta lands at
+/// radius r = theta / half_fov * min(width, height) / 2 pixels from the image centre.
+///
+/// Kannala-Brandt intrinsics follow OpenCV's cv::fisheye convention exactly (skew alpha = 0),
+/// pixel centres at integer coordinates, so a calibration is pasted in unchanged; the camera
+/// converts to chromasim's pixel coordinates (pixel (i, j) covers [i, i+1) x [j, j+1)) by
+/// adding 0.5 px.
 struct CameraParams {
     int width_px = 256;
     int height_px = 256;
-    double half_fov_deg = 84.0; ///< polar angle at the edge of the image circle
+    /// Polar angle of the edge of the field. Equidistant: also the scale (the image circle's
+    /// edge). Kannala-Brandt: rays beyond it are not imaged, and theta_d(theta) must increase
+    /// up to it.
+    double half_fov_deg = 84.0;
+    CameraModel model = CameraModel::equidistant;
+    // Kannala-Brandt only (OpenCV's K and D): focal lengths and principal point in px.
+    double fx_px = 0.0; ///< K(0, 0); > 0
+    double fy_px = 0.0; ///< K(1, 1); > 0
+    double cx_px = 0.0; ///< K(0, 2), OpenCV convention (centre of the first pixel = 0)
+    double cy_px = 0.0; ///< K(1, 2), OpenCV convention
+    /// D = (k1, k2, k3, k4): theta_d = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 +
+    /// k4 theta^8), theta in radians.
+    double k1 = 0.0, k2 = 0.0, k3 = 0.0, k4 = 0.0;
+    /// Camera pose in the dome frame (both models): p_dome = position + R p_camera with
+    /// R = Rz(yaw) Ry(pitch) Rx(roll), as mechanics' rotation_from_roll_pitch_yaw_deg (roll
+    /// about x first, then pitch about y, then yaw about z, all fixed axes).
+    Vec3 position_mm = Vec3::Zero();
+    double roll_deg = 0.0, pitch_deg = 0.0, yaw_deg = 0.0;
 };
 
 /// Linear-RGB optical properties. Values are [G] defaults documented in the spec schema.

@@ -1,6 +1,7 @@
 // Spec files: the committed quickstart validates, defaults fill, every class of bad input is
 // rejected with FILE:LINE:COL, key, value and what is allowed, and the resolved YAML is a
 // deterministic, exact round trip.
+#include "generators/sensor_bridge.hpp"
 #include "generators/spec.hpp"
 #include "generators/spec_schema.hpp"
 
@@ -8,6 +9,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <numbers>
 #include <sstream>
 
 using namespace chromasim::generators;
@@ -131,7 +133,7 @@ TEST_CASE("the schema is well formed", "[generators][spec]") {
         CHECK(!e.doc.empty());
         CHECK(find_schema_entry(e.key) == &e); // keys are unique
         const std::string text = value_to_yaml(e.default_value, e.type);
-        if (e.type == ValueType::Rgb) {
+        if (e.type == ValueType::Rgb || e.type == ValueType::Vec3) {
             for (double c : std::get<Rgb>(e.default_value))
                 CHECK(e.range.contains(c));
         } else {
@@ -308,6 +310,54 @@ TEST_CASE("a spec that enables no output is rejected", "[generators][spec]") {
           "enables no output; allowed: at least one of outputs.images, outputs.labels, "
           "outputs.markers is true");
     CHECK_FALSE(parse_spec("outputs: {images: false, labels: false}\n", "ok.yaml").outputs.images);
+}
+
+TEST_CASE("the camera keys reach the renderer's camera", "[generators][spec]") {
+    using chromasim::render::CameraModel;
+    constexpr double kHalfFov_rad = 84.0 * std::numbers::pi / 180.0;
+    SECTION("equidistant at the dome centre by default") {
+        const chromasim::render::CameraParams c = camera_params(parse_spec("name: x\n", "ok.yaml"));
+        CHECK(c.model == CameraModel::equidistant);
+        CHECK(c.half_fov_deg == 84.0);
+        CHECK(c.position_mm == chromasim::render::Vec3::Zero());
+        CHECK((c.roll_deg == 0.0 && c.pitch_deg == 0.0 && c.yaw_deg == 0.0));
+    }
+    SECTION("Kannala-Brandt: a 0 takes the equidistant camera's value") {
+        const Spec spec = parse_spec("render: {width_px: 200, height_px: 160}\n"
+                                     "sensor:\n  camera:\n    model: kannala_brandt\n"
+                                     "    fx_px: 300\n    cy_px: 120.25\n    k1: 0.02\n"
+                                     "    k4: -0.001\n    position_mm: [0.5, -1, 2]\n"
+                                     "    yaw_deg: 30\n",
+                                     "ok.yaml");
+        const chromasim::render::CameraParams c = camera_params(spec);
+        CHECK(c.model == CameraModel::kannala_brandt);
+        CHECK(c.fx_px == 300.0);
+        CHECK(c.fy_px == Approx(80.0 / kHalfFov_rad).epsilon(1e-14)); // min(w, h) / 2 / half_fov
+        CHECK(c.cx_px == 99.5); // the image centre, OpenCV convention
+        CHECK(c.cy_px == 120.25);
+        CHECK((c.k1 == 0.02 && c.k2 == 0.0 && c.k3 == 0.0 && c.k4 == -0.001));
+        CHECK(c.position_mm == chromasim::render::Vec3(0.5, -1.0, 2.0));
+        CHECK(c.yaw_deg == 30.0);
+    }
+    SECTION("a position is a list of 3 numbers") {
+        CHECK(error_of("sensor:\n  camera:\n    position_mm: [0, 1]\n") ==
+              "bad.yaml:3:18: sensor.camera.position_mm: value '[0, 1]' has 2 items; allowed: "
+              "list of 3 numbers, each in [-10, 10] (mm)");
+    }
+    SECTION("a distortion that folds back within the field is rejected before any work") {
+        CHECK_THAT(error_of("sensor:\n  camera: {model: kannala_brandt, k1: -0.5}\n"),
+                   StartsWith("bad.yaml:2:3: sensor.camera: value '{half_fov_deg: 84.0, model: "
+                              "kannala_brandt, fx_px: 0.0, ") &&
+                       Contains("k1: -0.5, ") &&
+                       Contains("' has k1..k4 whose theta_d(theta) stops increasing before "
+                                "half_fov_deg, so pixels cannot be mapped back to rays; allowed: "
+                                "k1..k4 with 1 + 3 k1 t^2 + 5 k2 t^4"));
+        // The same lens over a field it covers, and the equidistant model, which ignores k.
+        CHECK_NOTHROW(parse_spec("sensor:\n  camera: {model: kannala_brandt, k1: -0.5, "
+                                 "half_fov_deg: 40}\n",
+                                 "ok.yaml"));
+        CHECK_NOTHROW(parse_spec("sensor:\n  camera: {k1: -0.5}\n", "ok.yaml"));
+    }
 }
 
 TEST_CASE("a spec file that cannot be read names its path", "[generators][spec]") {
