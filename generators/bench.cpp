@@ -56,10 +56,19 @@ LevelRow bench_level(const std::string& level, const DomeBenchOptions& o) {
                                                    : mechanics::Volumetric::nodal_average;
     options.material = o.material == "neo_hookean" ? mechanics::MaterialModel::neo_hookean
                                                    : mechanics::MaterialModel::linear;
+    using Interior = mechanics::DomeModelOptions::Interior;
+    options.interior = o.interior == "rigid_core"  ? Interior::rigid_core
+                       : o.interior == "soft_fill" ? Interior::soft_fill
+                                                   : Interior::hollow;
+    options.fill.E_MPa = o.fill_E_MPa;
     const mechanics::DomeModel model(options);
     LevelRow row{level, model.stats()};
-    row.volume_error =
-        mechanics::mesh_volume(model.mesh()) / mechanics::dome_layer_volume(options.dome) - 1.0;
+    const double fill_volume = options.interior == Interior::soft_fill
+                                   ? mechanics::dome_layer_volume(options.dome, mechanics::kFill)
+                                   : 0.0;
+    row.volume_error = mechanics::mesh_volume(model.mesh()) /
+                           (mechanics::dome_layer_volume(options.dome) + fill_volume) -
+                       1.0;
     const mechanics::ContactLoad load{o.normal_force_N, {o.tangential_force_N, 0.0}, o.mu};
     row.frame_labels_ms = 1e3 * time_median(o.repeats, [&] { model.solve(load, {}); });
     row.frame_fields_ms = 1e3 * time_median(o.repeats, [&] {
@@ -99,6 +108,8 @@ void bench_dome(const DomeBenchOptions& o, std::ostream& out) {
     const LevelRow& ref = rows.back();
     out << "dome under a flat, P = " << o.normal_force_N << " N, Q = " << o.tangential_force_N
         << " N, mu = " << o.mu << ", material " << o.material << ", volumetric " << o.volumetric
+        << ", interior " << o.interior
+        << (o.interior == "soft_fill" ? " (E " + std::to_string(o.fill_E_MPa) + " MPa)" : "")
         << "; reference level: " << ref.level << "; a frame from rest follows the default "
         << "load path (4 normal + 4 tangential steps), median of " << o.repeats
         << "; a trial frame is one step from the previous frame (" << o.trial_frames

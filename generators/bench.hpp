@@ -16,6 +16,8 @@ struct DomeBenchOptions {
     std::string volumetric = "nodal_average"; ///< nodal_average | element
     std::string material = "linear";          ///< linear | neo_hookean
     int trial_frames = 40; ///< frames of the timed trial (a quarter pressing, then pulling)
+    std::string interior = "hollow"; ///< hollow | rigid_core | soft_fill
+    double fill_E_MPa = 0.05;        ///< soft fill's Young's modulus
 };
 
 /// Mesh level vs accuracy and time: nodes, tets, meshed volume error, precompute breakdown,

@@ -124,10 +124,12 @@ void hertz_cases(const std::string& level, const std::string& volumetric, double
         const mechanics::HertzSolution h = mechanics::hertz(P, kRadius_mm, E, nu);
         const mechanics::ContactFit fit =
             mechanics::fit_hertz_profile(block.candidate_positions(), block.candidate_areas(), s);
-        // The block is clamped at its base: Hertz's approach less the half-space settlement
-        // below that depth (Boussinesq) is what it can show.
+        // With the half-space far field on its boundary the block shows Hertz's approach;
+        // clamped at its base, Hertz's approach less the settlement below that depth.
         const double delta_ref =
-            h.delta_mm - mechanics::boussinesq_axis_displacement(P, E, nu, params.depth_mm);
+            params.far_field
+                ? h.delta_mm
+                : h.delta_mm - mechanics::boussinesq_axis_displacement(P, E, nu, params.depth_mm);
         const std::size_t first = out.size();
         out.push_back(make_case("hertz_a", level, volumetric, P, nu, fit.a_mm, h.a_mm, 0.03));
         out.push_back(

@@ -1,5 +1,6 @@
 #include "mechanics/block_model.hpp"
 
+#include "mechanics/half_space.hpp"
 #include "mechanics/stopwatch.hpp"
 #include "mechanics/tetgen_adapter.hpp"
 
@@ -57,7 +58,7 @@ BlockParams block_level(const std::string& name) {
     else if (name == "medium")
         p.fine_spacing_mm = 0.25;
     else if (name == "fine")
-        p.fine_spacing_mm = 0.16;
+        p.fine_spacing_mm = 0.2;
     else
         throw std::invalid_argument("unknown block level '" + name +
                                     "'; allowed: coarse, medium, fine");
@@ -70,6 +71,7 @@ struct BlockModel::Impl {
     Points candidate_X;
     std::vector<double> candidate_area;
     std::unique_ptr<ElasticBody> body;
+    Eigen::MatrixXd compliance; ///< the body's, plus the far field's rank-3 part
     BlockStats stats;
 };
 
@@ -95,8 +97,11 @@ BlockModel::BlockModel(const BlockParams& params) : m_impl(std::make_unique<Impl
     std::vector<int> candidates;
     std::vector<bool> clamped(std::size_t(m.mesh.V.rows()));
     const double r_max = params.contact_radius_mm;
+    const double side = params.half_width_mm * (1 - 1e-12);
     for (int v = 0; v < m.mesh.V.rows(); ++v) {
-        clamped[std::size_t(v)] = m.mesh.V(v, 2) <= -params.depth_mm + 1e-9;
+        const bool on_side = std::abs(m.mesh.V(v, 0)) >= side || std::abs(m.mesh.V(v, 1)) >= side;
+        clamped[std::size_t(v)] =
+            m.mesh.V(v, 2) <= -params.depth_mm + 1e-9 || (params.far_field && on_side);
         const double r2 = m.mesh.V(v, 0) * m.mesh.V(v, 0) + m.mesh.V(v, 1) * m.mesh.V(v, 1);
         if (area[v] > 0 && r2 <= r_max * r_max) {
             candidates.push_back(v);
@@ -111,6 +116,30 @@ BlockModel::BlockModel(const BlockParams& params) : m_impl(std::make_unique<Impl
     m.body = std::make_unique<ElasticBody>(m.mesh, std::vector<Material>{params.material}, clamped,
                                            candidates, std::vector<int>{}, Embedding{},
                                            params.volumetric);
+    m.compliance = m.body->compliance();
+    if (params.far_field) {
+        // Per unit total force along x, y, z: the boundary takes the half-space field, the
+        // inside follows (K_ff u_f = -K_fc u_c); the candidates' displacement R_b is then
+        // added to every column of force component b.
+        const Eigen::SparseMatrix<double> K =
+            assemble_stiffness(m.mesh, {params.material}, params.volumetric);
+        for (int b = 0; b < 3; ++b) {
+            Eigen::VectorXd u_boundary = Eigen::VectorXd::Zero(3 * m.mesh.V.rows());
+            for (int v = 0; v < m.mesh.V.rows(); ++v)
+                if (clamped[std::size_t(v)])
+                    u_boundary.segment<3>(3 * v) =
+                        half_space_green(m.mesh.V.row(v).transpose(), params.material.E_MPa,
+                                         params.material.nu)
+                            .col(b);
+            const Eigen::VectorXd u = m.body->solve(-(K * u_boundary)) + u_boundary;
+            for (std::size_t i = 0; i < candidates.size(); ++i)
+                for (int a = 0; a < 3; ++a) {
+                    const double r = u(3 * candidates[i] + a);
+                    for (std::size_t j = 0; j < candidates.size(); ++j)
+                        m.compliance(3 * Eigen::Index(i) + a, 3 * Eigen::Index(j) + b) += r;
+                }
+        }
+    }
     m.stats.precompute_s = seconds_since(t0);
 }
 
@@ -119,7 +148,7 @@ BlockModel::~BlockModel() = default;
 ContactSolution BlockModel::solve(const ContactLoad& load, const ObjectShape& object,
                                   const LoadPath& path, const ContactSolution* previous,
                                   const ContactOptions& options) const {
-    return solve_contact_path(m_impl->body->compliance(), object, m_impl->candidate_X, load, path,
+    return solve_contact_path(m_impl->compliance, object, m_impl->candidate_X, load, path,
                               previous, options);
 }
 

@@ -37,6 +37,7 @@ struct ElasticBody::Impl {
     Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> solver;
     mutable std::mutex solver_mutex; ///< CHOLMOD's solve shares one workspace
     ElasticBodyResponses responses;
+    Eigen::MatrixXd field_responses; ///< 3 #V x 3n, on demand (candidate_field_responses)
     ElasticBodyStats stats;
 
     Impl(const TetMesh& m, const std::vector<Material>& mat, const std::vector<bool>& fixed,
@@ -181,6 +182,28 @@ Eigen::VectorXd ElasticBody::solve(const Eigen::VectorXd& f_full) const {
     for (std::size_t d = 0; d < m.free_of_dof.size(); ++d)
         if (m.free_of_dof[d] >= 0) u(Eigen::Index(d)) = u_free(m.free_of_dof[d]);
     return u;
+}
+
+const Eigen::MatrixXd& ElasticBody::candidate_field_responses() const {
+    Impl& m = *m_impl;
+    const std::lock_guard<std::mutex> lock(m.solver_mutex);
+    if (m.field_responses.size() > 0) return m.field_responses;
+    if (!m.factorized) m.factorize();
+    const int nc = 3 * int(m.candidates.size());
+    Eigen::MatrixXd out = Eigen::MatrixXd::Zero(Eigen::Index(m.free_of_dof.size()), nc);
+    constexpr int kBlock = 256;
+    for (int c0 = 0; c0 < nc; c0 += kBlock) {
+        const int c1 = std::min(nc, c0 + kBlock);
+        Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(m.stats.free_dofs, c1 - c0);
+        for (int c = c0; c < c1; ++c)
+            rhs(m.free_of_dof[3 * m.candidates[c / 3] + c % 3], c - c0) = 1;
+        const Eigen::MatrixXd u = m.solver.solve(rhs);
+        for (std::size_t d = 0; d < m.free_of_dof.size(); ++d)
+            if (m.free_of_dof[d] >= 0)
+                out.row(Eigen::Index(d)).segment(c0, c1 - c0) = u.row(m.free_of_dof[d]);
+    }
+    m.field_responses = std::move(out);
+    return m.field_responses;
 }
 
 Points ElasticBody::full_displacement(const Eigen::Ref<const Points>& forces_N,

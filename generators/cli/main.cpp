@@ -86,6 +86,10 @@ int main(int argc, char** argv) {
         ->check(CLI::IsMember({"nodal_average", "element"}));
     bench_dome->add_option("--repeat", dome_bench.repeats, "timed frames per level")
         ->check(CLI::Range(1, 1000));
+    bench_dome->add_option("--interior", dome_bench.interior, "inside the dome")
+        ->check(CLI::IsMember({"hollow", "rigid_core", "soft_fill"}));
+    bench_dome->add_option("--fill-E", dome_bench.fill_E_MPa, "soft fill's Young's modulus, MPa")
+        ->check(CLI::Range(1e-6, 1000.0));
     gen::RenderBenchOptions render_bench;
     auto* bench_render = bench->add_subcommand("render", "samples per pixel vs error and time");
     bench_render->add_option("--spp", render_bench.samples_per_pixel, "samples per pixel")

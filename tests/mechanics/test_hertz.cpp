@@ -40,8 +40,7 @@ TEST_CASE("sphere on a near-incompressible block (nu = 0.49): Hertz a, approach,
         REQUIRE(fit.nodes_used > 20);
         CHECK(fit.a_mm == Approx(h.a_mm).epsilon(0.03));
         CHECK(fit.p0_MPa == Approx(h.p0_MPa).epsilon(0.05));
-        const double delta_ref = h.delta_mm - boussinesq_axis_displacement(P, 1.0, nu, 40.0);
-        CHECK(s.indentation_mm == Approx(delta_ref).epsilon(0.03));
+        CHECK(s.indentation_mm == Approx(h.delta_mm).epsilon(0.03)); // far field: no correction
     }
     // Cattaneo-Mindlin: normal load frictionless, then Q at Q / (mu P) = 0.25, 0.5, 0.75.
     const double P = 1.0, mu = 0.5;
