@@ -294,19 +294,19 @@ void add_object_and_protocol(std::vector<SchemaEntry>& out) {
                        "and a 40 mm plate).",
                        CHROMASIM_FIELD(object.mesh_file)));
     out.push_back(number("object.offset_x_mm", 0, closed(-20, 20), "mm",
-                         "Mesh object: x of its frame's origin in the sensor frame.",
+                         "Mesh: x of its frame's origin; sphere: x of its axis; flat: no effect (sensor frame).",
                          CHROMASIM_FIELD(object.offset_x_mm)));
     out.push_back(number("object.offset_y_mm", 0, closed(-20, 20), "mm",
-                         "Mesh object: y of its frame's origin in the sensor frame.",
+                         "Mesh: y of its frame's origin; sphere: y of its axis; flat: no effect (sensor frame).",
                          CHROMASIM_FIELD(object.offset_y_mm)));
     out.push_back(number("object.roll_deg", 0, closed(-180, 180), "deg",
-                         "Mesh object: rotation about the sensor's x axis (applied first).",
+                         "Mesh or flat (tilts it): rotation about the sensor's x axis, applied first; a sphere is unchanged.",
                          CHROMASIM_FIELD(object.roll_deg)));
     out.push_back(number("object.pitch_deg", 0, closed(-180, 180), "deg",
-                         "Mesh object: rotation about the sensor's y axis (applied second).",
+                         "Mesh or flat (tilts it): rotation about the sensor's y axis, applied second.",
                          CHROMASIM_FIELD(object.pitch_deg)));
     out.push_back(number("object.yaw_deg", 0, closed(-180, 180), "deg",
-                         "Mesh object: rotation about the sensor's z axis (applied last).",
+                         "Mesh: rotation about the sensor's z axis, applied last (a flat or sphere is unchanged).",
                          CHROMASIM_FIELD(object.yaw_deg)));
     out.push_back(number("object.radius_mm", 45, left_open(0, 1e4), "mm",
                          "Sphere radius (seed 000's curved object: 45 mm); unused for a flat.",
@@ -406,7 +406,22 @@ std::vector<SchemaRule> build_rules() {
     camera.allowed = "k1..k4 with 1 + 3 k1 t^2 + 5 k2 t^4 + 7 k3 t^6 + 9 k4 t^8 > 0 for every "
                      "polar angle t (rad) up to half_fov_deg, or a smaller half_fov_deg (the "
                      "field the calibration covers)";
-    return {outputs, mesh, camera};
+    SchemaRule tilt;
+    tilt.key = "object.pitch_deg";
+    tilt.holds = [](const Spec& s) {
+        if (s.object.shape != "flat") return true;
+        // A plane tilted by t touches the dome at polar angle t: it must stay in the cap.
+        const double deg = std::numbers::pi / 180;
+        const double cos_tilt =
+            std::cos(s.object.roll_deg * deg) * std::cos(s.object.pitch_deg * deg);
+        return cos_tilt > std::cos((s.sensor.contact_candidate_angle_deg - 5) * deg);
+    };
+    tilt.problem = "with object.roll_deg tilts the flat object to within 5 deg of "
+                   "sensor.contact_candidate_angle_deg or beyond (the contact would leave the "
+                   "cap of nodes that may touch)";
+    tilt.allowed = "a tilt acos(cos(roll) cos(pitch)) below sensor.contact_candidate_angle_deg "
+                   "- 5 deg (30 deg by default)";
+    return {outputs, mesh, camera, tilt};
 }
 
 // ---- Converting scalar text -----------------------------------------------------------------

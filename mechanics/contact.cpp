@@ -31,6 +31,8 @@ object_gap(const ObjectShape& object,
             return z ? *z : kUnreachable_mm;
         }
         if (object.kind != ObjectShape::Kind::sphere) return 0.0;
+        x -= object.offset_mm.x();
+        y -= object.offset_mm.y();
         const double R = object.radius_mm, r2 = x * x + y * y;
         return r2 < R * R ? R - std::sqrt(R * R - r2) : kUnreachable_mm;
     };

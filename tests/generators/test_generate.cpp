@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <numbers>
 #include <sstream>
 #include <vector>
 
@@ -293,4 +294,56 @@ TEST_CASE("a displacement-controlled pull (seed 001's sliding plate): the object
     CHECK(last_ft == Approx(0.5 * 1.2).epsilon(1e-3));
     CHECK(num(rows.back(), "sliding") == 1.0);
     CHECK(num(rows.back(), "gamma") == 0.0);
+}
+
+namespace {
+/// Centroid (x, y) of the nodal normal forces of a frame, mm.
+Eigen::Vector2d force_centroid(const chromasim::mechanics::DomeModel& model,
+                               const chromasim::mechanics::FrameResult& r) {
+    Eigen::Vector2d c = Eigen::Vector2d::Zero();
+    double total = 0;
+    for (int j : r.contact.active) {
+        const double f = -r.contact.forces_N(j, 2);
+        const int node = model.candidate_nodes()[std::size_t(j)];
+        c += f * model.mesh().V.row(node).head<2>().transpose();
+        total += f;
+    }
+    return c / total;
+}
+} // namespace
+
+TEST_CASE("object poses reach the mechanics: an offset sphere and a tilted flat touch off "
+          "the apex where geometry says",
+          "[generators][object]") {
+    using namespace chromasim;
+    const Spec base = parse_spec("name: pose\n", "pose.yaml");
+    const mechanics::DomeModel model(dome_options(base));
+    const mechanics::ContactLoad load{0.5, {0, 0}, 0.8};
+
+    Spec sphere = parse_spec("object:\n  shape: sphere\n  offset_x_mm: 3\n", "pose.yaml");
+    // First touch on the line between the centres: polar angle asin(3 / (13.2 + 45)).
+    const mechanics::FrameResult s = model.solve(load, {}, object_shape(sphere));
+    REQUIRE(s.contact.converged);
+    const Eigen::Vector2d cs = force_centroid(model, s);
+    CHECK(cs.x() == Approx(13.2 * 3 / 58.2).margin(0.05));
+    CHECK(std::abs(cs.y()) < 0.25);
+
+    // A flat pitched by 20 deg (about y, counter-clockwise) faces along -z rotated to
+    // (-sin 20, 0, -cos 20): it touches the dome where the dome's normal is opposite,
+    // at polar angle 20 deg on the +x side.
+    const Spec flat = parse_spec("object:\n  shape: flat\n  pitch_deg: 20\n", "pose.yaml");
+    const mechanics::ObjectShape tilted = object_shape(flat);
+    CHECK(tilted.kind == mechanics::ObjectShape::Kind::mesh);
+    const mechanics::FrameResult f = model.solve(load, {}, tilted);
+    REQUIRE(f.contact.converged);
+    const Eigen::Vector2d cf = force_centroid(model, f);
+    CHECK(cf.x() == Approx(13.2 * std::sin(20 * std::numbers::pi / 180)).margin(0.2));
+    CHECK(std::abs(cf.y()) < 0.25);
+    // An untilted flat stays the analytic plane whatever its offset and yaw.
+    CHECK(object_shape(parse_spec("object:\n  offset_x_mm: 5\n  yaw_deg: 30\n", "pose.yaml"))
+              .kind == mechanics::ObjectShape::Kind::flat);
+    // A tilt that would leave the contact cap is refused when the spec is read.
+    CHECK_THROWS_WITH(parse_spec("object:\n  shape: flat\n  roll_deg: 32\n", "pose.yaml"),
+                      Catch::Contains("object.pitch_deg") &&
+                          Catch::Contains("sensor.contact_candidate_angle_deg"));
 }
