@@ -16,18 +16,33 @@ render::Vec3 vec(const Rgb& c) {
 }
 
 /// Marker discs as triangle fans (centre, rim k, rim k+1), layer `layer` (0 inner, 1 outer).
-void fill_fans(const mechanics::Points& points, int markers, int per_marker, int layer,
-               render::SurfaceMesh& out) {
-    const int rim = per_marker - 1;
-    const int first = layer * markers * per_marker;
-    out.V = points.middleRows(first, Eigen::Index(markers) * per_marker).cast<float>();
-    if (out.F.rows() == Eigen::Index(markers) * rim) return; // topology unchanged
-    out.F.resize(Eigen::Index(markers) * rim, 3);
-    for (int m = 0; m < markers; ++m)
+/// Triangles of one marker prism: its inner and outer faces as fans and the side as quads, all
+/// facing out of the volume (the rims run counter-clockwise about the outward radial n).
+constexpr int kPrismTriangles = 4; // per rim point
+
+/// The closed marker volumes of one layer (MarkerDiscs layout: per marker the mid ring, then
+/// the inner-face and outer-face rings) as a SurfaceMesh of 4 rim triangles per marker.
+void fill_prisms(const mechanics::Points& points, const mechanics::MarkerDiscs& discs, int layer,
+                 render::SurfaceMesh& out) {
+    const int markers = discs.markers_per_layer, rim = discs.rim_points, ring = 1 + rim;
+    const int first = layer * markers * discs.points_per_marker;
+    out.V = points.middleRows(first, Eigen::Index(markers) * discs.points_per_marker)
+                .cast<float>();
+    const Eigen::Index triangles = Eigen::Index(markers) * kPrismTriangles * rim;
+    if (out.F.rows() == triangles) return; // topology unchanged
+    out.F.resize(triangles, 3);
+    Eigen::Index f = 0;
+    for (int m = 0; m < markers; ++m) {
+        const auto in = std::uint32_t(m * discs.points_per_marker + ring); // inner-face centre
+        const auto outer = in + std::uint32_t(ring);                      // outer-face centre
         for (int k = 0; k < rim; ++k) {
-            const std::uint32_t c = std::uint32_t(m * per_marker);
-            out.F.row(m * rim + k) << c, c + 1 + k, c + 1 + (k + 1) % rim;
+            const std::uint32_t a = 1 + std::uint32_t(k), b = 1 + std::uint32_t((k + 1) % rim);
+            out.F.row(f++) << in, in + b, in + a;          // faces -n
+            out.F.row(f++) << outer, outer + a, outer + b; // faces +n
+            out.F.row(f++) << in + a, in + b, outer + b;   // side, faces outwards
+            out.F.row(f++) << in + a, outer + b, outer + a;
         }
+    }
 }
 } // namespace
 
@@ -47,6 +62,7 @@ mechanics::DomeModelOptions dome_options(const Spec& spec) {
     o.materials = {material(spec.sensor.inner_marker_layer), material(spec.sensor.clear_layer),
                    material(spec.sensor.outer_marker_layer), material(spec.sensor.coating)};
     o.contact_candidate_angle_deg = spec.sensor.contact_candidate_angle_deg;
+    o.dome.marker_thickness_mm = spec.sensor.marker_thickness_mm;
     return o;
 }
 
@@ -115,7 +131,6 @@ render::OpticsParams optics_params(const Spec& spec) {
     o.led_ring_radius_mm = spec.sensor.led_ring_radius_mm;
     o.led_z_mm = spec.sensor.led_z_mm;
     o.led_rgb = vec(spec.sensor.led_rgb);
-    o.marker_thickness_mm = spec.sensor.marker_thickness_mm;
     o.exposure = spec.render.exposure;
     return o;
 }
@@ -134,11 +149,9 @@ void fill_sensor_frame(const mechanics::DomeModel& model, const mechanics::Frame
     }
     if (out.coating.F.rows() != coating.F.rows()) out.coating.F = coating.F.cast<std::uint32_t>();
     const mechanics::MarkerDiscs& discs = model.markers();
-    fill_fans(frame.marker_points_mm, discs.markers_per_layer, discs.points_per_marker, 0,
-              out.inner_markers);
-    fill_fans(frame.marker_points_mm, discs.markers_per_layer, discs.points_per_marker, 1,
-              out.outer_markers);
-    out.triangles_per_marker = discs.points_per_marker - 1;
+    fill_prisms(frame.marker_points_mm, discs, 0, out.inner_markers);
+    fill_prisms(frame.marker_points_mm, discs, 1, out.outer_markers);
+    out.triangles_per_marker = kPrismTriangles * discs.rim_points;
 }
 
 } // namespace chromasim::generators

@@ -258,9 +258,10 @@ void add_sensor_optics(std::vector<SchemaEntry>& out) {
     out.push_back(rgb("sensor.led.rgb", {1.0, 1.0, 1.0}, closed(0, 100), "",
                       "Relative emission of each LED, linear RGB (white) [G].",
                       CHROMASIM_FIELD(sensor.led_rgb)));
-    out.push_back(number("sensor.optics.marker_thickness_mm", 0.5, left_open(0, 2), "mm",
-                         "Thickness of the marker discs, the Beer-Lambert path at normal "
-                         "incidence [K].",
+    out.push_back(number("sensor.optics.marker_thickness_mm", 0.5, left_open(0, 0.5), "mm",
+                         "Thickness of the marker discs [K]: closed volumes deformed with the "
+                         "mesh, at most 98 % of their layer's 0.5 mm; light is absorbed over "
+                         "its path inside.",
                          CHROMASIM_FIELD(sensor.marker_thickness_mm)));
     out.push_back(rgb("sensor.optics.coating_albedo", {0.85, 0.85, 0.85}, closed(0, 1), "",
                       "Diffuse albedo of the white coating, linear RGB [G].",

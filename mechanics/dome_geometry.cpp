@@ -86,18 +86,29 @@ double azimuth(const Eigen::Vector3d& d) {
     return a < 0 ? a + 2 * kPi : a;
 }
 
-/// Triangulates the band between two rings (indices into a vertex list) by merging them in
-/// azimuth order: the classic "zipper" of two closed polylines.
-void zip_rings(const std::vector<int>& a, const std::vector<int>& b,
+/// Triangulates the band between two rings (indices into a vertex list, each counter-
+/// clockwise about +z) by merging them in azimuth order: the classic "zipper" of two closed
+/// polylines. Azimuths are unwrapped from ring a's first vertex, and ring b is walked from its
+/// first vertex at or after it, so no band crosses the seam where azimuths wrap at 2 pi.
+void zip_rings(const std::vector<int>& a, const std::vector<int>& b_ring,
                const std::vector<Eigen::Vector3d>& dirs, std::vector<std::array<int, 3>>& out) {
+    const double ref = azimuth(dirs[std::size_t(a[0])]);
+    auto rel = [&](int v) { // azimuth from a[0], in [0, 2 pi)
+        const double t = std::fmod(azimuth(dirs[std::size_t(v)]) - ref + 4 * kPi, 2 * kPi);
+        return t >= 2 * kPi ? 0.0 : t;
+    };
+    std::size_t start = 0;
+    for (std::size_t k = 1; k < b_ring.size(); ++k)
+        if (rel(b_ring[k]) < rel(b_ring[start])) start = k;
+    std::vector<int> b(b_ring.begin() + std::ptrdiff_t(start), b_ring.end());
+    b.insert(b.end(), b_ring.begin(), b_ring.begin() + std::ptrdiff_t(start));
     std::size_t i = 0, j = 0;
     const std::size_t na = a.size(), nb = b.size();
-    auto angle = [&](int v, std::size_t k, std::size_t n) {
-        return azimuth(dirs[v]) + (k >= n ? 2 * kPi : 0.0);
-    };
+    auto angle_a = [&](std::size_t k) { return k >= na ? 2 * kPi : rel(a[k]); };
+    auto angle_b = [&](std::size_t k) { return k >= nb ? 2 * kPi + rel(b[0]) : rel(b[k]); };
     while (i < na || j < nb) {
-        const double ta = angle(a[(i + 1) % na], i + 1, na);
-        const double tb = angle(b[(j + 1) % nb], j + 1, nb);
+        const double ta = angle_a(i + 1);
+        const double tb = angle_b(j + 1);
         if (j >= nb || (i < na && ta < tb)) {
             out.push_back({a[i % na], b[j % nb], a[(i + 1) % na]});
             ++i;
@@ -234,30 +245,76 @@ std::vector<Eigen::Vector3d> marker_directions(const DomeParams& dome) {
     return dirs;
 }
 
-MarkerDiscs marker_discs(const DomeParams& dome) {
+std::vector<double> marker_face_margins_mm(const DomeParams& dome, const TetMesh& mesh) {
+    const auto dirs = marker_directions(dome);
+    std::vector<double> margin(2 * dirs.size(), 0.0);
+    // Interfaces bounding each marker layer: inner surface and 1|2; 3|2 and 3|4 (the coating).
+    const std::array<std::array<int, 4>, 4> interfaces{{{kInnerMarkerLayer, -1, 0, 0},
+                                                        {kInnerMarkerLayer, kClearLayer, 1, 0},
+                                                        {kOuterMarkerLayer, kClearLayer, 2, 1},
+                                                        {kOuterMarkerLayer, kCoating, 3, 1}}};
+    for (const auto& [a, b, radius, layer] : interfaces) {
+        const double r = dome.radii_mm[std::size_t(radius)];
+        const double cos_near = std::cos((dome.marker_radius_mm + 1.0) / r);
+        const Triangles F = interface_faces(mesh, a, b);
+        for (int f = 0; f < F.rows(); ++f) {
+            const Eigen::Vector3d v0 = mesh.V.row(F(f, 0)), v1 = mesh.V.row(F(f, 1)),
+                                  v2 = mesh.V.row(F(f, 2));
+            const Eigen::Vector3d n = (v1 - v0).cross(v2 - v0).normalized();
+            const Eigen::Vector3d centre = ((v0 + v1 + v2) / 3).normalized();
+            // Facets of the sphere only (not of the rim plane, where a triangle may also have
+            // its three vertices on the rim circle).
+            if (std::abs(n.dot(centre)) < 0.9) continue;
+            const double sag = r - std::abs(n.dot(v0));
+            for (std::size_t m = 0; m < dirs.size(); ++m)
+                if (dirs[m].dot(centre) >= cos_near) {
+                    double& mm = margin[std::size_t(layer) * dirs.size() + m];
+                    mm = std::max(mm, sag);
+                }
+        }
+    }
+    for (double& m : margin)
+        m += 0.005;
+    return margin;
+}
+
+MarkerDiscs marker_discs(const DomeParams& dome, const std::vector<double>& margin_mm) {
     const auto dirs = marker_directions(dome);
     const int rim = dome.marker_rim_points;
     MarkerDiscs discs;
     discs.markers_per_layer = int(dirs.size());
-    discs.points_per_marker = 1 + rim;
-    discs.points.resize(2 * dirs.size() * std::size_t(1 + rim), 3);
+    discs.rim_points = rim;
+    discs.points_per_marker = 3 * (1 + rim);
+    discs.points.resize(2 * dirs.size() * std::size_t(discs.points_per_marker), 3);
     // Markers sit at mid-thickness of the inner (layer 1) and outer (layer 3) marker layers.
     const double mid[2] = {0.5 * (dome.radii_mm[0] + dome.radii_mm[1]),
                            0.5 * (dome.radii_mm[2] + dome.radii_mm[3])};
+    if (!margin_mm.empty() && margin_mm.size() != 2 * dirs.size())
+        throw std::invalid_argument("marker_discs: one margin per marker needed");
     int row = 0;
-    for (double r : mid)
+    for (int l = 0; l < 2; ++l)
         for (const Eigen::Vector3d& n : dirs) {
+            const std::size_t m = discs.thickness_mm.size();
+            const double layer = dome.radii_mm[2 * l + 1] - dome.radii_mm[2 * l];
+            const double margin = margin_mm.empty() ? 0.005 : margin_mm[m];
+            discs.thickness_mm.push_back(std::min(dome.marker_thickness_mm, layer - 2 * margin));
             // Tangent frame of the sphere at n (any frame: the disc is round).
             const Eigen::Vector3d t1 =
                 (std::abs(n.z()) > 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitZ())
                     .cross(n)
                     .normalized();
-            const Eigen::Vector3d t2 = n.cross(t1);
-            discs.points.row(row++) = r * n;
-            for (int k = 0; k < rim; ++k) {
-                const double a = 2 * kPi * k / rim;
-                discs.points.row(row++) =
-                    r * n + dome.marker_radius_mm * (std::cos(a) * t1 + std::sin(a) * t2);
+            const Eigen::Vector3d t2 = n.cross(t1); // (t1, t2, n) right-handed
+            for (const double offset : {0.0, -0.5, 0.5}) {
+                const double r = mid[l] + offset * discs.thickness_mm[m];
+                discs.points.row(row++) = r * n;
+                // The rim on the sphere of radius r: the tangent-plane circle of the disc's
+                // radius, projected radially (a flat rim would rise 0.01 mm out of its layer).
+                for (int k = 0; k < rim; ++k) {
+                    const double a = 2 * kPi * k / rim;
+                    const Eigen::Vector3d flat =
+                        mid[l] * n + dome.marker_radius_mm * (std::cos(a) * t1 + std::sin(a) * t2);
+                    discs.points.row(row++) = r * flat.normalized();
+                }
             }
         }
     return discs;

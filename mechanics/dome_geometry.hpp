@@ -4,6 +4,7 @@
 #include "mechanics/tet_mesh.hpp"
 
 #include <array>
+#include <vector>
 #include <string>
 #include <vector>
 
@@ -26,7 +27,11 @@ struct DomeParams {
     double ring_step_deg = 12.5;
     int ring_count = 5;
     double marker_radius_mm = 0.5; ///< disc radius (diameter 1.0 mm) [K]
-    int marker_rim_points = 12;    ///< polygon resolution of each disc's rim
+    /// Disc thickness [K]: 0.5 mm, the whole thickness of both marker layers. The faces are
+    /// kept inside the meshed layer (marker_discs' margin), so every face point has a tet of
+    /// its own layer and the outer faces stay off the rendered coating.
+    double marker_thickness_mm = 0.5;
+    int marker_rim_points = 12; ///< polygon resolution of each disc's rim
 };
 
 /// Mesh resolution: named levels map to a target surface edge length and a tet volume bound.
@@ -50,14 +55,31 @@ MeshLevel mesh_level(const std::string& name);
 /// k * step with round(6 sin(k step) / sin(step)) markers each (82 for the default) [K].
 std::vector<Eigen::Vector3d> marker_directions(const DomeParams& dome);
 
-/// The marker discs of both layers, undeformed: for each marker its centre followed by its
-/// `marker_rim_points` rim points (#markers * (1 + rim) x 3, mm). Inner layer first.
+/// The marker discs of both layers as closed thin volumes, undeformed: spherical-shell
+/// sectors (the rims lie on spheres about the dome centre, like the layers). Per marker,
+/// three rings of 1 + rim points (the centre, then the rim counter-clockwise about the
+/// outward radial direction n): mid-thickness, inner face (towards the dome centre), outer
+/// face, so #markers * 3 (1 + rim) rows (mm). Inner layer's markers first. Row
+/// `marker * points_per_marker` is the marker's centre (markers.csv).
 struct MarkerDiscs {
     Points points;
     int markers_per_layer = 0;
-    int points_per_marker = 0;
+    int points_per_marker = 0;   ///< 3 (1 + rim_points)
+    int rim_points = 0;
+    std::vector<double> thickness_mm; ///< face-to-face thickness of each marker as built
+    /// First row of ring `ring` (0 mid, 1 inner face, 2 outer face) of marker `m` (0-based
+    /// over both layers).
+    int ring_row(int m, int ring) const { return m * points_per_marker + ring * (1 + rim_points); }
 };
-MarkerDiscs marker_discs(const DomeParams& dome);
+/// Each face of marker m stays `margin_mm[m]` inside its layer (5 um for all when empty): its
+/// thickness is min(marker_thickness_mm, layer - 2 margin). marker_face_margins_mm gives the
+/// margins for a mesh (its faceted interfaces sag between vertices).
+MarkerDiscs marker_discs(const DomeParams& dome, const std::vector<double>& margin_mm = {});
+
+/// Per marker (both layers, MarkerDiscs order), the margin that keeps its faces inside the
+/// faceted layer of `mesh`: the deepest sag below the spheres (facet plane to sphere) of the
+/// layer's two interfaces within 1 mm of the marker's rim, plus 5 um.
+std::vector<double> marker_face_margins_mm(const DomeParams& dome, const TetMesh& mesh);
 
 /// The layered hemispherical shell as a PLC: five concentric hemispheres sharing one
 /// angular triangulation (edge about `edge_mm` on the outer sphere), annular rim facets in

@@ -75,14 +75,15 @@ std::vector<Material> material_list(const DomeModelOptions& o) {
 
 /// Everything the cached mesh and responses depend on, as text, hashed into the cache key.
 std::uint64_t cache_key(const DomeModelOptions& o) {
-    std::string text = "chromasim " CHROMASIM_VERSION " dome-model-cache 1\n";
+    std::string text = "chromasim " CHROMASIM_VERSION " dome-model-cache 2\n";
     char buf[128];
     for (double r : o.dome.radii_mm) {
         std::snprintf(buf, sizeof buf, "radius %.17g\n", r);
         text += buf;
     }
-    std::snprintf(buf, sizeof buf, "rings %.17g %d %.17g %d\n", o.dome.ring_step_deg,
-                  o.dome.ring_count, o.dome.marker_radius_mm, o.dome.marker_rim_points);
+    std::snprintf(buf, sizeof buf, "rings %.17g %d %.17g %d %.17g\n", o.dome.ring_step_deg,
+                  o.dome.ring_count, o.dome.marker_radius_mm, o.dome.marker_rim_points,
+                  o.dome.marker_thickness_mm);
     text += buf;
     for (const Material& m : o.materials) {
         std::snprintf(buf, sizeof buf, "material %.17g %.17g\n", m.E_MPa, m.nu);
@@ -118,7 +119,7 @@ void DomeModel::Impl::build_mesh() {
 }
 
 void DomeModel::Impl::derive_from_mesh() {
-    markers = marker_discs(options.dome);
+    markers = marker_discs(options.dome, marker_face_margins_mm(options.dome, mesh));
     coating = make_patch(interface_faces(mesh, kCoating, kOuterMarkerLayer));
     stats.nodes = int(mesh.V.rows());
     stats.tets = int(mesh.T.rows());

@@ -15,21 +15,23 @@
 // hit, then again from kHitGap_mm past it, at most kMaxHits surfaces), with an RGB throughput that
 // starts at 1. Normals are the triangles' geometric normals turned to face the camera ray,
 // so triangle winding never matters; cos is the cosine between ray and that normal.
-//   - inner marker (magenta, translucent filter): throughput *= exp(-a_in * L),
-//     L = marker_thickness_mm / |cos|, at most kMaxMarkerPath_mm (2 mm) for grazing rays.
-//   - outer marker (cyan, dyed scatterer): radiance += throughput * s * albedo_out / pi * E(p);
-//     then throughput *= (1 - s) * exp(-a_out * L). s = outer_marker_scatter_fraction.
+//   - markers are closed volumes (prisms deformed with the FE mesh, faces wound outwards):
+//     a hit against a face's normal enters, along it leaves; on leaving (or where the ray
+//     stops inside) throughput *= exp(-a * L), L the distance travelled inside, so grazing
+//     rays take the real chord and a ray starting inside counts from its start.
+//   - inner marker (magenta, translucent filter): absorption a_in only.
+//   - outer marker (cyan, dyed scatterer), on entering: radiance += throughput * s *
+//     albedo_out / pi * E(p); throughput *= (1 - s). s = outer_marker_scatter_fraction.
 //   - coating (white, Lambertian): radiance += throughput * albedo_coat / pi * E(p); stop.
 //   - miss: stop (black).
-// Markers are thin discs (triangle fans), so one hit stands for the whole disc thickness.
 //
 // Irradiance. E(p) = sum over the led_count point LEDs (evenly on a ring of radius
 // led_ring_radius_mm at height led_z_mm, the first on +x, each emitting led_rgb with a
 // Lambertian (cosine) pattern about +z):
 //     I * max(0, cos_emit) * max(0, cos_surface) / d^2 * T(LED -> p),
 // where T multiplies, along the shadow segment (iterated Embree hits, stopping kHitGap_mm
-// before p), exp(-a_in * L) for each inner marker crossed, (1 - s) * exp(-a_out * L) for each
-// outer marker, and 0 if the coating is in the way (a deep indentation shadowing itself).
+// before p), exp(-a * L) for the path L inside each marker crossed, (1 - s) for each outer
+// marker entered, and 0 if the coating is in the way (a deep indentation shadowing itself).
 // Light scattered between surfaces (coating -> marker -> coating) is left out.
 //
 // Exposure. Computed once per Renderer from OpticsParams and the undeformed geometry: the

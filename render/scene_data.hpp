@@ -29,9 +29,10 @@ struct SurfaceMesh {
 struct SensorFrame {
     /// Inner face of the white diffusing coating (the background the camera sees).
     SurfaceMesh coating;
-    /// All marker discs of the inner (magenta filter) layer, each a triangle fan of
-    /// `triangles_per_marker` consecutive triangles: marker index = triangle /
-    /// triangles_per_marker.
+    /// All markers of the inner (magenta filter) layer, each a closed thin volume (a prism
+    /// deformed with the FE mesh) of `triangles_per_marker` consecutive triangles whose
+    /// normals (by winding) point out of the volume: marker index = triangle /
+    /// triangles_per_marker. Light inside a volume is absorbed over the distance it travels.
     SurfaceMesh inner_markers;
     /// Same for the outer (cyan, scattering) layer.
     SurfaceMesh outer_markers;
@@ -86,7 +87,6 @@ struct OpticsParams {
     Vec3 outer_marker_absorption_per_mm{3.0, 0.3, 0.2}; ///< cyan dye (absorbs red)
     Vec3 outer_marker_albedo{0.10, 0.70, 0.75};         ///< cyan diffuse scattering
     double outer_marker_scatter_fraction = 0.5; ///< share of light an outer marker scatters back
-    double marker_thickness_mm = 0.5;           ///< Beer-Lambert path = thickness / |cos|
     int led_count = 6;                          ///< point LEDs evenly on a ring
     double led_ring_radius_mm = 10.0;
     double led_z_mm = -1.0;      ///< ring height; the dome rim is the plane z = 0

@@ -43,7 +43,6 @@ const OpticsParams& validated(const OpticsParams& o) {
     require_in("outer_marker_albedo", o.outer_marker_albedo, 0.0, 1.0, "each channel in [0, 1]");
     require_in("outer_marker_scatter_fraction", o.outer_marker_scatter_fraction, 0.0, 1.0,
                "[0, 1]");
-    require_in("marker_thickness_mm", o.marker_thickness_mm, 0.0, big, "finite, >= 0 (mm)");
     if (o.led_count < 1) reject("led_count", std::to_string(o.led_count), "integer >= 1");
     require_in("led_ring_radius_mm", o.led_ring_radius_mm, 0.0, big, "finite, >= 0 (mm)");
     require_in("led_z_mm", o.led_z_mm, -big, big, "finite (mm)");
@@ -69,25 +68,57 @@ Vec3 facing(const Vec3& normal, const Vec3& direction) {
 
 } // namespace
 
-double marker_path_mm(double thickness_mm, double cos_incidence) {
-    const double cos_abs = std::abs(cos_incidence);
-    // Written as a comparison, not a division, so that cos = 0 never makes an infinity.
-    if (thickness_mm >= kMaxMarkerPath_mm * cos_abs) return kMaxMarkerPath_mm;
-    return thickness_mm / cos_abs;
-}
+/// Where a ray entered the marker volumes it is inside (inner, outer; mm along the ray): the
+/// marker meshes are closed, their triangles facing out of the volume, so each hit is an entry
+/// (the ray against the face's normal) or an exit, and the Beer-Lambert path is the distance
+/// between them. A ray that starts inside a volume has entered it at its own start; a segment
+/// that ends inside one (a shadow ray's end) counts up to its end (`open_path`).
+///
+/// Faces closer than kHitGap_mm (a marker squeezed to nearly nothing) hide each other: the
+/// exit is never seen. An entry left open when the ray meets the coating or enters another
+/// marker of the same layer is such a lost exit and absorbs nothing (at most kHitGap_mm of
+/// path is missed); the outer markers' faces stay 1 % of the layer (5 um) off the coating.
+class MarkerPath {
+public:
+    explicit MarkerPath(double start_mm) : m_start_mm(start_mm) {}
+
+    /// Records a hit of a marker face (`outer` layer or not) at t_mm; returns the path length
+    /// just completed inside that volume on an exit, or a negative number on an entry.
+    double cross(bool outer, double t_mm, bool entering) {
+        const int layer = outer ? 1 : 0;
+        double& entry = m_entry_mm[layer];
+        const bool first = !m_seen[layer];
+        m_seen[layer] = true;
+        if (entering) {
+            entry = t_mm;
+            return -1.0;
+        }
+        // An exit with no entry: the ray started inside (the layer's first face), or the entry
+        // hid behind a face closer than the gap (nothing to count).
+        const double from = !std::isnan(entry) ? entry : first ? m_start_mm : t_mm;
+        entry = std::numeric_limits<double>::quiet_NaN();
+        return std::max(0.0, t_mm - from);
+    }
+    /// Path inside a volume still open at t_mm (a ray stopped by the coating inside a marker).
+    double open_path(bool outer, double t_mm) const {
+        const double entry = m_entry_mm[outer ? 1 : 0];
+        return std::isnan(entry) ? 0.0 : std::max(0.0, t_mm - entry);
+    }
+
+private:
+    double m_start_mm;
+    bool m_seen[2] = {false, false};
+    double m_entry_mm[2] = {std::numeric_limits<double>::quiet_NaN(),
+                            std::numeric_limits<double>::quiet_NaN()};
+};
 
 ShadingModel::ShadingModel(const OpticsParams& optics)
     : m_optics(validated(optics)), m_led_positions_mm(led_ring(optics)) {}
 
-Rgb ShadingModel::inner_marker_filter(double cos_incidence) const {
-    const double path_mm = marker_path_mm(m_optics.marker_thickness_mm, cos_incidence);
-    return (-m_optics.inner_marker_absorption_per_mm.array() * path_mm).exp();
-}
-
-Rgb ShadingModel::outer_marker_transmission(double cos_incidence) const {
-    const double path_mm = marker_path_mm(m_optics.marker_thickness_mm, cos_incidence);
-    return (1.0 - m_optics.outer_marker_scatter_fraction) *
-           (-m_optics.outer_marker_absorption_per_mm.array() * path_mm).exp();
+Rgb ShadingModel::marker_absorption(bool outer, double path_mm) const {
+    const Vec3& a = outer ? m_optics.outer_marker_absorption_per_mm
+                          : m_optics.inner_marker_absorption_per_mm;
+    return (-a.array() * path_mm).exp();
 }
 
 Rgb ShadingModel::led_irradiance(const Vec3& led_mm, const Vec3& p_mm, const Vec3& normal) const {
@@ -125,21 +156,26 @@ Rgb ShadingModel::transmittance(const EmbreeScene& scene, const Vec3& from_mm,
     if (!(tfar_mm > 0.0)) return Rgb::Ones();
     const Vec3 w = segment / length_mm;
     Rgb result = Rgb::Ones();
+    MarkerPath path(0.0);
     double tnear_mm = 0.0;
     for (int i = 0; i < kMaxHits; ++i) {
         const RayHit hit = scene.closest_hit(from_mm, w, tnear_mm, tfar_mm);
         const double cos_incidence = hit.normal.dot(w);
         switch (hit.kind) {
-        case SurfaceKind::none:
-            return result;
+        case SurfaceKind::none: // the end of the segment, maybe still inside a marker
+            return result * marker_absorption(false, path.open_path(false, tfar_mm)) *
+                   marker_absorption(true, path.open_path(true, tfar_mm));
         case SurfaceKind::coating:
             return Rgb::Zero();
         case SurfaceKind::inner_marker:
-            result *= inner_marker_filter(cos_incidence);
+        case SurfaceKind::outer_marker: {
+            if (cos_incidence == 0.0) break; // degenerate or edge-on face: no entry, no exit
+            const bool outer = hit.kind == SurfaceKind::outer_marker;
+            const double inside = path.cross(outer, hit.t_mm, cos_incidence < 0.0);
+            if (inside >= 0.0) result *= marker_absorption(outer, inside);
+            else if (outer) result *= 1.0 - m_optics.outer_marker_scatter_fraction;
             break;
-        case SurfaceKind::outer_marker:
-            result *= outer_marker_transmission(cos_incidence);
-            break;
+        }
         }
         tnear_mm = hit.t_mm + kHitGap_mm;
     }
@@ -151,28 +187,37 @@ Rgb ShadingModel::radiance(const EmbreeScene& scene, const Vec3& origin_mm,
     constexpr double inf = std::numeric_limits<double>::infinity();
     Rgb radiance = Rgb::Zero();
     Rgb throughput = Rgb::Ones();
+    MarkerPath path(0.0);
     double tnear_mm = 0.0;
     for (int i = 0; i < kMaxHits; ++i) {
         // Find the next surface; a miss sees nothing (black).
         const RayHit hit = scene.closest_hit(origin_mm, direction, tnear_mm, inf);
         if (!hit.hit()) break;
-        // Shade with the geometric normal turned towards the camera: winding is irrelevant.
+        // Shade with the geometric normal turned towards the camera: the coating's winding is
+        // irrelevant; a marker face's winding says whether the ray enters or leaves.
         const Vec3 p_mm = origin_mm + hit.t_mm * direction;
         const Vec3 normal = facing(hit.normal, direction);
-        const double cos_view = normal.dot(direction);
+        const double cos_incidence = hit.normal.dot(direction);
         switch (hit.kind) {
-        case SurfaceKind::coating: // Lambertian background: the path ends here
+        case SurfaceKind::coating: // Lambertian background: the path ends here (an entry still
+                                   // open here lost its exit: MarkerPath)
             return radiance + throughput * m_optics.coating_albedo.array() * kInvPi *
                                   irradiance(scene, p_mm, normal);
         case SurfaceKind::inner_marker: // translucent magenta filter
-            throughput *= inner_marker_filter(cos_view);
+        case SurfaceKind::outer_marker: {
+            if (cos_incidence == 0.0) break; // degenerate or edge-on face: no entry, no exit
+            const bool outer = hit.kind == SurfaceKind::outer_marker;
+            const double inside = path.cross(outer, hit.t_mm, cos_incidence < 0.0);
+            if (inside >= 0.0) {
+                throughput *= marker_absorption(outer, inside);
+            } else if (outer) { // entering the cyan dye: it scatters a share back
+                radiance += throughput * m_optics.outer_marker_scatter_fraction *
+                            m_optics.outer_marker_albedo.array() * kInvPi *
+                            irradiance(scene, p_mm, normal);
+                throughput *= 1.0 - m_optics.outer_marker_scatter_fraction;
+            }
             break;
-        case SurfaceKind::outer_marker: // scatters a share back, filters the rest
-            radiance += throughput * m_optics.outer_marker_scatter_fraction *
-                        m_optics.outer_marker_albedo.array() * kInvPi *
-                        irradiance(scene, p_mm, normal);
-            throughput *= outer_marker_transmission(cos_view);
-            break;
+        }
         case SurfaceKind::none:
             break;
         }

@@ -14,21 +14,13 @@ namespace chromasim::render::detail {
 /// Linear RGB triple (radiance, irradiance, transmittance or albedo).
 using Rgb = Eigen::Array3d;
 
-/// Longest Beer-Lambert path through one marker, mm. thickness / |cos| diverges for rays that
-/// graze a disc; a real disc (1.0 mm across, 0.5 mm thick) has chords of at most about 1.1 mm,
-/// so 2 mm only stops the divergence and never shortens a path at normal-ish incidence.
-inline constexpr double kMaxMarkerPath_mm = 2.0;
 /// Most surfaces a camera or shadow ray is followed through; a ray still going after that
-/// many carries no more light (in practice a ray crosses at most 2 markers and the coating).
+/// many carries no more light (in practice a ray crosses 2 marker volumes, 4 faces, and
+/// meets the coating).
 inline constexpr int kMaxHits = 16;
 /// Gap left after a hit before searching for the next one, mm: far above float round-off at
 /// dome scale (about 1e-6 mm), far below the 0.25 mm between marker discs and the coating.
 inline constexpr double kHitGap_mm = 1e-3;
-
-/// Beer-Lambert path through a marker of `thickness_mm` crossed at `cos_incidence` (cosine
-/// between the ray and the disc normal, either sign): thickness / |cos|, at most
-/// kMaxMarkerPath_mm. Finite for every input, including cos = 0.
-double marker_path_mm(double thickness_mm, double cos_incidence);
 
 /// The optical model of one sensor: LED ring, coating and the two marker layers.
 class ShadingModel {
@@ -53,11 +45,9 @@ public:
     /// transmissions crossed; zero if the coating is in the way.
     Rgb transmittance(const EmbreeScene& scene, const Vec3& from_mm, const Vec3& to_mm) const;
 
-    /// Inner marker (magenta filter): exp(-absorption * marker_path_mm).
-    Rgb inner_marker_filter(double cos_incidence) const;
-    /// Outer marker (dyed scatterer), light passing through: (1 - scatter_fraction) times
-    /// exp(-absorption * marker_path_mm).
-    Rgb outer_marker_transmission(double cos_incidence) const;
+    /// Beer-Lambert transmittance exp(-absorption * path_mm) of `path_mm` inside a marker of
+    /// layer `outer` (false: the inner, magenta filter; true: the outer, cyan dye).
+    Rgb marker_absorption(bool outer, double path_mm) const;
 
     /// LED positions, mm: led_count points on the ring, the first on the +x axis.
     const std::vector<Vec3>& led_positions_mm() const { return m_led_positions_mm; }

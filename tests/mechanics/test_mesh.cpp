@@ -62,8 +62,9 @@ TEST_CASE("hollow interior: no node inside the inner radius, none below the rim 
 TEST_CASE("every marker point lies inside exactly one tet of its own layer",
           "[mechanics][markers]") {
     const TetMesh& mesh = coarse_dome();
-    const MarkerDiscs discs = marker_discs(DomeParams{});
-    REQUIRE(discs.points.rows() == 2 * 82 * 13);
+    const std::vector<double> margin = marker_face_margins_mm(DomeParams{}, mesh);
+    const MarkerDiscs discs = marker_discs(DomeParams{}, margin);
+    REQUIRE(discs.points.rows() == 2 * 82 * 3 * 13);
     const TetLocator locator(mesh);
     for (int i = 0; i < discs.points.rows(); ++i) {
         const Eigen::Vector3d p = discs.points.row(i);
@@ -73,6 +74,29 @@ TEST_CASE("every marker point lies inside exactly one tet of its own layer",
         const int layer = i < discs.points.rows() / 2 ? kInnerMarkerLayer : kOuterMarkerLayer;
         CHECK(mesh.region(strictly_inside[0]) == layer);
         CHECK(locator.locate(p) == strictly_inside[0]);
+    }
+    // Each marker is a spherical-shell sector: mid-thickness, inner-face and outer-face rings
+    // on spheres, the faces the margin (the coarse facets' deepest sag + 5 um) inside the
+    // 0.5 mm layer (SENSOR.md: 0.5 mm thick discs filling their layer); side edges radial.
+    REQUIRE(margin.size() == 164);
+    for (int m = 0; m < 2 * discs.markers_per_layer; ++m) {
+        INFO("marker " << m);
+        CHECK(margin[std::size_t(m)] > 0.005 + 1.0 * 1.0 / (8 * 13.2)); // a 1 mm chord's sag
+        CHECK(margin[std::size_t(m)] < 0.045);
+        const double t = 0.5 - 2 * margin[std::size_t(m)];
+        CHECK(discs.thickness_mm[std::size_t(m)] == Approx(t));
+        const double mid = m < discs.markers_per_layer ? 10.75 : 12.45;
+        for (int ring = 0; ring < 3; ++ring) {
+            const double r = mid + (ring == 0 ? 0.0 : ring == 1 ? -0.5 * t : 0.5 * t);
+            for (int k = 0; k <= discs.rim_points; ++k)
+                CHECK(discs.points.row(discs.ring_row(m, ring) + k).norm() ==
+                      Approx(r).epsilon(1e-12));
+        }
+        for (int k = 0; k <= discs.rim_points; ++k) {
+            const Eigen::Vector3d in = discs.points.row(discs.ring_row(m, 1) + k);
+            const Eigen::Vector3d out = discs.points.row(discs.ring_row(m, 2) + k);
+            CHECK(in.normalized().isApprox(out.normalized(), 1e-12));
+        }
     }
 }
 
@@ -116,7 +140,7 @@ TEST_CASE("refined level: graded where contact happens, volume within 1 %, every
     }
     const double cap_near = 1 - std::cos(30 * M_PI / 180), band_far = std::cos(60 * M_PI / 180);
     CHECK(near / cap_near > 4.0 * far / band_far); // (1.2 / 0.5)^2 = 5.8 times denser
-    const MarkerDiscs discs = marker_discs(dome);
+    const MarkerDiscs discs = marker_discs(dome, marker_face_margins_mm(dome, mesh));
     const TetLocator locator(mesh);
     for (int i = 0; i < discs.points.rows(); ++i) {
         const int t = locator.locate(discs.points.row(i).transpose());

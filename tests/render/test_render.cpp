@@ -1,5 +1,6 @@
 // Tests of chromasim::render against analytic answers on a small synthetic sensor: a UV
-// hemisphere of radius 12.7 mm as the coating and 12-triangle marker discs (radius 0.5 mm).
+// hemisphere of radius 12.7 mm as the coating and marker prisms (12-gon discs of radius
+// 0.5 mm, closed volumes of thickness kThickness_mm).
 #include "render/embree_scene.hpp"
 #include "render/fisheye_camera.hpp"
 #include "render/renderer.hpp"
@@ -21,8 +22,10 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 constexpr double kDeg = kPi / 180.0;
-constexpr int kTrianglesPerMarker = 12;
+constexpr int kRim = 12;
+constexpr int kTrianglesPerMarker = 4 * kRim; // two fans and the side
 constexpr double kMarkerRadius_mm = 0.5;
+constexpr double kThickness_mm = 0.49;
 constexpr double kInnerMarkerZ_mm = 10.75;
 constexpr double kOuterMarkerRadius_mm = 12.45;
 
@@ -80,21 +83,55 @@ SurfaceMesh hemisphere(double radius_mm, int rings, int segments) {
     return mesh.build();
 }
 
-/// Appends a disc of `kTrianglesPerMarker` fan triangles centred at `centre_mm`.
+/// Rim point k of a marker face centred at c with axis n (the 12-gon's frame u, v).
+Vec3 rim_point(const Vec3& c, const Vec3& n, int k) {
+    const Vec3 u = n.unitOrthogonal(), v = n.cross(u);
+    const double phi = 2.0 * kPi * k / kRim;
+    return c + kMarkerRadius_mm * (std::cos(phi) * u + std::sin(phi) * v);
+}
+
+/// Appends a closed marker prism of `kTrianglesPerMarker` triangles facing outwards: a 12-gon
+/// of radius 0.5 mm centred at `centre_mm`, extruded by thickness/2 both ways along `normal`.
 void add_disc(MeshBuilder& mesh, const Vec3& centre_mm, const Vec3& normal,
-              double radius_mm = kMarkerRadius_mm) {
+              double thickness_mm = kThickness_mm) {
     const Vec3 n = normal.normalized();
-    const Vec3 u = n.unitOrthogonal();
-    const Vec3 v = n.cross(u);
-    const std::uint32_t centre = mesh.add_vertex(centre_mm);
-    for (int k = 0; k < kTrianglesPerMarker; ++k) {
-        const double phi = 2.0 * kPi * k / kTrianglesPerMarker;
-        mesh.add_vertex(centre_mm + radius_mm * (std::cos(phi) * u + std::sin(phi) * v));
+    const Vec3 lo = centre_mm - 0.5 * thickness_mm * n, hi = centre_mm + 0.5 * thickness_mm * n;
+    const std::uint32_t bottom = mesh.add_vertex(lo);
+    for (int k = 0; k < kRim; ++k)
+        mesh.add_vertex(rim_point(lo, n, k));
+    const std::uint32_t top = mesh.add_vertex(hi);
+    for (int k = 0; k < kRim; ++k)
+        mesh.add_vertex(rim_point(hi, n, k));
+    for (std::uint32_t k = 0; k < kRim; ++k) {
+        const std::uint32_t a = 1 + k, b = 1 + (k + 1) % kRim;
+        mesh.triangles.push_back({bottom, bottom + b, bottom + a});
+        mesh.triangles.push_back({top, top + a, top + b});
+        mesh.triangles.push_back({bottom + a, bottom + b, top + b});
+        mesh.triangles.push_back({bottom + a, top + b, top + a});
     }
-    for (std::uint32_t k = 0; k < kTrianglesPerMarker; ++k) {
-        mesh.triangles.push_back(
-            {centre, centre + 1 + k, centre + 1 + (k + 1) % kTrianglesPerMarker});
+}
+
+/// Length of the line origin + t w inside a prism of add_disc, by brute force: the share of
+/// points 1e-5 mm apart that lie on the inner side of all its 14 planes.
+double chord_mm(const Vec3& origin, const Vec3& w, const Vec3& centre, const Vec3& normal,
+                double thickness_mm, double t_max_mm) {
+    const Vec3 n = normal.normalized();
+    std::vector<std::pair<Vec3, double>> planes{{n, 0.5 * thickness_mm},
+                                                {-n, 0.5 * thickness_mm}};
+    for (int k = 0; k < kRim; ++k) {
+        const Vec3 mid = 0.5 * (rim_point(centre, n, k) + rim_point(centre, n, k + 1)) - centre;
+        planes.emplace_back(mid.normalized(), mid.norm());
     }
+    const double step = 1e-5;
+    int inside = 0;
+    for (double t = 0.5 * step; t < t_max_mm; t += step) {
+        const Vec3 p = origin + t * w - centre;
+        bool in = true;
+        for (const auto& [m, d] : planes)
+            in = in && m.dot(p) <= d;
+        inside += in;
+    }
+    return inside * step;
 }
 
 SurfaceMesh discs(const std::vector<std::pair<Vec3, Vec3>>& centres_and_normals) {
@@ -229,7 +266,7 @@ TEST_CASE("apex pixels equal analytic products of irradiance and transmittances"
         SensorFrame frame = bare_frame();
         frame.inner_markers = discs({{Vec3(0.0, 0.0, kInnerMarkerZ_mm), Vec3::UnitZ()}});
         const Eigen::Array3d value = pixel(render_frame(kNarrowCamera, optics, frame), c, c);
-        const Eigen::Array3d expected = (-a_in * optics.marker_thickness_mm).exp();
+        const Eigen::Array3d expected = (-a_in * kThickness_mm).exp();
         for (int k = 0; k < 3; ++k) {
             // 1e-4: the pixel's rays tilt up to 0.35 deg, lengthening the path by 2e-5.
             CHECK(value[k] / background[k] == Approx(expected[k]).epsilon(1e-4));
@@ -237,13 +274,15 @@ TEST_CASE("apex pixels equal analytic products of irradiance and transmittances"
         }
     }
     SECTION("inner marker just below the apex: filtered on the view and on every LED path") {
-        // At z = 12.2 mm each LED -> apex segment crosses the disc 10 * 0.5 / 13.7 = 0.36 mm
-        // from the axis, inside the 12-gon; all six LEDs see the apex at the same angle.
+        // The prism spans z = 12.155 to 12.645 mm; each LED -> apex segment crosses those
+        // planes 10 * 0.545 / 13.7 = 0.40 mm and 0.04 mm from the axis, inside the 12-gon's
+        // incircle (0.48 mm), so it enters and leaves through the faces; all six LEDs see the
+        // apex at the same angle.
         SensorFrame frame = bare_frame();
-        frame.inner_markers = discs({{Vec3(0.0, 0.0, 12.2), Vec3::UnitZ()}});
+        frame.inner_markers = discs({{Vec3(0.0, 0.0, 12.4), Vec3::UnitZ()}});
         const Eigen::Array3d value = pixel(render_frame(kNarrowCamera, optics, frame), c, c);
         const Vec3 led_to_apex = (Vec3(0.0, 0.0, 12.7) - Vec3(10.0, 0.0, -1.0)).normalized();
-        const double t = optics.marker_thickness_mm;
+        const double t = kThickness_mm;
         const Eigen::Array3d expected =
             white * (-a_in * t).exp() * (-a_in * t / led_to_apex.z()).exp();
         for (int k = 0; k < 3; ++k)
@@ -259,18 +298,23 @@ TEST_CASE("apex pixels equal analytic products of irradiance and transmittances"
         const Vec3 down(0.0, 0.0, -1.0);
         auto through_disc = [&](const Vec3& led, const Vec3& w) {
             // Every LED -> apex segment crosses the disc plane inside the 12-gon's incircle.
-            const Vec3 crossing = led + (centre.z() - led.z()) / w.z() * w;
-            REQUIRE(crossing.head<2>().norm() < kMarkerRadius_mm * std::cos(kPi / 12.0));
-            const double path = std::min(optics.marker_thickness_mm / std::abs(w.z()), 2.0);
+            for (const double z : {centre.z() - 0.5 * kThickness_mm,
+                                   centre.z() + 0.5 * kThickness_mm}) {
+                const Vec3 crossing = led + (z - led.z()) / w.z() * w;
+                REQUIRE(crossing.head<2>().norm() < kMarkerRadius_mm * std::cos(kPi / 12.0));
+            }
+            const double path = kThickness_mm / std::abs(w.z());
             return Eigen::Array3d((1.0 - s) * (-a_out * path).exp());
         };
         const Eigen::Array3d albedo_c = optics.coating_albedo.array();
         const double scale =
             white /
             (albedo_c / kPi * analytic_irradiance(optics, apex, down, unshadowed)).maxCoeff();
+        // The view ray enters the cyan volume through its inner face, where it scatters.
+        const Vec3 entry = centre - Vec3(0.0, 0.0, 0.5 * kThickness_mm);
         const Eigen::Array3d scattered = s * optics.outer_marker_albedo.array() / kPi *
-                                         analytic_irradiance(optics, centre, down, unshadowed);
-        const Eigen::Array3d behind = (1.0 - s) * (-a_out * optics.marker_thickness_mm).exp() *
+                                         analytic_irradiance(optics, entry, down, unshadowed);
+        const Eigen::Array3d behind = (1.0 - s) * (-a_out * kThickness_mm).exp() *
                                       albedo_c / kPi *
                                       analytic_irradiance(optics, apex, down, through_disc);
         const Eigen::Array3d expected = scale * (scattered + behind);
@@ -350,15 +394,20 @@ TEST_CASE("EmbreeScene refits in place when the topology is unchanged", "[render
     CHECK(scene.set_frame(frame) == detail::SceneUpdate::built);
     const Vec3 axis = Vec3(0.01, 0.02, 1.0).normalized(); // off the fan's centre vertex
     auto first = scene.closest_hit(Vec3::Zero(), axis, 0.0, 100.0);
+    const double bottom_mm = kInnerMarkerZ_mm - 0.5 * kThickness_mm;
     CHECK(first.kind == detail::SurfaceKind::inner_marker);
-    CHECK(first.t_mm == Approx(kInnerMarkerZ_mm / axis.z()).epsilon(1e-6));
-    CHECK(std::abs(first.normal.z()) == Approx(1.0).epsilon(1e-6));
+    CHECK(first.t_mm == Approx(bottom_mm / axis.z()).epsilon(1e-6));
+    CHECK(first.normal.z() == Approx(-1.0).epsilon(1e-6)); // the inner face looks down
 
     frame.inner_markers.V.col(2).array() += 0.5f;
     CHECK(scene.set_frame(frame) == detail::SceneUpdate::refitted);
     const auto moved = scene.closest_hit(Vec3::Zero(), axis, 0.0, 100.0);
-    CHECK(moved.t_mm == Approx((kInnerMarkerZ_mm + 0.5) / axis.z()).epsilon(1e-6));
-    const auto behind = scene.closest_hit(Vec3::Zero(), axis, moved.t_mm + 1e-3, 100.0);
+    CHECK(moved.t_mm == Approx((bottom_mm + 0.5) / axis.z()).epsilon(1e-6));
+    const auto top = scene.closest_hit(Vec3::Zero(), axis, moved.t_mm + 1e-3, 100.0);
+    CHECK(top.kind == detail::SurfaceKind::inner_marker);
+    CHECK(top.t_mm == Approx((bottom_mm + 0.5 + kThickness_mm) / axis.z()).epsilon(1e-6));
+    CHECK(top.normal.z() == Approx(1.0).epsilon(1e-6));
+    const auto behind = scene.closest_hit(Vec3::Zero(), axis, top.t_mm + 1e-3, 100.0);
     CHECK(behind.kind == detail::SurfaceKind::coating);
 
     frame.inner_markers = SurfaceMesh{}; // topology change: rebuild
@@ -370,33 +419,37 @@ TEST_CASE("shadow transmittance multiplies marker transmissions, the coating blo
     const OpticsParams optics;
     const detail::ShadingModel shading(optics);
     SensorFrame frame = marker_frame();
-    frame.outer_markers = discs({{Vec3(0.0, 0.0, kOuterMarkerRadius_mm), Vec3::UnitZ()}});
+    frame.outer_markers = discs({{Vec3(0.0, 0.0, 12.4), Vec3::UnitZ()}}); // z 12.155..12.645
     detail::EmbreeScene scene;
     scene.set_frame(frame);
     const Vec3 from(0.0, 0.0, 1.0);
-    const detail::Rgb inner = (-optics.inner_marker_absorption_per_mm.array() * 0.5).exp();
+    const Eigen::Array3d a_in = optics.inner_marker_absorption_per_mm.array();
+    const detail::Rgb inner = (-a_in * kThickness_mm).exp();
     const detail::Rgb outer = (1.0 - optics.outer_marker_scatter_fraction) *
-                              (-optics.outer_marker_absorption_per_mm.array() * 0.5).exp();
+                              (-optics.outer_marker_absorption_per_mm.array() * kThickness_mm).exp();
     const detail::Rgb clear = shading.transmittance(scene, from, Vec3(0.0, 0.0, 10.0));
     const detail::Rgb one = shading.transmittance(scene, from, Vec3(0.0, 0.0, 12.0));
-    const detail::Rgb two = shading.transmittance(scene, from, Vec3(0.0, 0.0, 12.6));
+    const detail::Rgb two = shading.transmittance(scene, from, Vec3(0.0, 0.0, 12.68));
     const detail::Rgb blocked = shading.transmittance(scene, from, Vec3(0.0, 0.0, 14.0));
+    // Segments that start or end inside the inner volume (z 10.505..10.995) count only the
+    // part inside.
+    const detail::Rgb from_inside =
+        shading.transmittance(scene, Vec3(0.0, 0.0, 10.75), Vec3(0.0, 0.0, 12.0));
+    const detail::Rgb into = shading.transmittance(scene, from, Vec3(0.0, 0.0, 10.801));
     for (int k = 0; k < 3; ++k) {
         CHECK(clear[k] == 1.0);
-        CHECK(one[k] == Approx(inner[k]).epsilon(1e-12));
-        CHECK(two[k] == Approx(inner[k] * outer[k]).epsilon(1e-12));
+        CHECK(one[k] == Approx(inner[k]).epsilon(1e-6));
+        CHECK(two[k] == Approx(inner[k] * outer[k]).epsilon(1e-5));
         CHECK(blocked[k] == 0.0);
+        CHECK(from_inside[k] == Approx(std::exp(-a_in[k] * 0.245)).epsilon(1e-6));
+        CHECK(into[k] == Approx(std::exp(-a_in[k] * (0.8 - 0.505))).epsilon(1e-5));
     }
 }
 
-TEST_CASE("grazing rays through markers stay finite and clamp the path", "[render]") {
-    CHECK(detail::marker_path_mm(0.5, 1.0) == 0.5);
-    CHECK(detail::marker_path_mm(0.5, -0.5) == 1.0);
-    CHECK(detail::marker_path_mm(0.5, 0.0) == detail::kMaxMarkerPath_mm);
-    CHECK(detail::marker_path_mm(0.5, 1e-300) == detail::kMaxMarkerPath_mm);
-
-    // A ray along (almost) +z through an inner disc tilted 85 deg: |cos| = 0.087, so the
-    // path is clamped to 2 mm (unclamped it would be 5.7 mm).
+TEST_CASE("grazing rays through markers take the real chord; squeezed markers stay finite",
+          "[render]") {
+    // A ray along (almost) +z through an inner prism tilted 85 deg: thickness / |cos| would
+    // be 5.6 mm; the volume's real chord is about a disc diameter.
     const OpticsParams optics;
     const detail::ShadingModel shading(optics);
     SensorFrame frame = bare_frame();
@@ -408,9 +461,23 @@ TEST_CASE("grazing rays through markers stay finite and clamp the path", "[rende
     const Vec3 ray = Vec3(0.0, 0.001, 1.0).normalized();
     const detail::Rgb seen = shading.radiance(with_disc, Vec3::Zero(), ray);
     const detail::Rgb reference = shading.radiance(without_disc, Vec3::Zero(), ray);
-    const detail::Rgb expected = (-optics.inner_marker_absorption_per_mm.array() * 2.0).exp();
+    const double chord = chord_mm(Vec3::Zero(), ray, Vec3(0.0, 0.0, kInnerMarkerZ_mm),
+                                  tilted_normal, kThickness_mm, 12.0);
+    CHECK(chord > 0.9);
+    CHECK(chord < 1.1);
+    const detail::Rgb expected = (-optics.inner_marker_absorption_per_mm.array() * chord).exp();
     for (int k = 0; k < 3; ++k)
-        CHECK(seen[k] / reference[k] == Approx(expected[k]).epsilon(1e-9));
+        CHECK(seen[k] / reference[k] == Approx(expected[k]).epsilon(1e-4));
+
+    // A marker squeezed to zero thickness: its faces coincide; the ray enters and leaves at
+    // once (path 0), nothing is absorbed, and nothing turns NaN.
+    MeshBuilder flat;
+    add_disc(flat, Vec3(0.0, 0.0, kInnerMarkerZ_mm), Vec3::UnitZ(), 0.0);
+    frame.inner_markers = flat.build();
+    with_disc.set_frame(frame);
+    const detail::Rgb squeezed = shading.radiance(with_disc, Vec3::Zero(), ray);
+    for (int k = 0; k < 3; ++k)
+        CHECK(squeezed[k] == Approx(reference[k]).epsilon(1e-9));
 
     // Whole images with discs seen edge-on and nearly edge-on, one absorption channel zero
     // (an infinite path would turn 0 * inf into NaN).
