@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <memory>
+#include <optional>
 #include <ostream>
 #include <sstream>
 
@@ -83,8 +84,11 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
             << " already holds this dataset (same resolved spec); nothing to do.\n";
         return report;
     }
-    // A mesh object's file is read before any work: a bad file stops here, nothing written.
+    // A mesh object's file and the spectra are read before any work: a bad file stops here,
+    // nothing written.
     const mechanics::ObjectShape object = object_shape(spec);
+    std::optional<render::OpticsParams> optics;
+    if (spec.outputs.images) optics = optics_params(spec);
     DatasetWriter writer(options.out_dir, spec, options.overwrite);
     const Plan plan = make_plan(spec);
 
@@ -95,7 +99,7 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     const mechanics::DomeModel model(model_options);
     std::unique_ptr<render::Renderer> renderer;
     if (spec.outputs.images)
-        renderer = std::make_unique<render::Renderer>(camera_params(spec), optics_params(spec));
+        renderer = std::make_unique<render::Renderer>(camera_params(spec), *optics);
     report.precompute_s = seconds_since(t0);
     const auto& st = model.stats();
     log << "chromasim: dome mesh '" << spec.sensor.mesh_level << "': " << st.nodes << " nodes, "

@@ -132,6 +132,9 @@ render::OpticsParams optics_params(const Spec& spec) {
     o.led_z_mm = spec.sensor.led_z_mm;
     o.led_rgb = vec(spec.sensor.led_rgb);
     o.exposure = spec.render.exposure;
+    if (spec.render.spectral)
+        o.spectra = render::load_sensor_spectra(
+            render::SensorSpectraFiles::in_directory(spectra_directory(spec)));
     return o;
 }
 

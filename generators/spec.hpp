@@ -61,6 +61,7 @@ struct Spec {
         Rgb outer_marker_absorption_per_mm{3.0, 0.3, 0.2};
         Rgb outer_marker_albedo{0.10, 0.70, 0.75};
         double outer_marker_scatter_fraction = 0.5;
+        std::string spectra_dir; ///< spectrum CSVs (empty: the shipped assets/spectra)
     } sensor;
 
     struct Object {
@@ -90,6 +91,7 @@ struct Spec {
         int height_px = 256;
         int samples_per_pixel = 4;
         double exposure = 1.0;
+        bool spectral = true; ///< hero-wavelength spectral mode; false: RGB approximation
     } render;
 
     struct Outputs {
@@ -106,6 +108,9 @@ struct Spec {
 /// A path written in the spec, resolved: relative paths start at the spec file's folder
 /// (the working directory for a spec parsed from text).
 std::filesystem::path resolve_spec_path(const Spec& spec, const std::filesystem::path& written);
+/// The folder of the spectrum CSVs: sensor.spectra_dir resolved, or the shipped
+/// assets/spectra when it is empty.
+std::filesystem::path spectra_directory(const Spec& spec);
 
 /// Reads, validates and resolves a spec file. Throws SpecError (with file:line:column, key,
 /// value and what is allowed) on malformed YAML, unknown keys, wrong types, out-of-range or

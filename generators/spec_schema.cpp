@@ -281,6 +281,11 @@ void add_sensor_optics(std::vector<SchemaEntry>& out) {
                          "Fraction of the light at an outer marker that it scatters back; the "
                          "rest is filtered through it [G].",
                          CHROMASIM_FIELD(sensor.outer_marker_scatter_fraction)));
+    out.push_back(text("sensor.optics.spectra_dir", "",
+                       "Folder of the six spectrum CSVs of render.spectral (file names and "
+                       "formats: assets/spectra/README.md); empty: the shipped assets/spectra; a "
+                       "relative path starts at the spec file's folder.",
+                       CHROMASIM_FIELD(sensor.spectra_dir)));
 }
 
 void add_object_and_protocol(std::vector<SchemaEntry>& out) {
@@ -353,6 +358,11 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
     out.push_back(number("render.exposure", 1, left_open(0, 100), "",
                          "Linear scale applied to the rendered radiance before writing.",
                          CHROMASIM_FIELD(render.exposure)));
+    out.push_back(boolean("render.spectral", true,
+                          "Spectral rendering (four hero wavelengths per sample, colour mixing "
+                          "per wavelength, the spectra of sensor.optics.spectra_dir); false: "
+                          "the RGB approximation with the sensor.optics RGB values.",
+                          CHROMASIM_FIELD(render.spectral)));
     out.push_back(boolean("outputs.images", true,
                           "Write a PNG per frame (false skips the whole render stage).",
                           CHROMASIM_FIELD(outputs.images)));
@@ -391,6 +401,16 @@ std::vector<SchemaRule> build_rules() {
         return !s.object.mesh_file.empty() &&
                std::filesystem::is_regular_file(resolve_spec_path(s, s.object.mesh_file), ec);
     };
+    SchemaRule spectra;
+    spectra.key = "sensor.optics.spectra_dir";
+    spectra.holds = [](const Spec& s) {
+        if (!s.render.spectral || !s.outputs.images) return true;
+        std::error_code ec;
+        return std::filesystem::is_directory(spectra_directory(s), ec);
+    };
+    spectra.problem = "names no existing folder, and render.spectral is true";
+    spectra.allowed = "a folder with the six spectrum CSVs (assets/spectra/README.md), or empty "
+                      "for the shipped ones";
     mesh.problem = "names no existing file, and object.shape is mesh";
     mesh.allowed = "a .gltf or .glb file; a relative path starts at the spec file's folder";
     SchemaRule camera;
@@ -422,7 +442,7 @@ std::vector<SchemaRule> build_rules() {
                    "cap of nodes that may touch)";
     tilt.allowed = "a tilt acos(cos(roll) cos(pitch)) below sensor.contact_candidate_angle_deg "
                    "- 5 deg (30 deg by default)";
-    return {outputs, mesh, camera, tilt};
+    return {outputs, mesh, camera, tilt, spectra};
 }
 
 // ---- Converting scalar text -----------------------------------------------------------------

@@ -243,6 +243,12 @@ std::filesystem::path resolve_spec_path(const Spec& spec, const std::filesystem:
     return spec.source_path.parent_path() / written;
 }
 
+std::filesystem::path spectra_directory(const Spec& spec) {
+    if (spec.sensor.spectra_dir.empty())
+        return std::filesystem::path(CHROMASIM_SOURCE_DIR) / "assets" / "spectra";
+    return resolve_spec_path(spec, spec.sensor.spectra_dir);
+}
+
 Spec parse_spec(const std::string& yaml_text, const std::string& display_name) {
     detail::SpecReader reader{display_name, {}, {}};
     detail::read_map(reader, detail::parse_document(reader, yaml_text), "");

@@ -7,7 +7,10 @@
 /// sees, at (0, 0, 12.7).
 #include <Eigen/Core>
 
+#include "render/spectrum.hpp"
+
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 namespace chromasim::render {
@@ -92,6 +95,11 @@ struct OpticsParams {
     double led_z_mm = -1.0;      ///< ring height; the dome rim is the plane z = 0
     Vec3 led_rgb{1.0, 1.0, 1.0}; ///< relative emission per LED (white)
     double exposure = 1.0;       ///< multiplies the auto exposure (undeformed apex -> 0.8)
+    /// Spectral mode when set: every camera sample carries four hero wavelengths; the coating,
+    /// marker and LED spectra replace the RGB values above (the LED's relative intensity is
+    /// the mean of led_rgb), and the camera's sensitivities turn radiance into white-balanced
+    /// RGB. Unset: the RGB mode (a product per channel, an approximation of the spectral one).
+    std::optional<SensorSpectra> spectra;
 };
 
 struct RenderSettings {

@@ -112,50 +112,74 @@ private:
                             std::numeric_limits<double>::quiet_NaN()};
 };
 
+LaneOptics spectral_lanes(const SensorSpectra& spectra, const Eigen::Array4d& lambda_nm,
+                          double led_scale) {
+    return {spectra.coating_albedo.at(lambda_nm),
+            spectra.inner_marker_absorption_per_mm.at(lambda_nm),
+            spectra.outer_marker_absorption_per_mm.at(lambda_nm),
+            spectra.outer_marker_albedo.at(lambda_nm),
+            led_scale * spectra.camera.led_emission().at(lambda_nm)};
+}
+
 ShadingModel::ShadingModel(const OpticsParams& optics)
     : m_optics(validated(optics)), m_led_positions_mm(led_ring(optics)) {}
 
-Rgb ShadingModel::marker_absorption(bool outer, double path_mm) const {
-    const Vec3& a = outer ? m_optics.outer_marker_absorption_per_mm
-                          : m_optics.inner_marker_absorption_per_mm;
-    return (-a.array() * path_mm).exp();
+LaneOptics ShadingModel::rgb_lanes() const {
+    auto lanes = [](const Vec3& v) { return Lanes(v.x(), v.y(), v.z(), 0.0); };
+    return {lanes(m_optics.coating_albedo), lanes(m_optics.inner_marker_absorption_per_mm),
+            lanes(m_optics.outer_marker_absorption_per_mm), lanes(m_optics.outer_marker_albedo),
+            lanes(m_optics.led_rgb)};
 }
 
-Rgb ShadingModel::led_irradiance(const Vec3& led_mm, const Vec3& p_mm, const Vec3& normal) const {
+Lanes ShadingModel::marker_absorption(const LaneOptics& lanes, bool outer, double path_mm) const {
+    return (-(outer ? lanes.outer_absorption_per_mm : lanes.inner_absorption_per_mm) * path_mm)
+        .exp();
+}
+
+double ShadingModel::led_geometry(const Vec3& led_mm, const Vec3& p_mm, const Vec3& normal) const {
     const Vec3 to_p = p_mm - led_mm;
     const double d2 = to_p.squaredNorm();
-    if (!(d2 > 0.0)) return Rgb::Zero();
+    if (!(d2 > 0.0)) return 0.0;
     const Vec3 w = to_p / std::sqrt(d2);
     const double cos_emit = w.z();             // Lambertian emission about +z
     const double cos_surface = -w.dot(normal); // light arrives against the normal
-    if (cos_emit <= 0.0 || cos_surface <= 0.0) return Rgb::Zero();
-    return m_optics.led_rgb.array() * (cos_emit * cos_surface / d2);
+    if (cos_emit <= 0.0 || cos_surface <= 0.0) return 0.0;
+    return cos_emit * cos_surface / d2;
+}
+
+double ShadingModel::unoccluded_geometry(const Vec3& p_mm, const Vec3& normal) const {
+    double total = 0.0;
+    for (const Vec3& led : m_led_positions_mm)
+        total += led_geometry(led, p_mm, normal);
+    return total;
 }
 
 Rgb ShadingModel::unoccluded_irradiance(const Vec3& p_mm, const Vec3& normal) const {
-    Rgb total = Rgb::Zero();
-    for (const Vec3& led : m_led_positions_mm)
-        total += led_irradiance(led, p_mm, normal);
-    return total;
+    return m_optics.led_rgb.array() * unoccluded_geometry(p_mm, normal);
+}
+
+Lanes ShadingModel::irradiance(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& normal,
+                               const LaneOptics& lanes) const {
+    Lanes total = Lanes::Zero();
+    for (const Vec3& led : m_led_positions_mm) {
+        const double geometry = led_geometry(led, p_mm, normal);
+        if (geometry > 0.0) total += geometry * transmittance(scene, led, p_mm, lanes);
+    }
+    return lanes.led * total;
 }
 
 Rgb ShadingModel::irradiance(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& normal) const {
-    Rgb total = Rgb::Zero();
-    for (const Vec3& led : m_led_positions_mm) {
-        const Rgb direct = led_irradiance(led, p_mm, normal);
-        if ((direct > 0.0).any()) total += direct * transmittance(scene, led, p_mm);
-    }
-    return total;
+    return irradiance(scene, p_mm, normal, rgb_lanes()).head<3>();
 }
 
-Rgb ShadingModel::transmittance(const EmbreeScene& scene, const Vec3& from_mm,
-                                const Vec3& to_mm) const {
+Lanes ShadingModel::transmittance(const EmbreeScene& scene, const Vec3& from_mm, const Vec3& to_mm,
+                                  const LaneOptics& lanes) const {
     const Vec3 segment = to_mm - from_mm;
     const double length_mm = segment.norm();
     const double tfar_mm = length_mm - kHitGap_mm;
-    if (!(tfar_mm > 0.0)) return Rgb::Ones();
+    if (!(tfar_mm > 0.0)) return Lanes::Ones();
     const Vec3 w = segment / length_mm;
-    Rgb result = Rgb::Ones();
+    Lanes result = Lanes::Ones();
     MarkerPath path(0.0);
     double tnear_mm = 0.0;
     for (int i = 0; i < kMaxHits; ++i) {
@@ -163,30 +187,35 @@ Rgb ShadingModel::transmittance(const EmbreeScene& scene, const Vec3& from_mm,
         const double cos_incidence = hit.normal.dot(w);
         switch (hit.kind) {
         case SurfaceKind::none: // the end of the segment, maybe still inside a marker
-            return result * marker_absorption(false, path.open_path(false, tfar_mm)) *
-                   marker_absorption(true, path.open_path(true, tfar_mm));
+            return result * marker_absorption(lanes, false, path.open_path(false, tfar_mm)) *
+                   marker_absorption(lanes, true, path.open_path(true, tfar_mm));
         case SurfaceKind::coating:
-            return Rgb::Zero();
+            return Lanes::Zero();
         case SurfaceKind::inner_marker:
         case SurfaceKind::outer_marker: {
             if (cos_incidence == 0.0) break; // degenerate or edge-on face: no entry, no exit
             const bool outer = hit.kind == SurfaceKind::outer_marker;
             const double inside = path.cross(outer, hit.t_mm, cos_incidence < 0.0);
-            if (inside >= 0.0) result *= marker_absorption(outer, inside);
+            if (inside >= 0.0) result *= marker_absorption(lanes, outer, inside);
             else if (outer) result *= 1.0 - m_optics.outer_marker_scatter_fraction;
             break;
         }
         }
         tnear_mm = hit.t_mm + kHitGap_mm;
     }
-    return Rgb::Zero(); // more than kMaxHits surfaces in the way: treat as blocked
+    return Lanes::Zero(); // more than kMaxHits surfaces in the way: treat as blocked
 }
 
-Rgb ShadingModel::radiance(const EmbreeScene& scene, const Vec3& origin_mm,
-                           const Vec3& direction) const {
+Rgb ShadingModel::transmittance(const EmbreeScene& scene, const Vec3& from_mm,
+                                const Vec3& to_mm) const {
+    return transmittance(scene, from_mm, to_mm, rgb_lanes()).head<3>();
+}
+
+Lanes ShadingModel::radiance(const EmbreeScene& scene, const Vec3& origin_mm, const Vec3& direction,
+                             const LaneOptics& lanes) const {
     constexpr double inf = std::numeric_limits<double>::infinity();
-    Rgb radiance = Rgb::Zero();
-    Rgb throughput = Rgb::Ones();
+    Lanes radiance = Lanes::Zero();
+    Lanes throughput = Lanes::Ones();
     MarkerPath path(0.0);
     double tnear_mm = 0.0;
     for (int i = 0; i < kMaxHits; ++i) {
@@ -201,19 +230,18 @@ Rgb ShadingModel::radiance(const EmbreeScene& scene, const Vec3& origin_mm,
         switch (hit.kind) {
         case SurfaceKind::coating: // Lambertian background: the path ends here (an entry still
                                    // open here lost its exit: MarkerPath)
-            return radiance + throughput * m_optics.coating_albedo.array() * kInvPi *
-                                  irradiance(scene, p_mm, normal);
+            return radiance + throughput * lanes.coating_albedo * kInvPi *
+                                  irradiance(scene, p_mm, normal, lanes);
         case SurfaceKind::inner_marker: // translucent magenta filter
         case SurfaceKind::outer_marker: {
             if (cos_incidence == 0.0) break; // degenerate or edge-on face: no entry, no exit
             const bool outer = hit.kind == SurfaceKind::outer_marker;
             const double inside = path.cross(outer, hit.t_mm, cos_incidence < 0.0);
             if (inside >= 0.0) {
-                throughput *= marker_absorption(outer, inside);
+                throughput *= marker_absorption(lanes, outer, inside);
             } else if (outer) { // entering the cyan dye: it scatters a share back
                 radiance += throughput * m_optics.outer_marker_scatter_fraction *
-                            m_optics.outer_marker_albedo.array() * kInvPi *
-                            irradiance(scene, p_mm, normal);
+                            lanes.outer_albedo * kInvPi * irradiance(scene, p_mm, normal, lanes);
                 throughput *= 1.0 - m_optics.outer_marker_scatter_fraction;
             }
             break;
@@ -225,6 +253,11 @@ Rgb ShadingModel::radiance(const EmbreeScene& scene, const Vec3& origin_mm,
         tnear_mm = hit.t_mm + kHitGap_mm;
     }
     return radiance;
+}
+
+Rgb ShadingModel::radiance(const EmbreeScene& scene, const Vec3& origin_mm,
+                           const Vec3& direction) const {
+    return radiance(scene, origin_mm, direction, rgb_lanes()).head<3>();
 }
 
 } // namespace chromasim::render::detail

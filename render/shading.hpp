@@ -22,6 +22,21 @@ inline constexpr int kMaxHits = 16;
 /// dome scale (about 1e-6 mm), far below the 0.25 mm between marker discs and the coating.
 inline constexpr double kHitGap_mm = 1e-3;
 
+/// Four lanes of a value carried along a ray: linear R, G, B and an unused lane in RGB mode, or
+/// the four wavelengths of a hero sample in spectral mode (render/spectrum.hpp).
+using Lanes = Eigen::Array4d;
+
+/// The optical properties of one sample, per lane: albedos, absorption coefficients (1/mm) and
+/// the emission of every LED.
+struct LaneOptics {
+    Lanes coating_albedo, inner_absorption_per_mm, outer_absorption_per_mm, outer_albedo, led;
+};
+
+/// The lanes of a hero sample (wavelengths `lambda_nm`): the spectra at those wavelengths, the
+/// LED's emission times `led_scale`.
+LaneOptics spectral_lanes(const SensorSpectra& spectra, const Eigen::Array4d& lambda_nm,
+                          double led_scale);
+
 /// The optical model of one sensor: LED ring, coating and the two marker layers.
 class ShadingModel {
 public:
@@ -29,33 +44,48 @@ public:
     /// names the parameter, its value and the range).
     explicit ShadingModel(const OpticsParams& optics);
 
+    /// The RGB mode's lanes: OpticsParams' linear RGB values, the fourth lane 0.
+    LaneOptics rgb_lanes() const;
+
     /// Radiance seen from `origin_mm` looking along the unit vector `direction`, in LED
-    /// intensity units per mm^2 per sr. Follows the ray through markers to the coating.
+    /// intensity units per mm^2 per sr, per lane. Follows the ray through the marker volumes to
+    /// the coating.
+    Lanes radiance(const EmbreeScene& scene, const Vec3& origin_mm, const Vec3& direction,
+                   const LaneOptics& lanes) const;
+    /// RGB mode.
     Rgb radiance(const EmbreeScene& scene, const Vec3& origin_mm, const Vec3& direction) const;
 
     /// Irradiance at `p_mm` on a surface with unit normal `normal` (pointing to the side that
     /// is lit and seen), summed over the LEDs, each attenuated by `transmittance`.
+    Lanes irradiance(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& normal,
+                     const LaneOptics& lanes) const;
     Rgb irradiance(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& normal) const;
 
-    /// Same, with nothing in the way: the analytic reference used for auto exposure.
+    /// Sum over the LEDs of cos_emit cos_surface / d^2 at p (1/mm^2), nothing in the way: times
+    /// an LED's emission it is the analytic irradiance used for auto exposure.
+    double unoccluded_geometry(const Vec3& p_mm, const Vec3& normal) const;
+    /// RGB: led_rgb times unoccluded_geometry.
     Rgb unoccluded_irradiance(const Vec3& p_mm, const Vec3& normal) const;
 
     /// Transmittance of the open segment from `from_mm` to `to_mm` (stops kHitGap_mm short of
-    /// `to_mm`, so the surface at `to_mm` does not shadow itself): product of the marker
-    /// transmissions crossed; zero if the coating is in the way.
+    /// `to_mm`, so the surface at `to_mm` does not shadow itself): Beer-Lambert over the path
+    /// inside each marker volume, (1 - scatter_fraction) per outer marker entered; zero if the
+    /// coating is in the way.
+    Lanes transmittance(const EmbreeScene& scene, const Vec3& from_mm, const Vec3& to_mm,
+                        const LaneOptics& lanes) const;
     Rgb transmittance(const EmbreeScene& scene, const Vec3& from_mm, const Vec3& to_mm) const;
 
     /// Beer-Lambert transmittance exp(-absorption * path_mm) of `path_mm` inside a marker of
     /// layer `outer` (false: the inner, magenta filter; true: the outer, cyan dye).
-    Rgb marker_absorption(bool outer, double path_mm) const;
+    Lanes marker_absorption(const LaneOptics& lanes, bool outer, double path_mm) const;
 
     /// LED positions, mm: led_count points on the ring, the first on the +x axis.
     const std::vector<Vec3>& led_positions_mm() const { return m_led_positions_mm; }
     const OpticsParams& optics() const { return m_optics; }
 
 private:
-    /// Contribution of one LED before any occlusion, or zero if it faces away.
-    Rgb led_irradiance(const Vec3& led_mm, const Vec3& p_mm, const Vec3& normal) const;
+    /// cos_emit cos_surface / d^2 of one LED before any occlusion, or zero if it faces away.
+    double led_geometry(const Vec3& led_mm, const Vec3& p_mm, const Vec3& normal) const;
 
     OpticsParams m_optics;
     std::vector<Vec3> m_led_positions_mm;

@@ -337,6 +337,75 @@ Eigen::Array3d camera_rgb(const CameraResponse& camera, const SpectralSample& sa
     return sum / (4.0 * SpectralSample::pdf_per_nm) / camera.white_integral();
 }
 
+WavelengthSampler::WavelengthSampler(const Spectrum& weight, double uniform_share) {
+    if (!(uniform_share >= 0.0 && uniform_share <= 1.0))
+        throw std::invalid_argument("WavelengthSampler: uniform_share = " +
+                                    std::to_string(uniform_share) + "; allowed: [0, 1]");
+    double total = 0.0;
+    for (int k = 0; k + 1 < kSpectrumSamples; ++k) {
+        const double w = 0.5 * (weight.values[std::size_t(k)] + weight.values[std::size_t(k) + 1]);
+        if (!(w >= 0.0) || !std::isfinite(w))
+            throw std::invalid_argument("WavelengthSampler: weights must be finite and >= 0");
+        m_pdf[std::size_t(k)] = w;
+        total += w * kLambdaStep_nm;
+    }
+    if (!(total > 0.0) && uniform_share < 1.0)
+        throw std::invalid_argument("WavelengthSampler: the weight is zero everywhere");
+    m_cdf[0] = 0.0;
+    for (int k = 0; k + 1 < kSpectrumSamples; ++k) {
+        double& p = m_pdf[std::size_t(k)];
+        p = (1.0 - uniform_share) * (total > 0.0 ? p / total : 0.0) +
+            uniform_share / kLambdaRange_nm;
+        m_cdf[std::size_t(k) + 1] = m_cdf[std::size_t(k)] + p * kLambdaStep_nm;
+    }
+    // Round-off: make the CDF end at exactly 1.
+    for (double& c : m_cdf)
+        c /= m_cdf.back();
+}
+
+WeightedSpectralSample WavelengthSampler::sample(double u) const {
+    WeightedSpectralSample s;
+    for (int j = 0; j < 4; ++j) {
+        double x = u + 0.25 * j;
+        x -= std::floor(x);
+        // The interval k with cdf[k] <= x < cdf[k + 1], then linear inside it.
+        const auto it = std::upper_bound(m_cdf.begin(), m_cdf.end(), x);
+        const std::size_t k = std::min<std::size_t>(
+            std::size_t(std::max<std::ptrdiff_t>(it - m_cdf.begin() - 1, 0)), m_pdf.size() - 1);
+        const double span = m_cdf[k + 1] - m_cdf[k];
+        const double f = span > 0.0 ? std::clamp((x - m_cdf[k]) / span, 0.0, 1.0) : 0.0;
+        s.lambda_nm[j] = Spectrum::wavelength_nm(int(k)) + f * kLambdaStep_nm;
+        s.pdf_per_nm[j] = m_pdf[k];
+    }
+    return s;
+}
+
+double WavelengthSampler::pdf(double lambda_nm) const {
+    if (!(lambda_nm >= kLambdaMin_nm && lambda_nm <= kLambdaMax_nm)) return 0.0;
+    const auto k = std::min<std::size_t>(std::size_t((lambda_nm - kLambdaMin_nm) / kLambdaStep_nm),
+                                         m_pdf.size() - 1);
+    return m_pdf[k];
+}
+
+Spectrum camera_weight(const CameraResponse& camera) {
+    Spectrum w;
+    for (int c = 0; c < 3; ++c) {
+        const Spectrum part = camera.sensitivity()[std::size_t(c)] * camera.led_emission();
+        for (int k = 0; k < kSpectrumSamples; ++k)
+            w.values[std::size_t(k)] += part.values[std::size_t(k)] / camera.white_integral()[c];
+    }
+    return w;
+}
+
+Eigen::Array3d camera_rgb(const CameraResponse& camera, const WeightedSpectralSample& sample,
+                          const SpectralValues& radiance) {
+    Eigen::Array3d sum = Eigen::Array3d::Zero();
+    const Eigen::Array4d weighted = radiance / sample.pdf_per_nm;
+    for (int c = 0; c < 3; ++c)
+        sum[c] = (camera.sensitivity()[std::size_t(c)].at(sample.lambda_nm) * weighted).sum();
+    return sum / 4.0 / camera.white_integral();
+}
+
 // ---- RGB reductions -------------------------------------------------------------------------
 
 Eigen::Array3d rgb_of_reflectance(const CameraResponse& camera, const Spectrum& albedo) {

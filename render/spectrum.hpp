@@ -151,6 +151,40 @@ SpectralSample sample_hero_wavelengths(double u);
 Eigen::Array3d camera_rgb(const CameraResponse& camera, const SpectralSample& sample,
                           const SpectralValues& radiance);
 
+/// Four hero wavelengths drawn with a non-uniform density, and that density (1/nm) at each.
+struct WeightedSpectralSample {
+    Eigen::Array4d lambda_nm;
+    Eigen::Array4d pdf_per_nm;
+};
+
+/// Hero wavelengths in proportion to a weight spectrum, mixed with a uniform share so that
+/// every wavelength keeps a density of at least uniform_share / 350 nm (unbiased wherever the
+/// weight is small): lambda_j = CDF^-1(frac(u + j / 4)), so the four stratify the CDF and each
+/// is marginally distributed with the same density. The density is constant over each 1 nm
+/// interval of the grid (the interval's mean weight).
+class WavelengthSampler {
+public:
+    /// Throws std::invalid_argument for a negative or all-zero weight or a share outside
+    /// [0, 1] (1: uniform).
+    explicit WavelengthSampler(const Spectrum& weight, double uniform_share = 0.1);
+    WeightedSpectralSample sample(double u) const;
+    /// Density (1/nm) at lambda_nm (0 outside the grid).
+    double pdf(double lambda_nm) const;
+
+private:
+    std::array<double, kSpectrumSamples> m_cdf{}; ///< at the grid points, 0 .. 1
+    std::array<double, kSpectrumSamples - 1> m_pdf{}; ///< per 1 nm interval, 1/nm
+};
+
+/// The weight for camera images of LED light: sum over channels of s_c E / integral(s_c E),
+/// so each white-balanced channel gets the same share of the wavelengths.
+Spectrum camera_weight(const CameraResponse& camera);
+
+/// camera_rgb for a weighted sample: (1/4) sum_j s_c(lambda_j) L(lambda_j) / pdf_j, white
+/// balanced.
+Eigen::Array3d camera_rgb(const CameraResponse& camera, const WeightedSpectralSample& sample,
+                          const SpectralValues& radiance);
+
 // ---- RGB reductions for the fast RGB mode and for validation ---------------------------------
 
 /// Camera RGB of the LED light diffusely reflected by `albedo` (unit geometry), white

@@ -9,6 +9,8 @@
 #include <Eigen/Geometry>
 #include <catch2/catch.hpp>
 
+#include <filesystem>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -511,4 +513,42 @@ TEST_CASE("bad input is reported, not rendered", "[render]") {
 
     CHECK_THROWS_WITH(detail::EmbreeScene("threads=abc"),
                       Catch::Contains("Embree error in rtcNewDevice"));
+}
+
+TEST_CASE("filter_product: through two filters onto the white coating, a pixel is the spectral "
+          "product of their transmittances",
+          "[render][spectral]") {
+    OpticsParams optics;
+    optics.spectra =
+        load_sensor_spectra(SensorSpectraFiles::in_directory(
+            std::filesystem::path(CHROMASIM_SOURCE_DIR) / "assets" / "spectra"));
+    optics.outer_marker_scatter_fraction = 0.0; // the cyan dye as a pure filter here
+    const SensorSpectra& sp = *optics.spectra;
+    // A magenta prism (z 10.505..10.995) and below it a cyan one (z 9.505..9.995) on the axis:
+    // the view ray crosses both; every LED -> apex segment passes them more than 1.2 mm off
+    // the axis, outside their 0.5 mm radius, so only the view is filtered.
+    SensorFrame frame = bare_frame();
+    frame.inner_markers = discs({{Vec3(0.0, 0.0, kInnerMarkerZ_mm), Vec3::UnitZ()}});
+    frame.outer_markers = discs({{Vec3(0.0, 0.0, 9.75), Vec3::UnitZ()}});
+    const CameraParams camera{3, 3, 1.0}; // the centre pixel within 0.33 deg of the axis
+    const int spp = 4096;
+    const Eigen::Array3d seen = pixel(render_frame(camera, optics, frame, spp, 3), 1, 1);
+    const Eigen::Array3d white = pixel(render_frame(camera, optics, bare_frame(), spp, 3), 1, 1);
+
+    const Spectrum lit = sp.camera.led_emission() * sp.coating_albedo;
+    const Spectrum filtered = lit * transmittance(sp.inner_marker_absorption_per_mm, kThickness_mm) *
+                              transmittance(sp.outer_marker_absorption_per_mm, kThickness_mm);
+    const Eigen::Array3d expected =
+        sp.camera.rgb_of_radiance(filtered) / sp.camera.rgb_of_radiance(lit);
+    // The RGB approximation: the product of each filter's own camera-RGB transmittance.
+    const FilterPairRgb pair = rgb_of_filter_pair(sp.camera, sp.inner_marker_absorption_per_mm,
+                                                  kThickness_mm, sp.outer_marker_absorption_per_mm,
+                                                  kThickness_mm);
+    for (int k = 0; k < 3; ++k) {
+        INFO("channel " << k << ": rendered " << seen[k] / white[k] << ", spectral product "
+                        << expected[k] << ", RGB product " << pair.rgb_product[k]);
+        CHECK(seen[k] / white[k] == Approx(expected[k]).epsilon(0.01));
+    }
+    // The difference the spectral mode exists for (SENSOR.md: mixing is per wavelength).
+    CHECK((pair.rgb_product - pair.spectral).abs().maxCoeff() > 0.02);
 }
