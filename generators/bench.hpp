@@ -29,6 +29,7 @@ struct RenderBenchOptions {
     std::vector<int> samples_per_pixel{1, 2, 4, 16};
     int reference_spp = 64; ///< the error reference
     int size_px = 256;
+    std::vector<std::string> modes{"spectral", "rgb"}; ///< spectral | rgb
     int repeats = 5;
 };
 

@@ -181,11 +181,13 @@ struct Renderer::Impl {
                 const int k = sy * nx + sx;
                 const double u_lambda = (double((3 * k + 1) % n) + rng.uniform()) / n;
                 if (!direction) continue;
-                const WeightedSpectralSample sample = wavelengths->sample(u_lambda);
-                const detail::Lanes radiance = shading.radiance(
-                    scene, camera.origin_mm(), *direction,
-                    detail::spectral_lanes(*spectra, sample.lambda_nm, led_scale));
-                sum += camera_rgb(spectra->camera, sample, radiance);
+                detail::Lanes lambda_nm, pdf_per_nm;
+                wavelengths->sample<detail::kSpectralLanes>(u_lambda, lambda_nm, pdf_per_nm);
+                const detail::Lanes radiance =
+                    shading.radiance(scene, camera.origin_mm(), *direction,
+                                     detail::spectral_lanes(*spectra, lambda_nm, led_scale));
+                sum += camera_rgb<detail::kSpectralLanes>(spectra->camera, lambda_nm, pdf_per_nm,
+                                                          radiance);
             }
         }
         return sum * (scale / settings.samples_per_pixel);

@@ -112,26 +112,32 @@ private:
                             std::numeric_limits<double>::quiet_NaN()};
 };
 
-LaneOptics spectral_lanes(const SensorSpectra& spectra, const Eigen::Array4d& lambda_nm,
-                          double led_scale) {
-    return {spectra.coating_albedo.at(lambda_nm),
-            spectra.inner_marker_absorption_per_mm.at(lambda_nm),
-            spectra.outer_marker_absorption_per_mm.at(lambda_nm),
-            spectra.outer_marker_albedo.at(lambda_nm),
-            led_scale * spectra.camera.led_emission().at(lambda_nm)};
+LaneOptics<kSpectralLanes> spectral_lanes(const SensorSpectra& spectra, const Lanes& lambda_nm,
+                                          double led_scale) {
+    return {spectra.coating_albedo.at_each(lambda_nm),
+            spectra.inner_marker_absorption_per_mm.at_each(lambda_nm),
+            spectra.outer_marker_absorption_per_mm.at_each(lambda_nm),
+            spectra.outer_marker_albedo.at_each(lambda_nm),
+            led_scale * spectra.camera.led_emission().at_each(lambda_nm)};
 }
 
 ShadingModel::ShadingModel(const OpticsParams& optics)
     : m_optics(validated(optics)), m_led_positions_mm(led_ring(optics)) {}
 
-LaneOptics ShadingModel::rgb_lanes() const {
-    auto lanes = [](const Vec3& v) { return Lanes(v.x(), v.y(), v.z(), 0.0); };
+LaneOptics<kRgbLanes> ShadingModel::rgb_lanes() const {
+    auto lanes = [](const Vec3& v) {
+        RgbLanes l = RgbLanes::Zero();
+        l.head<3>() = v.array();
+        return l;
+    };
     return {lanes(m_optics.coating_albedo), lanes(m_optics.inner_marker_absorption_per_mm),
             lanes(m_optics.outer_marker_absorption_per_mm), lanes(m_optics.outer_marker_albedo),
             lanes(m_optics.led_rgb)};
 }
 
-Lanes ShadingModel::marker_absorption(const LaneOptics& lanes, bool outer, double path_mm) const {
+template <int N>
+LanesN<N> ShadingModel::marker_absorption(const LaneOptics<N>& lanes, bool outer,
+                                          double path_mm) const {
     return (-(outer ? lanes.outer_absorption_per_mm : lanes.inner_absorption_per_mm) * path_mm)
         .exp();
 }
@@ -158,9 +164,10 @@ Rgb ShadingModel::unoccluded_irradiance(const Vec3& p_mm, const Vec3& normal) co
     return m_optics.led_rgb.array() * unoccluded_geometry(p_mm, normal);
 }
 
-Lanes ShadingModel::irradiance(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& normal,
-                               const LaneOptics& lanes) const {
-    Lanes total = Lanes::Zero();
+template <int N>
+LanesN<N> ShadingModel::irradiance(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& normal,
+                                   const LaneOptics<N>& lanes) const {
+    LanesN<N> total = LanesN<N>::Zero();
     for (const Vec3& led : m_led_positions_mm) {
         const double geometry = led_geometry(led, p_mm, normal);
         if (geometry > 0.0) total += geometry * transmittance(scene, led, p_mm, lanes);
@@ -172,14 +179,15 @@ Rgb ShadingModel::irradiance(const EmbreeScene& scene, const Vec3& p_mm, const V
     return irradiance(scene, p_mm, normal, rgb_lanes()).head<3>();
 }
 
-Lanes ShadingModel::transmittance(const EmbreeScene& scene, const Vec3& from_mm, const Vec3& to_mm,
-                                  const LaneOptics& lanes) const {
+template <int N>
+LanesN<N> ShadingModel::transmittance(const EmbreeScene& scene, const Vec3& from_mm,
+                                      const Vec3& to_mm, const LaneOptics<N>& lanes) const {
     const Vec3 segment = to_mm - from_mm;
     const double length_mm = segment.norm();
     const double tfar_mm = length_mm - kHitGap_mm;
-    if (!(tfar_mm > 0.0)) return Lanes::Ones();
+    if (!(tfar_mm > 0.0)) return LanesN<N>::Ones();
     const Vec3 w = segment / length_mm;
-    Lanes result = Lanes::Ones();
+    LanesN<N> result = LanesN<N>::Ones();
     MarkerPath path(0.0);
     double tnear_mm = 0.0;
     for (int i = 0; i < kMaxHits; ++i) {
@@ -190,7 +198,7 @@ Lanes ShadingModel::transmittance(const EmbreeScene& scene, const Vec3& from_mm,
             return result * marker_absorption(lanes, false, path.open_path(false, tfar_mm)) *
                    marker_absorption(lanes, true, path.open_path(true, tfar_mm));
         case SurfaceKind::coating:
-            return Lanes::Zero();
+            return LanesN<N>::Zero();
         case SurfaceKind::inner_marker:
         case SurfaceKind::outer_marker: {
             if (cos_incidence == 0.0) break; // degenerate or edge-on face: no entry, no exit
@@ -203,7 +211,7 @@ Lanes ShadingModel::transmittance(const EmbreeScene& scene, const Vec3& from_mm,
         }
         tnear_mm = hit.t_mm + kHitGap_mm;
     }
-    return Lanes::Zero(); // more than kMaxHits surfaces in the way: treat as blocked
+    return LanesN<N>::Zero(); // more than kMaxHits surfaces in the way: treat as blocked
 }
 
 Rgb ShadingModel::transmittance(const EmbreeScene& scene, const Vec3& from_mm,
@@ -211,11 +219,12 @@ Rgb ShadingModel::transmittance(const EmbreeScene& scene, const Vec3& from_mm,
     return transmittance(scene, from_mm, to_mm, rgb_lanes()).head<3>();
 }
 
-Lanes ShadingModel::radiance(const EmbreeScene& scene, const Vec3& origin_mm, const Vec3& direction,
-                             const LaneOptics& lanes) const {
+template <int N>
+LanesN<N> ShadingModel::radiance(const EmbreeScene& scene, const Vec3& origin_mm,
+                                 const Vec3& direction, const LaneOptics<N>& lanes) const {
     constexpr double inf = std::numeric_limits<double>::infinity();
-    Lanes radiance = Lanes::Zero();
-    Lanes throughput = Lanes::Ones();
+    LanesN<N> radiance = LanesN<N>::Zero();
+    LanesN<N> throughput = LanesN<N>::Ones();
     MarkerPath path(0.0);
     double tnear_mm = 0.0;
     for (int i = 0; i < kMaxHits; ++i) {
@@ -259,5 +268,18 @@ Rgb ShadingModel::radiance(const EmbreeScene& scene, const Vec3& origin_mm,
                            const Vec3& direction) const {
     return radiance(scene, origin_mm, direction, rgb_lanes()).head<3>();
 }
+
+// The two lane widths the renderer uses.
+template LanesN<kRgbLanes> ShadingModel::radiance(const EmbreeScene&, const Vec3&, const Vec3&,
+                                                  const LaneOptics<kRgbLanes>&) const;
+template LanesN<kSpectralLanes> ShadingModel::radiance(const EmbreeScene&, const Vec3&,
+                                                       const Vec3&,
+                                                       const LaneOptics<kSpectralLanes>&) const;
+template LanesN<kRgbLanes> ShadingModel::transmittance(const EmbreeScene&, const Vec3&,
+                                                       const Vec3&,
+                                                       const LaneOptics<kRgbLanes>&) const;
+template LanesN<kSpectralLanes>
+ShadingModel::transmittance(const EmbreeScene&, const Vec3&, const Vec3&,
+                            const LaneOptics<kSpectralLanes>&) const;
 
 } // namespace chromasim::render::detail

@@ -22,20 +22,29 @@ inline constexpr int kMaxHits = 16;
 /// dome scale (about 1e-6 mm), far below the 0.25 mm between marker discs and the coating.
 inline constexpr double kHitGap_mm = 1e-3;
 
-/// Four lanes of a value carried along a ray: linear R, G, B and an unused lane in RGB mode, or
-/// the four wavelengths of a hero sample in spectral mode (render/spectrum.hpp).
-using Lanes = Eigen::Array4d;
+/// Lanes of a value carried along a ray: linear R, G, B and an unused lane in RGB mode
+/// (kRgbLanes), or kSpectralLanes wavelengths in spectral mode (render/spectrum.hpp). The
+/// direct-light model's rays do not depend on the wavelength, so more lanes cost arithmetic,
+/// not rays: 16 stratified wavelengths per sample take the spectral noise down to about the
+/// RGB mode's (docs/VALIDATION.md, "Samples per pixel").
+inline constexpr int kRgbLanes = 4;
+inline constexpr int kSpectralLanes = 16;
+template <int N>
+using LanesN = Eigen::Array<double, N, 1>;
+using Lanes = LanesN<kSpectralLanes>;
+using RgbLanes = LanesN<kRgbLanes>;
 
 /// The optical properties of one sample, per lane: albedos, absorption coefficients (1/mm) and
 /// the emission of every LED.
+template <int N>
 struct LaneOptics {
-    Lanes coating_albedo, inner_absorption_per_mm, outer_absorption_per_mm, outer_albedo, led;
+    LanesN<N> coating_albedo, inner_absorption_per_mm, outer_absorption_per_mm, outer_albedo, led;
 };
 
 /// The lanes of a hero sample (wavelengths `lambda_nm`): the spectra at those wavelengths, the
 /// LED's emission times `led_scale`.
-LaneOptics spectral_lanes(const SensorSpectra& spectra, const Eigen::Array4d& lambda_nm,
-                          double led_scale);
+LaneOptics<kSpectralLanes> spectral_lanes(const SensorSpectra& spectra, const Lanes& lambda_nm,
+                                          double led_scale);
 
 /// The optical model of one sensor: LED ring, coating and the two marker layers.
 class ShadingModel {
@@ -45,20 +54,22 @@ public:
     explicit ShadingModel(const OpticsParams& optics);
 
     /// The RGB mode's lanes: OpticsParams' linear RGB values, the fourth lane 0.
-    LaneOptics rgb_lanes() const;
+    LaneOptics<kRgbLanes> rgb_lanes() const;
 
     /// Radiance seen from `origin_mm` looking along the unit vector `direction`, in LED
     /// intensity units per mm^2 per sr, per lane. Follows the ray through the marker volumes to
     /// the coating.
-    Lanes radiance(const EmbreeScene& scene, const Vec3& origin_mm, const Vec3& direction,
-                   const LaneOptics& lanes) const;
+    template <int N>
+    LanesN<N> radiance(const EmbreeScene& scene, const Vec3& origin_mm, const Vec3& direction,
+                       const LaneOptics<N>& lanes) const;
     /// RGB mode.
     Rgb radiance(const EmbreeScene& scene, const Vec3& origin_mm, const Vec3& direction) const;
 
     /// Irradiance at `p_mm` on a surface with unit normal `normal` (pointing to the side that
     /// is lit and seen), summed over the LEDs, each attenuated by `transmittance`.
-    Lanes irradiance(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& normal,
-                     const LaneOptics& lanes) const;
+    template <int N>
+    LanesN<N> irradiance(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& normal,
+                         const LaneOptics<N>& lanes) const;
     Rgb irradiance(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& normal) const;
 
     /// Sum over the LEDs of cos_emit cos_surface / d^2 at p (1/mm^2), nothing in the way: times
@@ -71,13 +82,15 @@ public:
     /// `to_mm`, so the surface at `to_mm` does not shadow itself): Beer-Lambert over the path
     /// inside each marker volume, (1 - scatter_fraction) per outer marker entered; zero if the
     /// coating is in the way.
-    Lanes transmittance(const EmbreeScene& scene, const Vec3& from_mm, const Vec3& to_mm,
-                        const LaneOptics& lanes) const;
+    template <int N>
+    LanesN<N> transmittance(const EmbreeScene& scene, const Vec3& from_mm, const Vec3& to_mm,
+                            const LaneOptics<N>& lanes) const;
     Rgb transmittance(const EmbreeScene& scene, const Vec3& from_mm, const Vec3& to_mm) const;
 
     /// Beer-Lambert transmittance exp(-absorption * path_mm) of `path_mm` inside a marker of
     /// layer `outer` (false: the inner, magenta filter; true: the outer, cyan dye).
-    Lanes marker_absorption(const LaneOptics& lanes, bool outer, double path_mm) const;
+    template <int N>
+    LanesN<N> marker_absorption(const LaneOptics<N>& lanes, bool outer, double path_mm) const;
 
     /// LED positions, mm: led_count points on the ring, the first on the +x axis.
     const std::vector<Vec3>& led_positions_mm() const { return m_led_positions_mm; }

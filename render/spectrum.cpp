@@ -363,20 +363,20 @@ WavelengthSampler::WavelengthSampler(const Spectrum& weight, double uniform_shar
         c /= m_cdf.back();
 }
 
+void WavelengthSampler::invert(double x, double& lambda_nm, double& pdf_per_nm) const {
+    // The interval k with cdf[k] <= x < cdf[k + 1], then linear inside it.
+    const auto it = std::upper_bound(m_cdf.begin(), m_cdf.end(), x);
+    const std::size_t k = std::min<std::size_t>(
+        std::size_t(std::max<std::ptrdiff_t>(it - m_cdf.begin() - 1, 0)), m_pdf.size() - 1);
+    const double span = m_cdf[k + 1] - m_cdf[k];
+    const double f = span > 0.0 ? std::clamp((x - m_cdf[k]) / span, 0.0, 1.0) : 0.0;
+    lambda_nm = Spectrum::wavelength_nm(int(k)) + f * kLambdaStep_nm;
+    pdf_per_nm = m_pdf[k];
+}
+
 WeightedSpectralSample WavelengthSampler::sample(double u) const {
     WeightedSpectralSample s;
-    for (int j = 0; j < 4; ++j) {
-        double x = u + 0.25 * j;
-        x -= std::floor(x);
-        // The interval k with cdf[k] <= x < cdf[k + 1], then linear inside it.
-        const auto it = std::upper_bound(m_cdf.begin(), m_cdf.end(), x);
-        const std::size_t k = std::min<std::size_t>(
-            std::size_t(std::max<std::ptrdiff_t>(it - m_cdf.begin() - 1, 0)), m_pdf.size() - 1);
-        const double span = m_cdf[k + 1] - m_cdf[k];
-        const double f = span > 0.0 ? std::clamp((x - m_cdf[k]) / span, 0.0, 1.0) : 0.0;
-        s.lambda_nm[j] = Spectrum::wavelength_nm(int(k)) + f * kLambdaStep_nm;
-        s.pdf_per_nm[j] = m_pdf[k];
-    }
+    sample<4>(u, s.lambda_nm, s.pdf_per_nm);
     return s;
 }
 

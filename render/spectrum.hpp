@@ -13,6 +13,7 @@
 #include <Eigen/Core>
 
 #include <array>
+#include <cmath>
 #include <filesystem>
 #include <stdexcept>
 #include <string>
@@ -50,6 +51,14 @@ struct Spectrum {
     double at(double lambda_nm) const;
     /// `at` for the 4 wavelengths of a hero sample.
     Eigen::Array4d at(const Eigen::Array4d& lambda_nm) const;
+    /// `at` for any fixed number of wavelengths.
+    template <int N>
+    Eigen::Array<double, N, 1> at_each(const Eigen::Array<double, N, 1>& lambda_nm) const {
+        Eigen::Array<double, N, 1> out;
+        for (int j = 0; j < N; ++j)
+            out[j] = at(lambda_nm[j]);
+        return out;
+    }
 };
 
 /// Product per wavelength (filters in series, emission times reflectance).
@@ -168,10 +177,21 @@ public:
     /// [0, 1] (1: uniform).
     explicit WavelengthSampler(const Spectrum& weight, double uniform_share = 0.1);
     WeightedSpectralSample sample(double u) const;
+    /// N wavelengths lambda_j = CDF^-1(frac(u + j / N)) and their densities.
+    template <int N>
+    void sample(double u, Eigen::Array<double, N, 1>& lambda_nm,
+                Eigen::Array<double, N, 1>& pdf_per_nm) const {
+        for (int j = 0; j < N; ++j) {
+            double x = u + double(j) / N;
+            x -= std::floor(x);
+            invert(x, lambda_nm[j], pdf_per_nm[j]);
+        }
+    }
     /// Density (1/nm) at lambda_nm (0 outside the grid).
     double pdf(double lambda_nm) const;
 
 private:
+    void invert(double x, double& lambda_nm, double& pdf_per_nm) const;
     std::array<double, kSpectrumSamples> m_cdf{}; ///< at the grid points, 0 .. 1
     std::array<double, kSpectrumSamples - 1> m_pdf{}; ///< per 1 nm interval, 1/nm
 };
@@ -184,6 +204,17 @@ Spectrum camera_weight(const CameraResponse& camera);
 /// balanced.
 Eigen::Array3d camera_rgb(const CameraResponse& camera, const WeightedSpectralSample& sample,
                           const SpectralValues& radiance);
+/// The same for N wavelengths: (1/N) sum_j s_c(lambda_j) L_j / pdf_j, white balanced.
+template <int N>
+Eigen::Array3d camera_rgb(const CameraResponse& camera, const Eigen::Array<double, N, 1>& lambda_nm,
+                          const Eigen::Array<double, N, 1>& pdf_per_nm,
+                          const Eigen::Array<double, N, 1>& radiance) {
+    const Eigen::Array<double, N, 1> weighted = radiance / pdf_per_nm;
+    Eigen::Array3d sum;
+    for (int c = 0; c < 3; ++c)
+        sum[c] = (camera.sensitivity()[std::size_t(c)].at_each(lambda_nm) * weighted).sum();
+    return sum / double(N) / camera.white_integral();
+}
 
 // ---- RGB reductions for the fast RGB mode and for validation ---------------------------------
 

@@ -101,6 +101,9 @@ int main(int argc, char** argv) {
         ->check(CLI::Range(16, 4096));
     bench_render->add_option("--repeat", render_bench.repeats, "timed renders per setting")
         ->check(CLI::Range(1, 1000));
+    bench_render->add_option("--modes", render_bench.modes, "spectral and/or rgb")
+        ->delimiter(',')
+        ->check(CLI::IsMember({"spectral", "rgb"}));
 
     auto* verify = app.add_subcommand("verify", "validation against analytic references");
     verify->require_subcommand(1);
