@@ -3,6 +3,7 @@
 #include "generators/generate.hpp"
 #include "generators/spec.hpp"
 #include "generators/verify.hpp"
+#include "generators/verify_render.hpp"
 
 #include <CLI/CLI.hpp>
 #include <tbb/global_control.h>
@@ -124,6 +125,9 @@ int main(int argc, char** argv) {
     verify_mech->add_flag("--dome-curve", dome_curve,
                           "also print the dome's force-indentation curve beside Hertz");
     verify_mech->add_option("--json", verify_json, "also write the cases to this JSON file");
+    auto* verify_rend = verify->add_subcommand(
+        "render", "fisheye projection, filter product, determinism, convergence slope");
+    verify_rend->add_option("--json", verify_json, "also write the cases to this JSON file");
 
     CLI11_PARSE(app, argc, argv);
     std::unique_ptr<tbb::global_control> limit;
@@ -161,6 +165,16 @@ int main(int argc, char** argv) {
             if (!verify_json.empty()) {
                 std::ofstream json(verify_json);
                 gen::write_verify_json(cases, json);
+                if (!json) throw std::runtime_error("cannot write " + verify_json);
+            }
+            return 0;
+        }
+        if (*verify_rend) {
+            const auto cases = gen::verify_render();
+            gen::print_render_verify_table(cases, std::cout);
+            if (!verify_json.empty()) {
+                std::ofstream json(verify_json);
+                gen::write_render_verify_json(cases, json);
                 if (!json) throw std::runtime_error("cannot write " + verify_json);
             }
             return 0;

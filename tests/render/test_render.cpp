@@ -8,6 +8,9 @@
 
 #include <Eigen/Geometry>
 #include <catch2/catch.hpp>
+#include <tbb/global_control.h>
+
+#include <cstring>
 
 #include <filesystem>
 
@@ -551,4 +554,20 @@ TEST_CASE("filter_product: through two filters onto the white coating, a pixel i
     }
     // The difference the spectral mode exists for (SENSOR.md: mixing is per wavelength).
     CHECK((pair.rgb_product - pair.spectral).abs().maxCoeff() > 0.02);
+}
+
+TEST_CASE("determinism: the same bytes with 1 and 2 threads, spectral and RGB", "[render]") {
+    OpticsParams spectral;
+    spectral.spectra = load_sensor_spectra(SensorSpectraFiles::in_directory(
+        std::filesystem::path(CHROMASIM_SOURCE_DIR) / "assets" / "spectra"));
+    for (const OpticsParams& optics : {OpticsParams{}, spectral}) {
+        auto render_with = [&](int threads) {
+            const tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                                            std::size_t(threads));
+            return render_frame(CameraParams{48, 48, 84.0}, optics, marker_frame(), 3, 5);
+        };
+        const Image one = render_with(1), two = render_with(2);
+        REQUIRE(one.rgb.size() == two.rgb.size());
+        CHECK(std::memcmp(one.rgb.data(), two.rgb.data(), one.rgb.size() * sizeof(float)) == 0);
+    }
 }
