@@ -154,11 +154,14 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
     const double path_mm = thickness[thickness.size() / 2];
     render::OpticsParams rgb;
     rgb.coating_albedo = render::rgb_of_reflectance(sp.camera, sp.coating_albedo).matrix();
-    rgb.outer_marker_albedo = render::rgb_of_reflectance(sp.camera, sp.outer_marker_albedo).matrix();
+    rgb.outer_marker_albedo =
+        render::rgb_of_reflectance(sp.camera, sp.outer_marker_albedo).matrix();
     rgb.inner_marker_absorption_per_mm =
-        render::rgb_absorption_per_mm(sp.camera, sp.inner_marker_absorption_per_mm, path_mm).matrix();
+        render::rgb_absorption_per_mm(sp.camera, sp.inner_marker_absorption_per_mm, path_mm)
+            .matrix();
     rgb.outer_marker_absorption_per_mm =
-        render::rgb_absorption_per_mm(sp.camera, sp.outer_marker_absorption_per_mm, path_mm).matrix();
+        render::rgb_absorption_per_mm(sp.camera, sp.outer_marker_absorption_per_mm, path_mm)
+            .matrix();
 
     const render::CameraParams camera{o.size_px, o.size_px, 84.0};
     render::Renderer reference_renderer(camera, spectral);
@@ -184,9 +187,9 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
                 sum2 += e * e;
                 max_err = std::max(max_err, e);
             }
-            out << "| " << mode << " | " << spp << " | " << std::setprecision(1) << 1e3 * t
-                << " | " << std::setprecision(3) << 100 * std::sqrt(sum2 / img.rgb.size()) / kWhite
-                << " | " << 100 * max_err / kWhite << " |\n";
+            out << "| " << mode << " | " << spp << " | " << std::setprecision(1) << 1e3 * t << " | "
+                << std::setprecision(3) << 100 * std::sqrt(sum2 / img.rgb.size()) / kWhite << " | "
+                << 100 * max_err / kWhite << " |\n";
         }
     }
 }

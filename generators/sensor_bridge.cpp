@@ -26,15 +26,14 @@ void fill_prisms(const mechanics::Points& points, const mechanics::MarkerDiscs& 
                  render::SurfaceMesh& out) {
     const int markers = discs.markers_per_layer, rim = discs.rim_points, ring = 1 + rim;
     const int first = layer * markers * discs.points_per_marker;
-    out.V = points.middleRows(first, Eigen::Index(markers) * discs.points_per_marker)
-                .cast<float>();
+    out.V = points.middleRows(first, Eigen::Index(markers) * discs.points_per_marker).cast<float>();
     const Eigen::Index triangles = Eigen::Index(markers) * kPrismTriangles * rim;
     if (out.F.rows() == triangles) return; // topology unchanged
     out.F.resize(triangles, 3);
     Eigen::Index f = 0;
     for (int m = 0; m < markers; ++m) {
         const auto in = std::uint32_t(m * discs.points_per_marker + ring); // inner-face centre
-        const auto outer = in + std::uint32_t(ring);                      // outer-face centre
+        const auto outer = in + std::uint32_t(ring);                       // outer-face centre
         for (int k = 0; k < rim; ++k) {
             const std::uint32_t a = 1 + std::uint32_t(k), b = 1 + std::uint32_t((k + 1) % rim);
             out.F.row(f++) << in, in + b, in + a;          // faces -n

@@ -299,21 +299,26 @@ void add_object_and_protocol(std::vector<SchemaEntry>& out) {
                        "starts at the spec file's folder (assets/objects/ has a 45 mm sphere cap "
                        "and a 40 mm plate).",
                        CHROMASIM_FIELD(object.mesh_file)));
-    out.push_back(number("object.offset_x_mm", 0, closed(-20, 20), "mm",
-                         "Mesh: x of its frame's origin; sphere: x of its axis; flat: no effect (sensor frame).",
-                         CHROMASIM_FIELD(object.offset_x_mm)));
-    out.push_back(number("object.offset_y_mm", 0, closed(-20, 20), "mm",
-                         "Mesh: y of its frame's origin; sphere: y of its axis; flat: no effect (sensor frame).",
-                         CHROMASIM_FIELD(object.offset_y_mm)));
+    out.push_back(number(
+        "object.offset_x_mm", 0, closed(-20, 20), "mm",
+        "Mesh: x of its frame's origin; sphere: x of its axis; flat: no effect (sensor frame).",
+        CHROMASIM_FIELD(object.offset_x_mm)));
+    out.push_back(number(
+        "object.offset_y_mm", 0, closed(-20, 20), "mm",
+        "Mesh: y of its frame's origin; sphere: y of its axis; flat: no effect (sensor frame).",
+        CHROMASIM_FIELD(object.offset_y_mm)));
     out.push_back(number("object.roll_deg", 0, closed(-180, 180), "deg",
-                         "Mesh or flat (tilts it): rotation about the sensor's x axis, applied first; a sphere is unchanged.",
+                         "Mesh or flat (tilts it): rotation about the sensor's x axis, applied "
+                         "first; a sphere is unchanged.",
                          CHROMASIM_FIELD(object.roll_deg)));
-    out.push_back(number("object.pitch_deg", 0, closed(-180, 180), "deg",
-                         "Mesh or flat (tilts it): rotation about the sensor's y axis, applied second.",
-                         CHROMASIM_FIELD(object.pitch_deg)));
-    out.push_back(number("object.yaw_deg", 0, closed(-180, 180), "deg",
-                         "Mesh: rotation about the sensor's z axis, applied last (a flat or sphere is unchanged).",
-                         CHROMASIM_FIELD(object.yaw_deg)));
+    out.push_back(
+        number("object.pitch_deg", 0, closed(-180, 180), "deg",
+               "Mesh or flat (tilts it): rotation about the sensor's y axis, applied second.",
+               CHROMASIM_FIELD(object.pitch_deg)));
+    out.push_back(number(
+        "object.yaw_deg", 0, closed(-180, 180), "deg",
+        "Mesh: rotation about the sensor's z axis, applied last (a flat or sphere is unchanged).",
+        CHROMASIM_FIELD(object.yaw_deg)));
     out.push_back(number("object.radius_mm", 45, left_open(0, 1e4), "mm",
                          "Sphere radius (seed 000's curved object: 45 mm); unused for a flat.",
                          CHROMASIM_FIELD(object.radius_mm)));

@@ -10,12 +10,12 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <iomanip>
 #include <numbers>
 #include <ostream>
 #include <sstream>
-#include <cstring>
 
 namespace chromasim::generators {
 
@@ -59,8 +59,8 @@ render::SensorFrame dome_frame(const mechanics::DomeModel& model,
 /// out.
 template <class Predict>
 std::pair<double, double> marker_centroid_error(const mechanics::DomeModel& model,
-                                                const render::CameraParams& camera,
-                                                Predict predict, int* counted) {
+                                                const render::CameraParams& camera, Predict predict,
+                                                int* counted) {
     render::SensorFrame frame = dome_frame(model, nullptr);
     frame.outer_markers = render::SurfaceMesh{};
     render::detail::EmbreeScene scene;
@@ -120,17 +120,15 @@ void projection_cases(const mechanics::DomeModel& model, std::vector<RenderVerif
     auto kannala_brandt = [&](const Eigen::Vector3d& c) {
         const double theta = std::acos(c.z() / c.norm()), phi = std::atan2(c.y(), c.x());
         const double t2 = theta * theta;
-        const double td =
-            theta * (1 + t2 * (kb.k1 + t2 * (kb.k2 + t2 * (kb.k3 + t2 * kb.k4))));
+        const double td = theta * (1 + t2 * (kb.k1 + t2 * (kb.k2 + t2 * (kb.k3 + t2 * kb.k4))));
         return Eigen::Vector2d(kb.fx_px * td * std::cos(phi) + kb.cx_px + 0.5,
                                kb.fy_px * td * std::sin(phi) + kb.cy_px + 0.5);
     };
     for (const bool is_kb : {false, true}) {
         const auto t0 = Clock::now();
         int n = 0;
-        const auto [worst, mean] =
-            is_kb ? marker_centroid_error(model, kb, kannala_brandt, &n)
-                  : marker_centroid_error(model, camera, equidistant, &n);
+        const auto [worst, mean] = is_kb ? marker_centroid_error(model, kb, kannala_brandt, &n)
+                                         : marker_centroid_error(model, camera, equidistant, &n);
         RenderVerifyCase c;
         c.key = "fisheye_projection";
         c.mode = is_kb ? "kannala_brandt" : "equidistant";
@@ -192,7 +190,8 @@ void filter_product_cases(const mechanics::DomeModel& model, std::vector<RenderV
     const render::Image seen = renderer.render({4096, 3});
     const render::Spectrum lit = sp.camera.led_emission() * sp.coating_albedo;
     const Eigen::Array3d expected =
-        sp.camera.rgb_of_radiance(lit * render::transmittance(sp.inner_marker_absorption_per_mm, t) *
+        sp.camera.rgb_of_radiance(lit *
+                                  render::transmittance(sp.inner_marker_absorption_per_mm, t) *
                                   render::transmittance(sp.outer_marker_absorption_per_mm, t)) /
         sp.camera.rgb_of_radiance(lit);
     const render::FilterPairRgb pair = render::rgb_of_filter_pair(
@@ -296,8 +295,8 @@ void print_render_verify_table(const std::vector<RenderVerifyCase>& cases, std::
         out << "| " << c.key << " | " << c.mode << " | " << std::setprecision(5) << c.measured
             << " " << c.unit << " | " << c.reference << " | ";
         if (c.relative)
-            out << std::fixed << std::setprecision(2) << 100 * c.error << " % | "
-                << 100 * c.target << " % | ";
+            out << std::fixed << std::setprecision(2) << 100 * c.error << " % | " << 100 * c.target
+                << " % | ";
         else
             out << std::fixed << std::setprecision(3) << c.error << " | " << c.target << " | ";
         out << (std::abs(c.error) <= c.target ? "yes" : "no") << " | " << std::setprecision(1)
@@ -312,10 +311,10 @@ void write_render_verify_json(const std::vector<RenderVerifyCase>& cases, std::o
         out << "    {\"key\": \"" << c.key << "\", \"mode\": \"" << c.mode
             << "\", \"measured\": " << c.measured << ", \"reference\": " << c.reference
             << ", \"error\": " << c.error << ", \"relative\": " << (c.relative ? "true" : "false")
-            << ", \"target\": " << c.target << ", \"within_target\": "
-            << (std::abs(c.error) <= c.target ? "true" : "false") << ", \"unit\": \"" << c.unit
-            << "\", \"seconds\": " << c.seconds << ", \"note\": \"" << c.note << "\"}"
-            << (i + 1 < cases.size() ? "," : "") << "\n";
+            << ", \"target\": " << c.target
+            << ", \"within_target\": " << (std::abs(c.error) <= c.target ? "true" : "false")
+            << ", \"unit\": \"" << c.unit << "\", \"seconds\": " << c.seconds << ", \"note\": \""
+            << c.note << "\"}" << (i + 1 < cases.size() ? "," : "") << "\n";
     }
     out << "  ]\n}\n";
 }

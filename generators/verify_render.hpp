@@ -11,10 +11,10 @@ struct RenderVerifyCase {
     std::string key;  ///< fisheye_projection, filter_product, determinism, convergence_slope
     std::string mode; ///< spectral | rgb, or the camera model
     double measured = 0, reference = 0;
-    double error = 0;         ///< measured - reference, or relative where `relative`
-    double target = 0;        ///< |error| allowed
-    bool relative = false;    ///< error is (measured - reference) / reference
-    double seconds = 0;       ///< run time of the case
+    double error = 0;      ///< measured - reference, or relative where `relative`
+    double target = 0;     ///< |error| allowed
+    bool relative = false; ///< error is (measured - reference) / reference
+    double seconds = 0;    ///< run time of the case
     std::string unit, note;
 };
 

@@ -148,8 +148,8 @@ BlockModel::~BlockModel() = default;
 ContactSolution BlockModel::solve(const ContactLoad& load, const ObjectShape& object,
                                   const LoadPath& path, const ContactSolution* previous,
                                   const ContactOptions& options) const {
-    return solve_contact_path(m_impl->compliance, object, m_impl->candidate_X, load, path,
-                              previous, options);
+    return solve_contact_path(m_impl->compliance, object, m_impl->candidate_X, load, path, previous,
+                              options);
 }
 
 const Points& BlockModel::candidate_positions() const {

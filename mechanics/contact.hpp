@@ -42,7 +42,7 @@ using RowVectors2 = Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>;
 struct ObjectShape {
     enum class Kind { flat, sphere, mesh };
     Kind kind = Kind::flat;
-    double radius_mm = 45.0;                     ///< sphere radius (sphere only)
+    double radius_mm = 45.0; ///< sphere radius (sphere only)
     /// Sphere only: (x, y) of its axis in the sensor frame (a posed sphere; rotations leave a
     /// sphere unchanged). A posed mesh carries its pose in `mesh`; a tilted flat is a mesh.
     Eigen::Vector2d offset_mm{0.0, 0.0};

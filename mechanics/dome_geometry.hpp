@@ -4,7 +4,6 @@
 #include "mechanics/tet_mesh.hpp"
 
 #include <array>
-#include <vector>
 #include <string>
 #include <vector>
 
@@ -64,7 +63,7 @@ std::vector<Eigen::Vector3d> marker_directions(const DomeParams& dome);
 struct MarkerDiscs {
     Points points;
     int markers_per_layer = 0;
-    int points_per_marker = 0;   ///< 3 (1 + rim_points)
+    int points_per_marker = 0; ///< 3 (1 + rim_points)
     int rim_points = 0;
     std::vector<double> thickness_mm; ///< face-to-face thickness of each marker as built
     /// First row of ring `ring` (0 mid, 1 inner face, 2 outer face) of marker `m` (0-based

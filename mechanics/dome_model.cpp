@@ -112,8 +112,7 @@ void DomeModel::Impl::build_mesh() {
     TetgenOptions tg;
     tg.max_volume_mm3 = level.max_volume_mm3;
     mesh = tetrahedralize(
-        dome_plc(options.dome, level,
-                 options.interior == DomeModelOptions::Interior::soft_fill),
+        dome_plc(options.dome, level, options.interior == DomeModelOptions::Interior::soft_fill),
         tg);
     stats.mesh_s = seconds_since(t0);
 }
@@ -182,19 +181,17 @@ bool DomeModel::Impl::load_from_cache(std::uint64_t key) {
     if (!cached) return false;
     mesh = std::move(cached->mesh);
     derive_from_mesh();
-    body = std::make_unique<ElasticBody>(
-        mesh, material_list(options),
-        clamped_nodes(), candidates, options.volumetric, std::move(cached->responses));
+    body = std::make_unique<ElasticBody>(mesh, material_list(options), clamped_nodes(), candidates,
+                                         options.volumetric, std::move(cached->responses));
     stats.cache_s = seconds_since(t0);
     stats.cache = "hit";
     return true;
 }
 
 void DomeModel::Impl::build_body() {
-    body = std::make_unique<ElasticBody>(
-        mesh, material_list(options),
-        clamped_nodes(), candidates, coating.nodes, embed(mesh, markers.points, "marker point"),
-        options.volumetric);
+    body = std::make_unique<ElasticBody>(mesh, material_list(options), clamped_nodes(), candidates,
+                                         coating.nodes, embed(mesh, markers.points, "marker point"),
+                                         options.volumetric);
     const ElasticBodyStats& b = body->stats();
     stats.assemble_s = b.assemble_s;
     stats.factorize_s = b.factorize_s;
@@ -225,9 +222,8 @@ DomeModel::~DomeModel() = default;
 void DomeModel::Impl::solve_hyperelastic(const ContactLoad& load, const ObjectShape& object,
                                          const FrameResult* previous, FrameResult& r) const {
     std::call_once(hyper_once, [this] {
-        hyper = std::make_unique<HyperelasticContact>(
-            mesh, material_list(options),
-            options.volumetric, *body);
+        hyper = std::make_unique<HyperelasticContact>(mesh, material_list(options),
+                                                      options.volumetric, *body);
         marker_embedding = embed(mesh, markers.points, "marker point");
     });
     const ContactSolution* last = previous ? &previous->contact : nullptr;

@@ -3,8 +3,8 @@
 /// generators fills these structs from the mechanics results (docs/ARCHITECTURE.md).
 ///
 /// Frame convention: millimetres, camera frame. The camera sits at the origin (the dome
-/// centre) and looks along +z; the dome apex is at (0, 0, 13.2) when undeformed; the coating's inner face, which the camera
-/// sees, at (0, 0, 12.7).
+/// centre) and looks along +z; the dome apex is at (0, 0, 13.2) when undeformed; the coating's
+/// inner face, which the camera sees, at (0, 0, 12.7).
 #include <Eigen/Core>
 
 #include "render/spectrum.hpp"

@@ -204,8 +204,10 @@ LanesN<N> ShadingModel::transmittance(const EmbreeScene& scene, const Vec3& from
             if (cos_incidence == 0.0) break; // degenerate or edge-on face: no entry, no exit
             const bool outer = hit.kind == SurfaceKind::outer_marker;
             const double inside = path.cross(outer, hit.t_mm, cos_incidence < 0.0);
-            if (inside >= 0.0) result *= marker_absorption(lanes, outer, inside);
-            else if (outer) result *= 1.0 - m_optics.outer_marker_scatter_fraction;
+            if (inside >= 0.0)
+                result *= marker_absorption(lanes, outer, inside);
+            else if (outer)
+                result *= 1.0 - m_optics.outer_marker_scatter_fraction;
             break;
         }
         }
@@ -272,11 +274,9 @@ Rgb ShadingModel::radiance(const EmbreeScene& scene, const Vec3& origin_mm,
 // The two lane widths the renderer uses.
 template LanesN<kRgbLanes> ShadingModel::radiance(const EmbreeScene&, const Vec3&, const Vec3&,
                                                   const LaneOptics<kRgbLanes>&) const;
-template LanesN<kSpectralLanes> ShadingModel::radiance(const EmbreeScene&, const Vec3&,
-                                                       const Vec3&,
+template LanesN<kSpectralLanes> ShadingModel::radiance(const EmbreeScene&, const Vec3&, const Vec3&,
                                                        const LaneOptics<kSpectralLanes>&) const;
-template LanesN<kRgbLanes> ShadingModel::transmittance(const EmbreeScene&, const Vec3&,
-                                                       const Vec3&,
+template LanesN<kRgbLanes> ShadingModel::transmittance(const EmbreeScene&, const Vec3&, const Vec3&,
                                                        const LaneOptics<kRgbLanes>&) const;
 template LanesN<kSpectralLanes>
 ShadingModel::transmittance(const EmbreeScene&, const Vec3&, const Vec3&,

@@ -29,15 +29,13 @@ inline constexpr double kHitGap_mm = 1e-3;
 /// RGB mode's (docs/VALIDATION.md, "Samples per pixel").
 inline constexpr int kRgbLanes = 4;
 inline constexpr int kSpectralLanes = 16;
-template <int N>
-using LanesN = Eigen::Array<double, N, 1>;
+template <int N> using LanesN = Eigen::Array<double, N, 1>;
 using Lanes = LanesN<kSpectralLanes>;
 using RgbLanes = LanesN<kRgbLanes>;
 
 /// The optical properties of one sample, per lane: albedos, absorption coefficients (1/mm) and
 /// the emission of every LED.
-template <int N>
-struct LaneOptics {
+template <int N> struct LaneOptics {
     LanesN<N> coating_albedo, inner_absorption_per_mm, outer_absorption_per_mm, outer_albedo, led;
 };
 

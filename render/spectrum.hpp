@@ -192,7 +192,7 @@ public:
 
 private:
     void invert(double x, double& lambda_nm, double& pdf_per_nm) const;
-    std::array<double, kSpectrumSamples> m_cdf{}; ///< at the grid points, 0 .. 1
+    std::array<double, kSpectrumSamples> m_cdf{};     ///< at the grid points, 0 .. 1
     std::array<double, kSpectrumSamples - 1> m_pdf{}; ///< per 1 nm interval, 1/nm
 };
 

@@ -340,8 +340,9 @@ TEST_CASE("object poses reach the mechanics: an offset sphere and a tilted flat 
     CHECK(cf.x() == Approx(13.2 * std::sin(20 * std::numbers::pi / 180)).margin(0.2));
     CHECK(std::abs(cf.y()) < 0.25);
     // An untilted flat stays the analytic plane whatever its offset and yaw.
-    CHECK(object_shape(parse_spec("object:\n  offset_x_mm: 5\n  yaw_deg: 30\n", "pose.yaml"))
-              .kind == mechanics::ObjectShape::Kind::flat);
+    CHECK(
+        object_shape(parse_spec("object:\n  offset_x_mm: 5\n  yaw_deg: 30\n", "pose.yaml")).kind ==
+        mechanics::ObjectShape::Kind::flat);
     // A tilt that would leave the contact cap is refused when the spec is read.
     CHECK_THROWS_WITH(parse_spec("object:\n  shape: flat\n  roll_deg: 32\n", "pose.yaml"),
                       Catch::Contains("object.pitch_deg") &&

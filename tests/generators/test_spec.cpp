@@ -205,7 +205,8 @@ TEST_CASE("a value of the wrong type is rejected", "[generators][spec]") {
     SECTION("a single value for a section") {
         CHECK(error_of("render: 5\n") ==
               "bad.yaml:1:9: render: value '5' is a single value, not a mapping; allowed: a "
-              "mapping with keys in 'render': width_px, height_px, samples_per_pixel, exposure, spectral");
+              "mapping with keys in 'render': width_px, height_px, samples_per_pixel, exposure, "
+              "spectral");
     }
     SECTION("anything but true or false for a bool") {
         CHECK(error_of("outputs:\n  images: yes\n") ==

@@ -16,9 +16,9 @@ Eigen::Matrix3d stress(const Eigen::Vector3d& X, const Eigen::Vector3d& F, doubl
     Eigen::Matrix3d grad; // grad(i, j) = d u_i / d x_j
     for (int j = 0; j < 3; ++j) {
         const Eigen::Vector3d dx = h * Eigen::Vector3d::Unit(j);
-        grad.col(j) = (half_space_green(X + dx, kE, kNu) * F -
-                       half_space_green(X - dx, kE, kNu) * F) /
-                      (2 * h);
+        grad.col(j) =
+            (half_space_green(X + dx, kE, kNu) * F - half_space_green(X - dx, kE, kNu) * F) /
+            (2 * h);
     }
     const Eigen::Matrix3d eps = 0.5 * (grad + grad.transpose());
     const double G = kE / (2 * (1 + kNu)), lambda = kE * kNu / ((1 + kNu) * (1 - 2 * kNu));
@@ -34,9 +34,9 @@ TEST_CASE("half-space point force: equilibrium inside, no traction on the surfac
          {Eigen::Vector3d(0, 0, -1), Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, 1, 0)}) {
         INFO("force " << F.transpose());
         // div sigma = 0 at interior points (nested central differences).
-        for (const Eigen::Vector3d& X : {Eigen::Vector3d(1.0, 0.5, -2.0),
-                                        Eigen::Vector3d(-2.0, 1.5, -0.7),
-                                        Eigen::Vector3d(0.3, -1.2, -3.0)}) {
+        for (const Eigen::Vector3d& X :
+             {Eigen::Vector3d(1.0, 0.5, -2.0), Eigen::Vector3d(-2.0, 1.5, -0.7),
+              Eigen::Vector3d(0.3, -1.2, -3.0)}) {
             const double h = 1e-3, scale = stress(X, F, 1e-5).norm() / X.norm();
             Eigen::Vector3d div = Eigen::Vector3d::Zero();
             for (int j = 0; j < 3; ++j) {

@@ -121,8 +121,7 @@ void add_disc(MeshBuilder& mesh, const Vec3& centre_mm, const Vec3& normal,
 double chord_mm(const Vec3& origin, const Vec3& w, const Vec3& centre, const Vec3& normal,
                 double thickness_mm, double t_max_mm) {
     const Vec3 n = normal.normalized();
-    std::vector<std::pair<Vec3, double>> planes{{n, 0.5 * thickness_mm},
-                                                {-n, 0.5 * thickness_mm}};
+    std::vector<std::pair<Vec3, double>> planes{{n, 0.5 * thickness_mm}, {-n, 0.5 * thickness_mm}};
     for (int k = 0; k < kRim; ++k) {
         const Vec3 mid = 0.5 * (rim_point(centre, n, k) + rim_point(centre, n, k + 1)) - centre;
         planes.emplace_back(mid.normalized(), mid.norm());
@@ -303,8 +302,8 @@ TEST_CASE("apex pixels equal analytic products of irradiance and transmittances"
         const Vec3 down(0.0, 0.0, -1.0);
         auto through_disc = [&](const Vec3& led, const Vec3& w) {
             // Every LED -> apex segment crosses the disc plane inside the 12-gon's incircle.
-            for (const double z : {centre.z() - 0.5 * kThickness_mm,
-                                   centre.z() + 0.5 * kThickness_mm}) {
+            for (const double z :
+                 {centre.z() - 0.5 * kThickness_mm, centre.z() + 0.5 * kThickness_mm}) {
                 const Vec3 crossing = led + (z - led.z()) / w.z() * w;
                 REQUIRE(crossing.head<2>().norm() < kMarkerRadius_mm * std::cos(kPi / 12.0));
             }
@@ -319,8 +318,7 @@ TEST_CASE("apex pixels equal analytic products of irradiance and transmittances"
         const Vec3 entry = centre - Vec3(0.0, 0.0, 0.5 * kThickness_mm);
         const Eigen::Array3d scattered = s * optics.outer_marker_albedo.array() / kPi *
                                          analytic_irradiance(optics, entry, down, unshadowed);
-        const Eigen::Array3d behind = (1.0 - s) * (-a_out * kThickness_mm).exp() *
-                                      albedo_c / kPi *
+        const Eigen::Array3d behind = (1.0 - s) * (-a_out * kThickness_mm).exp() * albedo_c / kPi *
                                       analytic_irradiance(optics, apex, down, through_disc);
         const Eigen::Array3d expected = scale * (scattered + behind);
         for (int k = 0; k < 3; ++k)
@@ -430,8 +428,9 @@ TEST_CASE("shadow transmittance multiplies marker transmissions, the coating blo
     const Vec3 from(0.0, 0.0, 1.0);
     const Eigen::Array3d a_in = optics.inner_marker_absorption_per_mm.array();
     const detail::Rgb inner = (-a_in * kThickness_mm).exp();
-    const detail::Rgb outer = (1.0 - optics.outer_marker_scatter_fraction) *
-                              (-optics.outer_marker_absorption_per_mm.array() * kThickness_mm).exp();
+    const detail::Rgb outer =
+        (1.0 - optics.outer_marker_scatter_fraction) *
+        (-optics.outer_marker_absorption_per_mm.array() * kThickness_mm).exp();
     const detail::Rgb clear = shading.transmittance(scene, from, Vec3(0.0, 0.0, 10.0));
     const detail::Rgb one = shading.transmittance(scene, from, Vec3(0.0, 0.0, 12.0));
     const detail::Rgb two = shading.transmittance(scene, from, Vec3(0.0, 0.0, 12.68));
@@ -522,9 +521,8 @@ TEST_CASE("filter_product: through two filters onto the white coating, a pixel i
           "product of their transmittances",
           "[render][spectral]") {
     OpticsParams optics;
-    optics.spectra =
-        load_sensor_spectra(SensorSpectraFiles::in_directory(
-            std::filesystem::path(CHROMASIM_SOURCE_DIR) / "assets" / "spectra"));
+    optics.spectra = load_sensor_spectra(SensorSpectraFiles::in_directory(
+        std::filesystem::path(CHROMASIM_SOURCE_DIR) / "assets" / "spectra"));
     optics.outer_marker_scatter_fraction = 0.0; // the cyan dye as a pure filter here
     const SensorSpectra& sp = *optics.spectra;
     // A magenta prism (z 10.505..10.995) and below it a cyan one (z 9.505..9.995) on the axis:
@@ -539,14 +537,15 @@ TEST_CASE("filter_product: through two filters onto the white coating, a pixel i
     const Eigen::Array3d white = pixel(render_frame(camera, optics, bare_frame(), spp, 3), 1, 1);
 
     const Spectrum lit = sp.camera.led_emission() * sp.coating_albedo;
-    const Spectrum filtered = lit * transmittance(sp.inner_marker_absorption_per_mm, kThickness_mm) *
+    const Spectrum filtered = lit *
+                              transmittance(sp.inner_marker_absorption_per_mm, kThickness_mm) *
                               transmittance(sp.outer_marker_absorption_per_mm, kThickness_mm);
     const Eigen::Array3d expected =
         sp.camera.rgb_of_radiance(filtered) / sp.camera.rgb_of_radiance(lit);
     // The RGB approximation: the product of each filter's own camera-RGB transmittance.
-    const FilterPairRgb pair = rgb_of_filter_pair(sp.camera, sp.inner_marker_absorption_per_mm,
-                                                  kThickness_mm, sp.outer_marker_absorption_per_mm,
-                                                  kThickness_mm);
+    const FilterPairRgb pair =
+        rgb_of_filter_pair(sp.camera, sp.inner_marker_absorption_per_mm, kThickness_mm,
+                           sp.outer_marker_absorption_per_mm, kThickness_mm);
     for (int k = 0; k < 3; ++k) {
         INFO("channel " << k << ": rendered " << seen[k] / white[k] << ", spectral product "
                         << expected[k] << ", RGB product " << pair.rgb_product[k]);
