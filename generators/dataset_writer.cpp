@@ -89,7 +89,7 @@ void DatasetWriter::open_outputs() {
     if (m_spec.outputs.images) fs::create_directories(m_staging / "images");
     if (m_spec.outputs.labels)
         m_labels = open_csv(m_staging / "labels.csv",
-                            "frame,phase,image,normal_force_N,tangential_force_N,"
+                            "frame,phase,image,exr,normal_force_N,tangential_force_N,"
                             "tangential_force_x_N,tangential_force_y_N,"
                             "requested_tangential_force_N,mu,gamma,sliding,indentation_mm,"
                             "object_travel_x_mm,object_travel_y_mm,"
@@ -107,9 +107,9 @@ DatasetWriter::~DatasetWriter() {
     }
 }
 
-fs::path DatasetWriter::image_path(int frame, std::string* relative) {
+fs::path DatasetWriter::image_path(int frame, std::string* relative, const char* extension) {
     char name[32];
-    std::snprintf(name, sizeof name, "frame_%06d.png", frame);
+    std::snprintf(name, sizeof name, "frame_%06d.%s", frame, extension);
     if (relative) *relative = std::string("images/") + name;
     ++m_images;
     return m_staging / "images" / name;
@@ -118,10 +118,10 @@ fs::path DatasetWriter::image_path(int frame, std::string* relative) {
 void DatasetWriter::write_label(const LabelRow& r) {
     if (!m_labels.is_open()) return;
     const double ft = std::hypot(r.tangential_x_N, r.tangential_y_N);
-    m_labels << r.frame << ',' << r.phase << ',' << r.image << ',' << r.normal_force_N << ',' << ft
-             << ',' << r.tangential_x_N << ',' << r.tangential_y_N << ','
-             << r.requested_tangential_N << ',' << r.mu << ',' << r.gamma << ',' << int(r.sliding)
-             << ',' << r.indentation_mm << ',' << r.object_travel_x_mm << ','
+    m_labels << r.frame << ',' << r.phase << ',' << r.image << ',' << r.exr << ','
+             << r.normal_force_N << ',' << ft << ',' << r.tangential_x_N << ',' << r.tangential_y_N
+             << ',' << r.requested_tangential_N << ',' << r.mu << ',' << r.gamma << ','
+             << int(r.sliding) << ',' << r.indentation_mm << ',' << r.object_travel_x_mm << ','
              << r.object_travel_y_mm << ',' << r.contact_area_mm2 << ',' << r.stick_area_mm2 << ','
              << r.contact_nodes << ',' << r.solver_iterations << ',' << r.solver_residual_mm << ','
              << r.solver_residual_N << ',' << int(r.converged) << ',' << r.status << '\n';

@@ -26,7 +26,7 @@ std::string stored_spec_text(const Spec& spec);
 
 struct LabelRow {
     int frame = 0;
-    std::string phase, image;
+    std::string phase, image, exr;
     double normal_force_N = 0, tangential_x_N = 0, tangential_y_N = 0, requested_tangential_N = 0;
     double mu = 0, gamma = 0, indentation_mm = 0, contact_area_mm2 = 0, stick_area_mm2 = 0;
     bool sliding = false, converged = false;
@@ -46,8 +46,10 @@ public:
     DatasetWriter(const DatasetWriter&) = delete;
     DatasetWriter& operator=(const DatasetWriter&) = delete;
 
-    /// Path (inside staging) for a frame's image; `relative` gets the path stored in labels.
-    std::filesystem::path image_path(int frame, std::string* relative = nullptr);
+    /// Path (inside staging) for a frame's image file of `extension` (png, exr); `relative`
+    /// gets the path stored in labels.
+    std::filesystem::path image_path(int frame, std::string* relative = nullptr,
+                                     const char* extension = "png");
     void write_label(const LabelRow& row);
     /// One row per marker: centre displacement of marker `m` of layer `layer`.
     void write_marker(int frame, const char* layer, int marker, const double x0_mm[3],

@@ -87,8 +87,9 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     // A mesh object's file and the spectra are read before any work: a bad file stops here,
     // nothing written.
     const mechanics::ObjectShape object = object_shape(spec);
+    const bool render_stage = spec.outputs.images || spec.outputs.exr;
     std::optional<render::OpticsParams> optics;
-    if (spec.outputs.images) optics = optics_params(spec);
+    if (render_stage) optics = optics_params(spec);
     DatasetWriter writer(options.out_dir, spec, options.overwrite);
     const Plan plan = make_plan(spec);
 
@@ -98,8 +99,7 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     model_options.cache_dir = options.cache_dir;
     const mechanics::DomeModel model(model_options);
     std::unique_ptr<render::Renderer> renderer;
-    if (spec.outputs.images)
-        renderer = std::make_unique<render::Renderer>(camera_params(spec), *optics);
+    if (render_stage) renderer = std::make_unique<render::Renderer>(camera_params(spec), *optics);
     report.precompute_s = seconds_since(t0);
     const auto& st = model.stats();
     log << "chromasim: dome mesh '" << spec.sensor.mesh_level << "': " << st.nodes << " nodes, "
@@ -110,10 +110,11 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
 
     // 3. Frames: mechanics, then (only if images are asked for) render, then writers.
     mechanics::FrameRequest request;
-    request.coating = spec.outputs.images;
-    request.markers = spec.outputs.images || spec.outputs.markers;
+    request.coating = render_stage;
+    request.markers = render_stage || spec.outputs.markers;
     render::SensorFrame sensor_frame;
-    const render::RenderSettings settings{spec.render.samples_per_pixel, spec.seed};
+    const render::RenderSettings settings{spec.render.samples_per_pixel, spec.seed,
+                                          spec.outputs.marker_ids, spec.outputs.variance};
     // The frames form one trial: each starts from the stick/slip state the previous one left.
     mechanics::FrameResult previous;
     for (const FramePlan& f : plan.frames) {
@@ -134,7 +135,8 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
             const render::Image image = renderer->render(settings);
             report.render_s += seconds_since(t0);
             t0 = Clock::now();
-            write_png(writer.image_path(f.index, &row.image), image);
+            if (spec.outputs.images) write_png(writer.image_path(f.index, &row.image), image);
+            if (spec.outputs.exr) write_exr(writer.image_path(f.index, &row.exr, "exr"), image);
             report.write_s += seconds_since(t0);
             ++report.images;
         }

@@ -29,6 +29,64 @@ void write_png(const std::filesystem::path& path, const render::Image& image) {
         throw std::runtime_error("cannot write " + path.string() + ": " + out->geterror());
 }
 
+void write_exr(const std::filesystem::path& path, const render::Image& image) {
+    const std::size_t pixels = std::size_t(image.width) * image.height;
+    std::vector<std::string> names{"R", "G", "B"};
+    const bool variance = !image.variance.empty(), ids = !image.inner_marker_id.empty();
+    if (variance) names.insert(names.end(), {"variance.R", "variance.G", "variance.B"});
+    if (ids) names.insert(names.end(), {"inner_marker_id", "outer_marker_id"});
+    const std::size_t nc = names.size();
+    std::vector<float> data(pixels * nc);
+    for (std::size_t p = 0; p < pixels; ++p) {
+        float* out = data.data() + p * nc;
+        std::size_t c = 0;
+        for (int k = 0; k < 3; ++k)
+            out[c++] = image.rgb[3 * p + std::size_t(k)];
+        if (variance)
+            for (int k = 0; k < 3; ++k)
+                out[c++] = image.variance[3 * p + std::size_t(k)];
+        if (ids) {
+            out[c++] = float(image.inner_marker_id[p]);
+            out[c++] = float(image.outer_marker_id[p]);
+        }
+    }
+    auto out = OIIO::ImageOutput::create(path.string());
+    if (!out)
+        throw std::runtime_error("cannot create image writer for " + path.string() + ": " +
+                                 OIIO::geterror());
+    OIIO::ImageSpec spec(image.width, image.height, int(nc), OIIO::TypeDesc::FLOAT);
+    spec.channelnames = names;
+    spec.attribute("oiio:ColorSpace", "Linear");
+    spec.attribute("compression", "zip");
+    spec.attribute("Software", "chromasim " CHROMASIM_VERSION);
+    if (!out->open(path.string(), spec) || !out->write_image(OIIO::TypeDesc::FLOAT, data.data()) ||
+        !out->close())
+        throw std::runtime_error("cannot write " + path.string() + ": " + out->geterror());
+}
+
+float ImageF::at(int x, int y, const std::string& channel) const {
+    for (std::size_t c = 0; c < channels.size(); ++c)
+        if (channels[c] == channel)
+            return data[(std::size_t(y) * std::size_t(width) + std::size_t(x)) * channels.size() +
+                        c];
+    throw std::out_of_range("no channel " + channel);
+}
+
+ImageF read_image_float(const std::filesystem::path& path) {
+    auto in = OIIO::ImageInput::open(path.string());
+    if (!in)
+        throw std::runtime_error("cannot open image " + path.string() + ": " + OIIO::geterror());
+    const OIIO::ImageSpec& spec = in->spec();
+    ImageF img{spec.width, spec.height, {}, {}};
+    for (const auto& name : spec.channelnames)
+        img.channels.push_back(name);
+    img.data.resize(std::size_t(img.width) * img.height * img.channels.size());
+    if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, img.data.data()))
+        throw std::runtime_error("cannot read " + path.string() + ": " + in->geterror());
+    in->close();
+    return img;
+}
+
 Image8 read_image8(const std::filesystem::path& path) {
     auto in = OIIO::ImageInput::open(path.string());
     if (!in)

@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <string>
 #include <vector>
 
 namespace chromasim::generators {
@@ -11,6 +12,22 @@ namespace chromasim::generators {
 /// Writes a linear-RGB image as an 8-bit sRGB PNG (values clamped to [0, 1]).
 /// Throws std::runtime_error naming the file on failure.
 void write_png(const std::filesystem::path& path, const render::Image& linear_rgb);
+
+/// Writes a linear-RGB image as a float OpenEXR file (ZIP compressed) with channels R, G, B, then
+/// the extra channels the image holds: variance.R, variance.G, variance.B (variance of the
+/// mean), inner_marker_id and outer_marker_id (float, -1 where none; exact as integers).
+/// Throws std::runtime_error naming the file on failure.
+void write_exr(const std::filesystem::path& path, const render::Image& image);
+
+/// A float image read back (for tests and tools): channel names and interleaved values.
+struct ImageF {
+    int width = 0, height = 0;
+    std::vector<std::string> channels;
+    std::vector<float> data;
+    /// Value of the named channel at (x, y); throws std::out_of_range if there is none.
+    float at(int x, int y, const std::string& channel) const;
+};
+ImageF read_image_float(const std::filesystem::path& path);
 
 /// An 8-bit image read back (for tests and tools): width x height x channels, row-major.
 struct Image8 {

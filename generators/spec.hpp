@@ -95,9 +95,12 @@ struct Spec {
     } render;
 
     struct Outputs {
-        bool images = true;  ///< PNG per frame (skips the whole render stage when false)
-        bool labels = true;  ///< labels.csv
-        bool markers = true; ///< markers.csv (3D displacement of every marker)
+        bool images = true;      ///< PNG per frame (skips the whole render stage when false)
+        bool labels = true;      ///< labels.csv
+        bool markers = true;     ///< markers.csv (3D displacement of every marker)
+        bool exr = false;        ///< linear float OpenEXR per frame
+        bool marker_ids = false; ///< EXR channels inner_marker_id, outer_marker_id
+        bool variance = false;   ///< EXR channels variance.R/G/B
     } outputs;
 
     /// The resolved spec (every key, defaults filled) as YAML, in schema order. Written next to

@@ -369,13 +369,26 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                           "the RGB approximation with the sensor.optics RGB values.",
                           CHROMASIM_FIELD(render.spectral)));
     out.push_back(boolean("outputs.images", true,
-                          "Write a PNG per frame (false skips the whole render stage).",
+                          "Write a PNG per frame (8-bit sRGB); with outputs.exr false too, the "
+                          "render stage is skipped.",
                           CHROMASIM_FIELD(outputs.images)));
     out.push_back(
         boolean("outputs.labels", true, "Write labels.csv.", CHROMASIM_FIELD(outputs.labels)));
     out.push_back(boolean("outputs.markers", true,
                           "Write markers.csv (3D displacement of every marker).",
                           CHROMASIM_FIELD(outputs.markers)));
+    out.push_back(boolean("outputs.exr", false,
+                          "Write a linear float OpenEXR per frame (channels R, G, B; "
+                          "docs/DATASET_FORMAT.md).",
+                          CHROMASIM_FIELD(outputs.exr)));
+    out.push_back(boolean("outputs.marker_ids", false,
+                          "Add EXR channels inner_marker_id and outer_marker_id: the marker seen "
+                          "through each pixel's centre, per layer (-1: none). Needs outputs.exr.",
+                          CHROMASIM_FIELD(outputs.marker_ids)));
+    out.push_back(boolean("outputs.variance", false,
+                          "Add EXR channels variance.R, variance.G, variance.B: each pixel's "
+                          "variance of the mean over its samples. Needs outputs.exr.",
+                          CHROMASIM_FIELD(outputs.variance)));
 }
 
 #undef CHROMASIM_FIELD
@@ -394,10 +407,19 @@ std::vector<SchemaRule> build_rules() {
     SchemaRule outputs;
     outputs.key = "outputs";
     outputs.holds = [](const Spec& s) {
-        return s.outputs.images || s.outputs.labels || s.outputs.markers;
+        return s.outputs.images || s.outputs.labels || s.outputs.markers || s.outputs.exr;
     };
     outputs.problem = "enables no output";
-    outputs.allowed = "at least one of outputs.images, outputs.labels, outputs.markers is true";
+    outputs.allowed =
+        "at least one of outputs.images, outputs.labels, outputs.markers, outputs.exr is true";
+    SchemaRule channels;
+    channels.key = "outputs.exr";
+    channels.holds = [](const Spec& s) {
+        return s.outputs.exr || !(s.outputs.marker_ids || s.outputs.variance);
+    };
+    channels.problem =
+        "is false while outputs.marker_ids or outputs.variance asks for EXR channels";
+    channels.allowed = "outputs.exr: true, or outputs.marker_ids and outputs.variance false";
     SchemaRule mesh;
     mesh.key = "object.mesh_file";
     mesh.holds = [](const Spec& s) {
@@ -409,7 +431,7 @@ std::vector<SchemaRule> build_rules() {
     SchemaRule spectra;
     spectra.key = "sensor.optics.spectra_dir";
     spectra.holds = [](const Spec& s) {
-        if (!s.render.spectral || !s.outputs.images) return true;
+        if (!s.render.spectral || !(s.outputs.images || s.outputs.exr)) return true;
         std::error_code ec;
         return std::filesystem::is_directory(spectra_directory(s), ec);
     };
@@ -447,7 +469,7 @@ std::vector<SchemaRule> build_rules() {
                    "cap of nodes that may touch)";
     tilt.allowed = "a tilt acos(cos(roll) cos(pitch)) below sensor.contact_candidate_angle_deg "
                    "- 5 deg (30 deg by default)";
-    return {outputs, mesh, camera, tilt, spectra};
+    return {outputs, channels, mesh, camera, tilt, spectra};
 }
 
 // ---- Converting scalar text -----------------------------------------------------------------

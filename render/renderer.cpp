@@ -48,6 +48,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 #include <string>
@@ -158,12 +159,18 @@ struct Renderer::Impl {
         if (optics.spectra) wavelengths.emplace(camera_weight(optics.spectra->camera));
     }
 
-    /// Mean radiance over the pixel's jittered samples, times `scale`.
-    detail::Rgb render_pixel(int x, int y, const RenderSettings& settings) const {
+    /// Mean radiance over the pixel's jittered samples, times `scale`; with `sum2`, also the
+    /// sum of the squared (scaled) samples.
+    detail::Rgb render_pixel(int x, int y, const RenderSettings& settings,
+                             detail::Rgb* sum2 = nullptr) const {
         const auto [nx, ny] = detail::strata_grid(settings.samples_per_pixel);
         const std::uint64_t index = std::uint64_t(y) * std::uint64_t(camera.width_px()) + x;
         detail::PixelRng rng(settings.seed, index);
         detail::Rgb sum = detail::Rgb::Zero();
+        auto add = [&](const detail::Rgb& value) {
+            sum += value;
+            if (sum2) *sum2 += (value * scale).square();
+        };
         const std::optional<SensorSpectra>& spectra = shading.optics().spectra;
         const int n = settings.samples_per_pixel;
         for (int sy = 0; sy < ny; ++sy) {
@@ -172,7 +179,7 @@ struct Renderer::Impl {
                 const double v = (sy + rng.uniform()) / ny;
                 const auto direction = camera.direction(Eigen::Vector2d(x + u, y + v));
                 if (!spectra) {
-                    if (direction) sum += shading.radiance(scene, camera.origin_mm(), *direction);
+                    if (direction) add(shading.radiance(scene, camera.origin_mm(), *direction));
                     continue;
                 }
                 // Hero wavelengths, stratified over the pixel's samples: sample k takes stratum
@@ -186,12 +193,32 @@ struct Renderer::Impl {
                 const detail::Lanes radiance =
                     shading.radiance(scene, camera.origin_mm(), *direction,
                                      detail::spectral_lanes(*spectra, lambda_nm, led_scale));
-                sum += camera_rgb<detail::kSpectralLanes>(spectra->camera, lambda_nm, pdf_per_nm,
-                                                          radiance);
+                add(camera_rgb<detail::kSpectralLanes>(spectra->camera, lambda_nm, pdf_per_nm,
+                                                       radiance));
             }
         }
         return sum * (scale / settings.samples_per_pixel);
     }
+
+    /// The marker of each layer (index within the layer, or -1) that the ray through the
+    /// pixel's centre meets first before the coating.
+    std::pair<std::int32_t, std::int32_t> marker_ids(int x, int y) const {
+        std::int32_t ids[2] = {-1, -1};
+        const auto direction = camera.direction(Eigen::Vector2d(x + 0.5, y + 0.5));
+        if (!direction || triangles_per_marker < 1) return {-1, -1};
+        double tnear = 0.0;
+        for (int i = 0; i < detail::kMaxHits; ++i) {
+            const detail::RayHit hit = scene.closest_hit(camera.origin_mm(), *direction, tnear,
+                                                         std::numeric_limits<double>::infinity());
+            if (!hit.hit() || hit.kind == detail::SurfaceKind::coating) break;
+            std::int32_t& id = ids[hit.kind == detail::SurfaceKind::outer_marker ? 1 : 0];
+            if (id < 0) id = std::int32_t(hit.prim_id / std::uint32_t(triangles_per_marker));
+            tnear = hit.t_mm + detail::kHitGap_mm;
+        }
+        return {ids[0], ids[1]};
+    }
+
+    int triangles_per_marker = 0;
 };
 
 Renderer::Renderer(const CameraParams& camera, const OpticsParams& optics)
@@ -202,6 +229,7 @@ Renderer::~Renderer() = default;
 void Renderer::set_frame(const SensorFrame& frame) {
     detail::validate_marker_layout(frame);
     m_impl->scene.set_frame(frame);
+    m_impl->triangles_per_marker = frame.triangles_per_marker;
 }
 
 Image Renderer::render(const RenderSettings& settings) const {
@@ -216,14 +244,36 @@ Image Renderer::render(const RenderSettings& settings) const {
     Image image;
     image.width = m_impl->camera.width_px();
     image.height = m_impl->camera.height_px();
-    image.rgb.assign(3 * std::size_t(image.width) * image.height, 0.0f);
+    const std::size_t pixels = std::size_t(image.width) * image.height;
+    image.rgb.assign(3 * pixels, 0.0f);
+    if (settings.variance) image.variance.assign(3 * pixels, 0.0f);
+    if (settings.marker_ids) {
+        image.inner_marker_id.assign(pixels, -1);
+        image.outer_marker_id.assign(pixels, -1);
+    }
+    const int n = settings.samples_per_pixel;
     tbb::parallel_for(tbb::blocked_range<int>(0, image.height), [&](const auto& rows) {
         for (int y = rows.begin(); y != rows.end(); ++y) {
             for (int x = 0; x < image.width; ++x) {
-                const detail::Rgb value = m_impl->render_pixel(x, y, settings);
+                const std::size_t p = std::size_t(y) * image.width + x;
+                detail::Rgb sum2 = detail::Rgb::Zero();
+                const detail::Rgb value =
+                    m_impl->render_pixel(x, y, settings, settings.variance ? &sum2 : nullptr);
                 float* out = image.pixel(x, y);
                 for (int c = 0; c < 3; ++c)
                     out[c] = float(value[c]);
+                if (settings.variance && n > 1) {
+                    // Sample variance (n - 1 in the denominator) over n, floored at 0 against
+                    // round-off.
+                    const detail::Rgb var = ((sum2 - n * value.square()) / (n - 1.0) / n).max(0.0);
+                    for (int c = 0; c < 3; ++c)
+                        image.variance[3 * p + std::size_t(c)] = float(var[c]);
+                }
+                if (settings.marker_ids) {
+                    const auto [inner, outer] = m_impl->marker_ids(x, y);
+                    image.inner_marker_id[p] = inner;
+                    image.outer_marker_id[p] = outer;
+                }
             }
         }
     });

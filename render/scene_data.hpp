@@ -105,13 +105,24 @@ struct OpticsParams {
 struct RenderSettings {
     int samples_per_pixel = 4; ///< stratified jittered samples for anti-aliasing
     std::uint64_t seed = 1;    ///< same seed, same frame -> identical image
+    /// Extra channels, computed only when asked for (Image).
+    bool marker_ids = false; ///< the marker seen through each pixel's centre, per layer
+    bool variance = false;   ///< per-pixel variance estimate of the mean
 };
 
-/// Linear RGB image, row-major, top row first, 3 floats per pixel.
+/// Linear RGB image, row-major, top row first, 3 floats per pixel; extra channels are empty
+/// unless RenderSettings asked for them.
 struct Image {
     int width = 0;
     int height = 0;
     std::vector<float> rgb;
+    /// Per pixel: the marker (index within its layer) whose volume the ray through the pixel's
+    /// centre meets first in each layer, before the coating; -1 for none.
+    std::vector<std::int32_t> inner_marker_id, outer_marker_id;
+    /// Per pixel and channel: the sample variance over the pixel's samples divided by their
+    /// number, the variance of the mean as if the samples were independent (stratification
+    /// makes the true one smaller).
+    std::vector<float> variance;
     float* pixel(int x, int y) { return rgb.data() + 3 * (std::size_t(y) * width + x); }
     const float* pixel(int x, int y) const { return rgb.data() + 3 * (std::size_t(y) * width + x); }
 };

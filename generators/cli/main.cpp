@@ -28,6 +28,7 @@ int run_generate(const std::string& spec_path, const gen::GenerateOptions& optio
     const auto& out = options.out_dir;
     if (spec.outputs.images)
         std::cout << "  images: " << (out / "images").string() << "/frame_*.png\n";
+    if (spec.outputs.exr) std::cout << "  exr: " << (out / "images").string() << "/frame_*.exr\n";
     if (spec.outputs.labels) std::cout << "  labels: " << (out / "labels.csv").string() << "\n";
     if (spec.outputs.markers) std::cout << "  markers: " << (out / "markers.csv").string() << "\n";
     if (r.flagged_frames > 0)

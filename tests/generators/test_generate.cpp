@@ -348,3 +348,55 @@ TEST_CASE("object poses reach the mechanics: an offset sphere and a tilted flat 
                       Catch::Contains("object.pitch_deg") &&
                           Catch::Contains("sensor.contact_candidate_angle_deg"));
 }
+
+TEST_CASE("EXR output: linear RGB like the PNG, marker ids and variance channels on request",
+          "[generators][e2e]") {
+    const fs::path dir = fresh_dir("exr");
+    fs::create_directories(dir);
+    const fs::path spec_file = dir / "exr.yaml";
+    {
+        std::ofstream f(spec_file);
+        f << "name: exr\nrender:\n  width_px: 64\n  height_px: 64\n  samples_per_pixel: 2\n"
+             "protocol:\n  press:\n    frames: 1\n  pull:\n    frames: 0\n"
+             "outputs:\n  exr: true\n  marker_ids: true\n  variance: true\n  markers: false\n";
+    }
+    const fs::path out = dir / "out";
+    GenerateOptions options;
+    options.out_dir = out;
+    options.quiet = true;
+    std::ostringstream log;
+    generate(load_spec(spec_file), options, log);
+    const ImageF exr = read_image_float(out / "images" / "frame_000000.exr");
+    const Image8 png = read_image8(out / "images" / "frame_000000.png");
+    REQUIRE(exr.width == 64);
+    for (const char* c : {"R", "G", "B", "variance.R", "variance.G", "variance.B",
+                          "inner_marker_id", "outer_marker_id"})
+        CHECK(std::find(exr.channels.begin(), exr.channels.end(), c) != exr.channels.end());
+    int inner_seen = 0;
+    for (int y = 0; y < 64; ++y)
+        for (int x = 0; x < 64; ++x) {
+            // The PNG is the EXR's RGB, sRGB-encoded and rounded to 8 bits.
+            const char* rgb[3] = {"R", "G", "B"};
+            for (int c = 0; c < 3; ++c) {
+                const double v = std::clamp(double(exr.at(x, y, rgb[c])), 0.0, 1.0);
+                CHECK(std::abs(255.0 * srgb_encode(v) - png.at(x, y, c)) <= 0.5001);
+            }
+            const float id = exr.at(x, y, "inner_marker_id");
+            CHECK(id == std::round(id));
+            CHECK(id >= -1.0f);
+            CHECK(id < 82.0f);
+            inner_seen += id >= 0.0f;
+            CHECK(exr.at(x, y, "variance.G") >= 0.0f);
+        }
+    CHECK(inner_seen > 100);
+    std::ifstream labels(out / "labels.csv");
+    std::string header, first;
+    std::getline(labels, header);
+    std::getline(labels, first);
+    CHECK(header.rfind("frame,phase,image,exr,", 0) == 0);
+    CHECK(first.find("images/frame_000000.exr") != std::string::npos);
+    // Channels without the EXR they belong to are refused before any work.
+    CHECK_THROWS_WITH(parse_spec("outputs:\n  marker_ids: true\n", "bad.yaml"),
+                      Catch::Contains("outputs.exr") && Catch::Contains("marker_ids"));
+    fs::remove_all(dir);
+}

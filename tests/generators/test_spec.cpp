@@ -307,9 +307,10 @@ TEST_CASE("an empty spec or a top level that is not a mapping is rejected", "[ge
 
 TEST_CASE("a spec that enables no output is rejected", "[generators][spec]") {
     CHECK(error_of("name: x\noutputs:\n  images: false\n  labels: false\n  markers: false\n") ==
-          "bad.yaml:2:1: outputs: value '{images: false, labels: false, markers: false}' "
+          "bad.yaml:2:1: outputs: value '{images: false, labels: false, markers: false, exr: "
+          "false, marker_ids: false, variance: false}' "
           "enables no output; allowed: at least one of outputs.images, outputs.labels, "
-          "outputs.markers is true");
+          "outputs.markers, outputs.exr is true");
     CHECK_FALSE(parse_spec("outputs: {images: false, labels: false}\n", "ok.yaml").outputs.images);
 }
 

@@ -570,3 +570,52 @@ TEST_CASE("determinism: the same bytes with 1 and 2 threads, spectral and RGB", 
         CHECK(std::memcmp(one.rgb.data(), two.rgb.data(), one.rgb.size() * sizeof(float)) == 0);
     }
 }
+
+TEST_CASE("extra channels: marker ids per layer and a variance estimate, only when asked",
+          "[render]") {
+    const OpticsParams optics;
+    Renderer renderer(kWideCamera, optics);
+    renderer.set_frame(marker_frame());
+    const Image plain = renderer.render({4, 1});
+    CHECK(plain.inner_marker_id.empty());
+    CHECK(plain.variance.empty());
+    RenderSettings settings{4, 1};
+    settings.marker_ids = settings.variance = true;
+    const Image image = renderer.render(settings);
+    CHECK(image.rgb == plain.rgb); // the extra channels do not disturb the samples
+    const std::size_t pixels = std::size_t(image.width) * image.height;
+    REQUIRE(image.inner_marker_id.size() == pixels);
+    REQUIRE(image.outer_marker_id.size() == pixels);
+    REQUIRE(image.variance.size() == 3 * pixels);
+    // The inner marker's centre pixel sees marker 0 of the inner layer and no outer marker;
+    // the outer marker's sees marker 0 of the outer layer; a plain coating pixel sees none.
+    auto at = [&](const Vec3& p) {
+        const auto xy = renderer.project(p);
+        REQUIRE(xy);
+        return std::size_t(std::floor(xy->y())) * image.width + std::size_t(std::floor(xy->x()));
+    };
+    const std::size_t inner = at(Vec3(0.0, 0.0, kInnerMarkerZ_mm));
+    const std::size_t outer = at(kOuterMarkerDirection);
+    const std::size_t plain_px = at(unit_from_angles(25.0, 200.0));
+    CHECK(image.inner_marker_id[inner] == 0);
+    CHECK(image.outer_marker_id[inner] == -1);
+    CHECK(image.outer_marker_id[outer] == 0);
+    CHECK(image.inner_marker_id[outer] == -1);
+    CHECK(image.inner_marker_id[plain_px] == -1);
+    CHECK(image.outer_marker_id[plain_px] == -1);
+    // Variance: finite and >= 0 everywhere; at a marker's edge (samples on both sides) far
+    // above the smooth coating's.
+    double edge = 0.0;
+    for (std::size_t p = 0; p < pixels; ++p)
+        for (int c = 0; c < 3; ++c) {
+            const float v = image.variance[3 * p + std::size_t(c)];
+            REQUIRE(std::isfinite(v));
+            REQUIRE(v >= 0.0f);
+        }
+    for (std::size_t p = 0; p < pixels; ++p)
+        if (image.inner_marker_id[p] == 0)
+            for (const std::size_t q : {p - 1, p + 1})
+                if (image.inner_marker_id[q] == -1)
+                    edge = std::max(edge, double(image.variance[3 * p + 1]));
+    CHECK(edge > 100.0 * image.variance[3 * plain_px + 1]);
+}
