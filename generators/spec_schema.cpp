@@ -256,7 +256,8 @@ void add_sensor_optics(std::vector<SchemaEntry>& out) {
                          "Height of the LED ring; the dome rim plane is z = 0 [G].",
                          CHROMASIM_FIELD(sensor.led_z_mm)));
     out.push_back(rgb("sensor.led.rgb", {1.0, 1.0, 1.0}, closed(0, 100), "",
-                      "Relative emission of each LED, linear RGB (white) [G].",
+                      "Relative emission of each LED, linear RGB (white) [G]; spectral mode: "
+                      "their mean scales the LED spectrum.",
                       CHROMASIM_FIELD(sensor.led_rgb)));
     out.push_back(number("sensor.optics.marker_thickness_mm", 0.5, left_open(0, 0.5), "mm",
                          "Thickness of the marker discs [K]: closed volumes deformed with the "
@@ -264,18 +265,21 @@ void add_sensor_optics(std::vector<SchemaEntry>& out) {
                          "its path inside.",
                          CHROMASIM_FIELD(sensor.marker_thickness_mm)));
     out.push_back(rgb("sensor.optics.coating_albedo", {0.85, 0.85, 0.85}, closed(0, 1), "",
-                      "Diffuse albedo of the white coating, linear RGB [G].",
+                      "Diffuse albedo of the white coating, linear RGB [G] (RGB mode only: "
+                      "render.spectral false).",
                       CHROMASIM_FIELD(sensor.coating_albedo)));
     out.push_back(rgb("sensor.optics.inner_marker_absorption_per_mm", {0.2, 3.0, 0.3},
                       closed(0, 100), "1/mm",
-                      "Absorption coefficient of the inner markers (magenta filter), RGB [G].",
+                      "Absorption coefficient of the inner markers (magenta filter), RGB [G] "
+                      "(RGB mode only).",
                       CHROMASIM_FIELD(sensor.inner_marker_absorption_per_mm)));
     out.push_back(rgb("sensor.optics.outer_marker_absorption_per_mm", {3.0, 0.3, 0.2},
                       closed(0, 100), "1/mm",
-                      "Absorption coefficient of the outer markers (cyan), RGB [G].",
+                      "Absorption coefficient of the outer markers (cyan), RGB [G] (RGB mode "
+                      "only).",
                       CHROMASIM_FIELD(sensor.outer_marker_absorption_per_mm)));
     out.push_back(rgb("sensor.optics.outer_marker_albedo", {0.10, 0.70, 0.75}, closed(0, 1), "",
-                      "Albedo of the outer markers (cyan), linear RGB [G].",
+                      "Albedo of the outer markers (cyan), linear RGB [G] (RGB mode only).",
                       CHROMASIM_FIELD(sensor.outer_marker_albedo)));
     out.push_back(number("sensor.optics.outer_marker_scatter_fraction", 0.5, closed(0, 1), "",
                          "Fraction of the light at an outer marker that it scatters back; the "
