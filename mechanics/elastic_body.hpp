@@ -73,7 +73,7 @@ public:
     /// Every dof's displacement (3 #V rows, mm; clamped dofs 0) per unit force on each
     /// candidate dof (3n columns, N): what a full solve under candidate forces needs, as one
     /// dense product. Computed on the first call (3n back-substitutions, BLAS-3 in blocks) and
-    /// kept: 8 x 3 #V x 3n bytes (about 25 MB on the coarse dome). Thread safe.
+    /// kept: 8 x 3 #V x 3n bytes (43 MB on the coarse dome, 226 MB on medium). Thread safe.
     const Eigen::MatrixXd& candidate_field_responses() const;
     const ElasticBodyStats& stats() const;
 
