@@ -2,16 +2,23 @@
 
 #include "generators/sensor_bridge.hpp"
 #include "mechanics/dome_model.hpp"
+#include "render/embree_scene.hpp"
 #include "render/renderer.hpp"
+#include "render/shading.hpp"
 
 #include <sys/resource.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <iomanip>
+#include <map>
+#include <numbers>
 #include <ostream>
+#include <random>
 
 namespace chromasim::generators {
 
@@ -175,6 +182,7 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
         << o.repeats << "\n\n"
         << "| mode | spp | render ms | RMS error % | max error % |\n|---|---|---|---|---|\n"
         << std::fixed;
+    std::map<std::string, std::pair<double, double>> rays; // mode -> (rays, seconds)
     for (const std::string& mode : o.modes) {
         render::Renderer renderer(camera, mode == "rgb" ? rgb : spectral);
         renderer.set_frame(sensor);
@@ -187,10 +195,48 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
                 sum2 += e * e;
                 max_err = std::max(max_err, e);
             }
+            if (spp == o.samples_per_pixel.front()) { // rays of one render, counted once
+                renderer.count_rays(true);
+                renderer.render({spp, 7});
+                rays[mode] = {double(renderer.rays_counted()), t};
+                renderer.count_rays(false);
+            }
             out << "| " << mode << " | " << spp << " | " << std::setprecision(1) << 1e3 * t << " | "
                 << std::setprecision(3) << 100 * std::sqrt(sum2 / img.rgb.size()) / kWhite << " | "
                 << 100 * max_err / kWhite << " |\n";
         }
+    }
+    // Embree's raw rate on the same scene: incoherent rays from the camera and the LEDs in
+    // uniformly random directions, nothing but closest_hit, in parallel as the renderer does.
+    render::detail::EmbreeScene scene;
+    scene.set_frame(sensor);
+    constexpr int kRawRays = 4'000'000;
+    const render::detail::ShadingModel leds(rgb);
+    std::vector<render::Vec3> origins{render::Vec3::Zero()};
+    for (const auto& p : leds.led_positions_mm())
+        origins.push_back(p);
+    const double raw_s = time_median(o.repeats, [&] {
+        tbb::parallel_for(tbb::blocked_range<int>(0, kRawRays, 4096), [&](const auto& r) {
+            std::mt19937_64 rng(std::uint64_t(r.begin()));
+            for (int i = r.begin(); i != r.end(); ++i) {
+                const double z = 2.0 * double(rng() >> 11) * 0x1.0p-53 - 1.0;
+                const double phi = 2.0 * std::numbers::pi * double(rng() >> 11) * 0x1.0p-53;
+                const double s = std::sqrt(std::max(0.0, 1.0 - z * z));
+                const render::Vec3 w(s * std::cos(phi), s * std::sin(phi), z);
+                scene.closest_hit(origins[std::size_t(i) % origins.size()], w, 0.0, 1e3);
+            }
+        });
+    });
+    const double raw_rate = kRawRays / raw_s;
+    out << "\nEmbree alone on this scene: " << std::setprecision(2) << raw_rate / 1e6
+        << " M rays/s (" << kRawRays / 1000000 << " M incoherent rays from the camera and the "
+        << "LEDs, median of " << o.repeats << ")\n";
+    for (const auto& [mode, counted] : rays) {
+        const double rate = counted.first / counted.second;
+        out << mode << " at " << o.samples_per_pixel.front() << " spp: " << std::setprecision(0)
+            << counted.first << " rays, " << std::setprecision(2) << rate / 1e6
+            << " M rays/s; time outside Embree about " << std::setprecision(0)
+            << 100 * std::max(0.0, 1.0 - rate / raw_rate) << " %\n";
     }
 }
 

@@ -3,6 +3,7 @@
 #include <embree3/rtcore.h>
 
 #include <array>
+#include <atomic>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -104,6 +105,8 @@ struct EmbreeScene::Impl {
     RTCScene scene = nullptr;
     std::array<MeshSlot, 3> slots; ///< indexed by Embree geometry ID
     bool has_frame = false;
+    bool counting = false;                      ///< count_rays
+    mutable std::atomic<std::uint64_t> rays{0}; ///< closest_hit calls while counting
 
     explicit Impl(const std::string& device_config);
     ~Impl();
@@ -226,6 +229,7 @@ RayHit EmbreeScene::closest_hit(const Vec3& origin_mm, const Vec3& direction, do
     query.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     query.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(m_impl->scene, &context, &query);
+    if (m_impl->counting) m_impl->rays.fetch_add(1, std::memory_order_relaxed);
 
     RayHit hit;
     if (query.hit.geomID == RTC_INVALID_GEOMETRY_ID) return hit;
@@ -234,6 +238,15 @@ RayHit EmbreeScene::closest_hit(const Vec3& origin_mm, const Vec3& direction, do
     hit.prim_id = query.hit.primID;
     hit.normal = Vec3(query.hit.Ng_x, query.hit.Ng_y, query.hit.Ng_z).normalized();
     return hit;
+}
+
+void EmbreeScene::count_rays(bool on) {
+    m_impl->rays.store(0);
+    m_impl->counting = on;
+}
+
+std::uint64_t EmbreeScene::rays_counted() const {
+    return m_impl->rays.load();
 }
 
 } // namespace chromasim::render::detail

@@ -58,6 +58,11 @@ public:
     RayHit closest_hit(const Vec3& origin_mm, const Vec3& direction, double tnear_mm,
                        double tfar_mm) const;
 
+    /// Counting of closest_hit calls for benchmarks (off by default; when off it costs one
+    /// predictable branch per ray). Switching it on resets the count.
+    void count_rays(bool on);
+    std::uint64_t rays_counted() const;
+
 private:
     struct Impl;
     std::unique_ptr<Impl> m_impl;

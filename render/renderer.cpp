@@ -284,4 +284,12 @@ std::optional<Eigen::Vector2d> Renderer::project(const Vec3& p_mm) const {
     return m_impl->camera.project(p_mm);
 }
 
+void Renderer::count_rays(bool on) {
+    m_impl->scene.count_rays(on);
+}
+
+std::uint64_t Renderer::rays_counted() const {
+    return m_impl->scene.rays_counted();
+}
+
 } // namespace chromasim::render

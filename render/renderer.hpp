@@ -2,6 +2,7 @@
 /// Renders fisheye images of a deformed sensor with Embree.
 #include "render/scene_data.hpp"
 
+#include <cstdint>
 #include <memory>
 #include <optional>
 
@@ -27,6 +28,10 @@ public:
     /// Projects a 3D point (mm, camera frame) to pixel coordinates; nullopt if outside the
     /// image circle. Exposed for tests and label overlays.
     std::optional<Eigen::Vector2d> project(const Vec3& p_mm) const;
+
+    /// Benchmarks: count the rays the next renders trace (EmbreeScene::count_rays).
+    void count_rays(bool on);
+    std::uint64_t rays_counted() const;
 
 private:
     struct Impl;

@@ -619,3 +619,31 @@ TEST_CASE("extra channels: marker ids per layer and a variance estimate, only wh
                     edge = std::max(edge, double(image.variance[3 * p + 1]));
     CHECK(edge > 100.0 * image.variance[3 * plain_px + 1]);
 }
+
+TEST_CASE("degenerate deformation: zero-area triangles and rays at the image circle's rim stay "
+          "finite",
+          "[render][extreme]") {
+    SensorFrame frame = marker_frame();
+    // Collapse the first coating triangle and a whole marker face onto a point, and flatten
+    // the outer marker onto a line: zero-area triangles with zero normals.
+    const Eigen::RowVector3f p = frame.coating.V.row(frame.coating.F(0, 0));
+    for (int k = 0; k < 3; ++k)
+        frame.coating.V.row(frame.coating.F(0, k)) = p;
+    for (int t = 0; t < kRim; ++t) // the inner marker's inner face (triangles 4 t)
+        for (int k = 0; k < 3; ++k)
+            frame.inner_markers.V.row(frame.inner_markers.F(4 * t, k)) =
+                frame.inner_markers.V.row(0);
+    frame.outer_markers.V.col(1).setZero();
+    frame.outer_markers.V.col(2).setConstant(12.45f);
+    OpticsParams spectral;
+    spectral.spectra = load_sensor_spectra(SensorSpectraFiles::in_directory(
+        std::filesystem::path(CHROMASIM_SOURCE_DIR) / "assets" / "spectra"));
+    for (const OpticsParams& optics : {OpticsParams{}, spectral}) {
+        // 84 deg: the rim pixels' rays run almost along the rim plane, grazing the coating.
+        const Image image = render_frame(CameraParams{96, 96, 84.0}, optics, frame, 4, 9);
+        CHECK(all_finite(image));
+        CHECK(*std::max_element(image.rgb.begin(), image.rgb.end()) < 100.0f);
+        // A camera wider than the dome (100 deg): rays below the rim plane see nothing.
+        CHECK(all_finite(render_frame(CameraParams{64, 64, 100.0}, optics, frame, 2, 9)));
+    }
+}
