@@ -1,6 +1,7 @@
 #include "generators/bench.hpp"
 
 #include "generators/sensor_bridge.hpp"
+#include "generators/spec.hpp"
 #include "mechanics/dome_model.hpp"
 #include "render/embree_scene.hpp"
 #include "render/renderer.hpp"
@@ -153,8 +154,8 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
     // seen under the LED, absorption coefficients at the markers' median thickness), so the
     // difference is the RGB approximation itself, not a different parameter set.
     render::OpticsParams spectral;
-    spectral.spectra = render::load_sensor_spectra(render::SensorSpectraFiles::in_directory(
-        std::filesystem::path(CHROMASIM_SOURCE_DIR) / "assets" / "spectra"));
+    spectral.spectra = render::load_sensor_spectra(
+        render::SensorSpectraFiles::in_directory(spectra_directory(Spec{})));
     const render::SensorSpectra& sp = *spectral.spectra;
     std::vector<double> thickness = model.markers().thickness_mm;
     std::sort(thickness.begin(), thickness.end());

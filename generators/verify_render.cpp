@@ -1,6 +1,7 @@
 #include "generators/verify_render.hpp"
 
 #include "generators/sensor_bridge.hpp"
+#include "generators/spec.hpp"
 #include "mechanics/dome_model.hpp"
 #include "render/embree_scene.hpp"
 #include "render/fisheye_camera.hpp"
@@ -30,8 +31,8 @@ double seconds_since(Clock::time_point t0) {
 
 render::OpticsParams spectral_optics() {
     render::OpticsParams o;
-    o.spectra = render::load_sensor_spectra(render::SensorSpectraFiles::in_directory(
-        std::filesystem::path(CHROMASIM_SOURCE_DIR) / "assets" / "spectra"));
+    o.spectra = render::load_sensor_spectra(
+        render::SensorSpectraFiles::in_directory(spectra_directory(Spec{})));
     return o;
 }
 
