@@ -150,6 +150,20 @@ void fill_sensor_frame(const mechanics::DomeModel& model, const mechanics::Frame
             (mesh.V.row(n) + frame.coating_displacement_mm.row(Eigen::Index(i))).cast<float>();
     }
     if (out.coating.F.rows() != coating.F.rows()) out.coating.F = coating.F.cast<std::uint32_t>();
+    const mechanics::SurfacePatch& inner = model.inner_surface();
+    if (frame.inner_surface_displacement_mm.rows() == Eigen::Index(inner.nodes.size())) {
+        out.inner_surface.V.resize(Eigen::Index(inner.nodes.size()), 3);
+        for (std::size_t i = 0; i < inner.nodes.size(); ++i) {
+            const int n = inner.nodes[i];
+            out.inner_surface.V.row(Eigen::Index(i)) =
+                (mesh.V.row(n) + frame.inner_surface_displacement_mm.row(Eigen::Index(i)))
+                    .cast<float>();
+        }
+        if (out.inner_surface.F.rows() != inner.F.rows())
+            out.inner_surface.F = inner.F.cast<std::uint32_t>();
+    } else {
+        out.inner_surface = {};
+    }
     const mechanics::MarkerDiscs& discs = model.markers();
     fill_prisms(frame.marker_points_mm, discs, 0, out.inner_markers);
     fill_prisms(frame.marker_points_mm, discs, 1, out.outer_markers);

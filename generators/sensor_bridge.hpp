@@ -13,7 +13,8 @@ render::CameraParams camera_params(const Spec& spec);
 render::OpticsParams optics_params(const Spec& spec);
 
 /// Fills `out` with the deformed coating and marker discs of `frame`, which must carry the coating
-/// displacement and marker points. Reuses `out`'s buffers (same sizes every frame).
+/// displacement and marker points, and with the inner surface when the frame carries its
+/// displacement (else it is left empty). Reuses `out`'s buffers (same sizes every frame).
 void fill_sensor_frame(const mechanics::DomeModel& model, const mechanics::FrameResult& frame,
                        render::SensorFrame& out);
 

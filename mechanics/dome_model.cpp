@@ -6,6 +6,7 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <mutex>
@@ -40,6 +41,7 @@ struct DomeModel::Impl {
     TetMesh mesh;
     MarkerDiscs markers;
     SurfacePatch coating;
+    SurfacePatch inner;          ///< the inner surface facing the air cavity (hollow interior only)
     std::vector<int> candidates; ///< mesh nodes that may touch
     Points candidate_X;          ///< their undeformed positions (mm)
     std::vector<double> candidate_area_mm2;
@@ -61,6 +63,12 @@ struct DomeModel::Impl {
     void find_candidates();
     std::vector<bool> clamped_nodes() const;
     void build_body();
+    /// The nodes whose displacement a frame may report: the coating's, then the inner surface's.
+    std::vector<int> observed_nodes() const {
+        std::vector<int> nodes = coating.nodes;
+        nodes.insert(nodes.end(), inner.nodes.begin(), inner.nodes.end());
+        return nodes;
+    }
     bool load_from_cache(std::uint64_t key);
 };
 
@@ -75,7 +83,7 @@ std::vector<Material> material_list(const DomeModelOptions& o) {
 
 /// Everything the cached mesh and responses depend on, as text, hashed into the cache key.
 std::uint64_t cache_key(const DomeModelOptions& o) {
-    std::string text = "chromasim " CHROMASIM_VERSION " dome-model-cache 2\n";
+    std::string text = "chromasim " CHROMASIM_VERSION " dome-model-cache 3\n";
     char buf[128];
     for (double r : o.dome.radii_mm) {
         std::snprintf(buf, sizeof buf, "radius %.17g\n", r);
@@ -120,6 +128,19 @@ void DomeModel::Impl::build_mesh() {
 void DomeModel::Impl::derive_from_mesh() {
     markers = marker_discs(options.dome, marker_face_margins_mm(options.dome, mesh));
     coating = make_patch(interface_faces(mesh, kCoating, kOuterMarkerLayer));
+    if (options.interior == DomeModelOptions::Interior::hollow) {
+        // Boundary faces of the inner layer, less its annulus in the rim plane z = 0.
+        const Triangles all = interface_faces(mesh, kInnerMarkerLayer, -1);
+        Triangles kept(all.rows(), 3);
+        Eigen::Index n = 0;
+        for (Eigen::Index f = 0; f < all.rows(); ++f) {
+            double z_max = 0.0;
+            for (int k = 0; k < 3; ++k)
+                z_max = std::max(z_max, std::abs(mesh.V(all(f, k), 2)));
+            if (z_max > 1e-9) kept.row(n++) = all.row(f);
+        }
+        inner = make_patch(kept.topRows(n));
+    }
     stats.nodes = int(mesh.V.rows());
     stats.tets = int(mesh.T.rows());
     find_candidates();
@@ -189,9 +210,9 @@ bool DomeModel::Impl::load_from_cache(std::uint64_t key) {
 }
 
 void DomeModel::Impl::build_body() {
-    body = std::make_unique<ElasticBody>(mesh, material_list(options), clamped_nodes(), candidates,
-                                         coating.nodes, embed(mesh, markers.points, "marker point"),
-                                         options.volumetric);
+    body = std::make_unique<ElasticBody>(
+        mesh, material_list(options), clamped_nodes(), candidates, observed_nodes(),
+        embed(mesh, markers.points, "marker point"), options.volumetric);
     const ElasticBodyStats& b = body->stats();
     stats.assemble_s = b.assemble_s;
     stats.factorize_s = b.factorize_s;
@@ -295,6 +316,11 @@ FrameResult DomeModel::solve(const ContactLoad& load, const FrameRequest& reques
             for (std::size_t i = 0; i < m.coating.nodes.size(); ++i)
                 r.coating_displacement_mm.row(Eigen::Index(i)) = U.row(m.coating.nodes[i]);
         }
+        if (request.inner_surface) {
+            r.inner_surface_displacement_mm.resize(Eigen::Index(m.inner.nodes.size()), 3);
+            for (std::size_t i = 0; i < m.inner.nodes.size(); ++i)
+                r.inner_surface_displacement_mm.row(Eigen::Index(i)) = U.row(m.inner.nodes[i]);
+        }
         if (request.markers) {
             r.marker_points_mm = m.markers.points;
             for (std::size_t p = 0; p < m.marker_embedding.tet.size(); ++p)
@@ -307,11 +333,14 @@ FrameResult DomeModel::solve(const ContactLoad& load, const FrameRequest& reques
     }
     if (request.full_field)
         r.node_displacement_mm = m.body->full_displacement(r.contact.forces_N, r.contact.active);
-    if (!request.coating && !request.markers) return r;
+    if (!request.coating && !request.inner_surface && !request.markers) return r;
     const Points u = m.body->observed_displacement(r.contact.forces_N, r.contact.active);
     const Eigen::Index n_coating = Eigen::Index(m.coating.nodes.size());
+    const Eigen::Index n_inner = Eigen::Index(m.inner.nodes.size());
     if (request.coating) r.coating_displacement_mm = u.topRows(n_coating);
-    if (request.markers) r.marker_points_mm = m.markers.points + u.bottomRows(u.rows() - n_coating);
+    if (request.inner_surface) r.inner_surface_displacement_mm = u.middleRows(n_coating, n_inner);
+    if (request.markers)
+        r.marker_points_mm = m.markers.points + u.bottomRows(u.rows() - n_coating - n_inner);
     return r;
 }
 
@@ -323,6 +352,9 @@ const MarkerDiscs& DomeModel::markers() const {
 }
 const SurfacePatch& DomeModel::coating_surface() const {
     return m_impl->coating;
+}
+const SurfacePatch& DomeModel::inner_surface() const {
+    return m_impl->inner;
 }
 const PrecomputeStats& DomeModel::stats() const {
     return m_impl->stats;

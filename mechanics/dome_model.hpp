@@ -71,12 +71,13 @@ struct PrecomputeStats {
 /// What a frame produces. Fields are filled only when asked for (FrameRequest).
 struct FrameResult {
     ContactSolution contact;
-    double contact_area_mm2 = 0.0;  ///< tributary area of the nodes in contact
-    double stick_area_mm2 = 0.0;    ///< tributary area of the contact nodes that stick
-    bool at_candidate_edge = false; ///< contact reached the rim of the candidate cap
-    Points coating_displacement_mm; ///< per coating_surface() vertex (empty unless requested)
-    Points marker_points_mm;        ///< deformed MarkerDiscs::points (empty unless requested)
-    Points node_displacement_mm;    ///< #V x 3, every node (empty unless requested)
+    double contact_area_mm2 = 0.0;        ///< tributary area of the nodes in contact
+    double stick_area_mm2 = 0.0;          ///< tributary area of the contact nodes that stick
+    bool at_candidate_edge = false;       ///< contact reached the rim of the candidate cap
+    Points coating_displacement_mm;       ///< per coating_surface() vertex (empty unless requested)
+    Points inner_surface_displacement_mm; ///< per inner_surface() vertex (empty unless requested)
+    Points marker_points_mm;              ///< deformed MarkerDiscs::points (empty unless requested)
+    Points node_displacement_mm;          ///< #V x 3, every node (empty unless requested)
     /// Per candidate (candidate_nodes() order; empty unless requested): contact pressure
     /// (normal force over tributary area) and tangential traction on the dome. The stick /
     /// slip / free state per candidate is contact.state, the displacement contact.displacement_mm.
@@ -93,11 +94,12 @@ struct FrameResult {
 /// response of the observed nodes to the contact forces (a small dense product); the full
 /// field costs one sparse back-substitution.
 struct FrameRequest {
-    bool coating = false;    ///< coating displacement (images)
-    bool markers = false;    ///< deformed marker discs (images, markers.csv)
-    bool full_field = false; ///< every node's displacement (tests, tools)
-    bool surface = false;    ///< pressure and traction per candidate node
-    bool strain = false;     ///< eps_xx grid (seed 001, eq. 3)
+    bool coating = false;       ///< coating displacement (images)
+    bool markers = false;       ///< deformed marker discs (images, markers.csv)
+    bool full_field = false;    ///< every node's displacement (tests, tools)
+    bool surface = false;       ///< pressure and traction per candidate node
+    bool strain = false;        ///< eps_xx grid (seed 001, eq. 3)
+    bool inner_surface = false; ///< inner surface displacement (the path tracer's refraction)
 };
 
 class DomeModel {
@@ -118,6 +120,10 @@ public:
     const MarkerDiscs& markers() const;
     /// Inner face of the coating (interface of layers 3 and 4), normals towards the centre.
     const SurfacePatch& coating_surface() const;
+    /// The inner surface of a hollow dome (boundary of the inner layer facing the air cavity,
+    /// r = radii_mm[0], less the rim plane), normals towards the cavity; empty for the other
+    /// interiors, whose inner layer is bonded to a solid.
+    const SurfacePatch& inner_surface() const;
     /// Outer-surface nodes that may touch (mesh node ids), their tributary areas (mm^2), and
     /// the outer triangles between them (indices into candidate_nodes()).
     const std::vector<int>& candidate_nodes() const;

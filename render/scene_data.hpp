@@ -32,6 +32,10 @@ struct SurfaceMesh {
 struct SensorFrame {
     /// Inner face of the white diffusing coating (the background the camera sees).
     SurfaceMesh coating;
+    /// Inner surface of a hollow dome: the boundary between the air cavity (camera, LEDs) and
+    /// the clear layers, normals towards the cavity. The path integrator refracts there; empty
+    /// when the interior is index-matched (soft fill, rigid core) or the integrator ignores it.
+    SurfaceMesh inner_surface;
     /// All markers of the inner (magenta filter) layer, each a closed thin volume (a prism
     /// deformed with the FE mesh) of `triangles_per_marker` consecutive triangles whose
     /// normals (by winding) point out of the volume: marker index = triangle /

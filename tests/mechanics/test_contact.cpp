@@ -128,7 +128,9 @@ TEST_CASE("every load of the grip range converges, sticking or sliding", "[mecha
 TEST_CASE("precomputed responses of coating and markers equal the full FE solve",
           "[mechanics][contact]") {
     const DomeModel& model = coarse_model();
-    const FrameResult r = model.solve({2.0, {0.5, -0.4}, 0.8}, {true, true, true});
+    FrameRequest request{true, true, true};
+    request.inner_surface = true;
+    const FrameResult r = model.solve({2.0, {0.5, -0.4}, 0.8}, request);
     const SurfacePatch& coating = model.coating_surface();
     REQUIRE(r.coating_displacement_mm.rows() == Eigen::Index(coating.nodes.size()));
     const double scale = r.node_displacement_mm.cwiseAbs().maxCoeff();
@@ -139,6 +141,26 @@ TEST_CASE("precomputed responses of coating and markers equal the full FE solve"
                                  r.node_displacement_mm.row(coating.nodes[i]))
                                     .cwiseAbs()
                                     .maxCoeff());
+    // The inner surface: every vertex on the r = 10.5 mm sphere off the rim plane, normals
+    // towards the centre, and its displacement equal to the full solve's.
+    const SurfacePatch& inner = model.inner_surface();
+    REQUIRE(inner.nodes.size() > 100);
+    REQUIRE(r.inner_surface_displacement_mm.rows() == Eigen::Index(inner.nodes.size()));
+    for (std::size_t i = 0; i < inner.nodes.size(); ++i) {
+        const Eigen::RowVector3d X = model.mesh().V.row(inner.nodes[i]);
+        CHECK(X.norm() == Approx(10.5).margin(0.05));
+        worst = std::max(worst, (r.inner_surface_displacement_mm.row(Eigen::Index(i)) -
+                                 r.node_displacement_mm.row(inner.nodes[i]))
+                                    .cwiseAbs()
+                                    .maxCoeff());
+    }
+    for (Eigen::Index f = 0; f < inner.F.rows(); ++f) {
+        const Eigen::Vector3d a = model.mesh().V.row(inner.nodes[inner.F(f, 0)]),
+                              b = model.mesh().V.row(inner.nodes[inner.F(f, 1)]),
+                              c = model.mesh().V.row(inner.nodes[inner.F(f, 2)]);
+        CHECK((b - a).cross(c - a).dot(a + b + c) < 0.0); // faces the centre
+        CHECK(std::max({a.z(), b.z(), c.z()}) > 1e-9);    // not in the rim plane
+    }
     // Markers: barycentric interpolation of the full field in the tet that holds each point.
     const TetLocator locator(model.mesh());
     const Points& X = model.markers().points;
