@@ -1,5 +1,6 @@
 #include "render/embree_scene.hpp"
 
+#include <Eigen/Geometry>
 #include <embree3/rtcore.h>
 
 #include <array>
@@ -12,8 +13,9 @@ namespace chromasim::render::detail {
 
 namespace {
 
-constexpr std::array<SurfaceKind, 3> kKinds = {SurfaceKind::coating, SurfaceKind::inner_marker,
-                                               SurfaceKind::outer_marker};
+constexpr std::array<SurfaceKind, 4> kKinds = {SurfaceKind::coating, SurfaceKind::inner_marker,
+                                               SurfaceKind::outer_marker,
+                                               SurfaceKind::inner_surface};
 
 unsigned geometry_id(SurfaceKind kind) {
     return unsigned(kind) - 1;
@@ -27,6 +29,8 @@ const char* kind_name(SurfaceKind kind) {
         return "inner_markers";
     case SurfaceKind::outer_marker:
         return "outer_markers";
+    case SurfaceKind::inner_surface:
+        return "inner_surface";
     case SurfaceKind::none:
         break;
     }
@@ -91,6 +95,7 @@ struct MeshSlot {
     VertexArray V;   ///< (#V + 1) x 3: the last row pads Embree's 16-byte vertex loads
     TriangleArray F; ///< #F x 3
     Eigen::Index vertex_count = 0;
+    VertexArray N; ///< unit vertex normals (inner surface only), area-weighted by winding
 
     bool has_topology_of(const SurfaceMesh& mesh) const {
         return geometry && vertex_count == mesh.V.rows() && F.rows() == mesh.F.rows() &&
@@ -98,12 +103,49 @@ struct MeshSlot {
     }
 };
 
+/// Area-weighted vertex normals of the slot's triangles (a vertex of no triangle gets zero).
+void update_vertex_normals(MeshSlot& slot) {
+    slot.N.setZero(slot.vertex_count, 3);
+    for (Eigen::Index f = 0; f < slot.F.rows(); ++f) {
+        const Eigen::RowVector3f a = slot.V.row(slot.F(f, 0)), b = slot.V.row(slot.F(f, 1)),
+                                 c = slot.V.row(slot.F(f, 2));
+        const Eigen::RowVector3f area_normal = (b - a).cross(c - a); // 2 x area, by winding
+        for (int k = 0; k < 3; ++k)
+            slot.N.row(slot.F(f, k)) += area_normal;
+    }
+    for (Eigen::Index v = 0; v < slot.vertex_count; ++v) {
+        const float length = slot.N.row(v).norm();
+        if (length > 0.0f) slot.N.row(v) /= length;
+    }
+}
+
+RTCRayHit make_query(const Vec3& origin_mm, const Vec3& direction, double tnear_mm,
+                     double tfar_mm) {
+    RTCRayHit query{};
+    query.ray.org_x = float(origin_mm.x());
+    query.ray.org_y = float(origin_mm.y());
+    query.ray.org_z = float(origin_mm.z());
+    query.ray.dir_x = float(direction.x());
+    query.ray.dir_y = float(direction.y());
+    query.ray.dir_z = float(direction.z());
+    query.ray.tnear = float(tnear_mm);
+    query.ray.tfar = float(tfar_mm);
+    query.ray.mask = std::numeric_limits<unsigned>::max();
+    query.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    query.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    return query;
+}
+
 } // namespace
 
 struct EmbreeScene::Impl {
     RTCDevice device = nullptr;
     RTCScene scene = nullptr;
-    std::array<MeshSlot, 3> slots; ///< indexed by Embree geometry ID
+    std::array<MeshSlot, 4> slots; ///< indexed by Embree geometry ID
+    /// The inner surface alone (a second geometry on the same shared buffers), for the
+    /// path integrator's connections through the interface.
+    RTCScene interface_scene = nullptr;
+    RTCGeometry interface_geometry = nullptr;
     bool has_frame = false;
     bool counting = false;                      ///< count_rays
     mutable std::atomic<std::uint64_t> rays{0}; ///< closest_hit calls while counting
@@ -113,6 +155,9 @@ struct EmbreeScene::Impl {
     void release(MeshSlot& slot, unsigned id);
     void create(MeshSlot& slot, const SurfaceMesh& mesh, unsigned id);
     void refit(MeshSlot& slot, const SurfaceMesh& mesh);
+    RTCGeometry new_triangle_geometry(const MeshSlot& slot);
+    void set_interface(bool present, bool rebuilt);
+    RayHit to_hit(const RTCRayHit& query) const;
 };
 
 EmbreeScene::Impl::Impl(const std::string& device_config) {
@@ -130,6 +175,10 @@ EmbreeScene::Impl::Impl(const std::string& device_config) {
     rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_LOW);
     rtcSetSceneFlags(scene, RTC_SCENE_FLAG_DYNAMIC | RTC_SCENE_FLAG_ROBUST);
     rtcCommitScene(scene); // an empty but valid scene: queries before set_frame miss
+    interface_scene = rtcNewScene(device);
+    rtcSetSceneBuildQuality(interface_scene, RTC_BUILD_QUALITY_LOW);
+    rtcSetSceneFlags(interface_scene, RTC_SCENE_FLAG_DYNAMIC | RTC_SCENE_FLAG_ROBUST);
+    rtcCommitScene(interface_scene);
     check(device, "creating the scene");
 }
 
@@ -137,7 +186,9 @@ EmbreeScene::Impl::~Impl() {
     for (MeshSlot& slot : slots) {
         if (slot.geometry) rtcReleaseGeometry(slot.geometry);
     }
+    if (interface_geometry) rtcReleaseGeometry(interface_geometry);
     if (scene) rtcReleaseScene(scene);
+    if (interface_scene) rtcReleaseScene(interface_scene);
     if (device) rtcReleaseDevice(device);
 }
 
@@ -157,15 +208,39 @@ void EmbreeScene::Impl::create(MeshSlot& slot, const SurfaceMesh& mesh, unsigned
     slot.V.topRows(slot.vertex_count) = mesh.V;
     slot.V.bottomRows(1).setZero();
     slot.F = mesh.F;
-    slot.geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-    rtcSetGeometryBuildQuality(slot.geometry, RTC_BUILD_QUALITY_REFIT);
-    rtcSetSharedGeometryBuffer(slot.geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                               slot.V.data(), 0, 3 * sizeof(float), size_t(slot.vertex_count));
-    rtcSetSharedGeometryBuffer(slot.geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                               slot.F.data(), 0, 3 * sizeof(std::uint32_t), size_t(slot.F.rows()));
-    rtcCommitGeometry(slot.geometry);
+    slot.geometry = new_triangle_geometry(slot);
     rtcAttachGeometryByID(scene, slot.geometry, id);
     check(device, "creating geometry " + std::to_string(id));
+}
+
+RTCGeometry EmbreeScene::Impl::new_triangle_geometry(const MeshSlot& slot) {
+    RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    rtcSetGeometryBuildQuality(geometry, RTC_BUILD_QUALITY_REFIT);
+    rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                               slot.V.data(), 0, 3 * sizeof(float), size_t(slot.vertex_count));
+    rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, slot.F.data(),
+                               0, 3 * sizeof(std::uint32_t), size_t(slot.F.rows()));
+    rtcCommitGeometry(geometry);
+    return geometry;
+}
+
+/// Brings the interface-only scene in line with the inner-surface slot: a new geometry on the
+/// slot's buffers after a rebuild, a refit after a refit.
+void EmbreeScene::Impl::set_interface(bool present, bool rebuilt) {
+    if (interface_geometry && (rebuilt || !present)) {
+        rtcDetachGeometry(interface_scene, 0);
+        rtcReleaseGeometry(interface_geometry);
+        interface_geometry = nullptr;
+    }
+    if (present && !interface_geometry) {
+        interface_geometry = new_triangle_geometry(slots[geometry_id(SurfaceKind::inner_surface)]);
+        rtcAttachGeometryByID(interface_scene, interface_geometry, 0);
+    } else if (present) {
+        rtcUpdateGeometryBuffer(interface_geometry, RTC_BUFFER_TYPE_VERTEX, 0);
+        rtcCommitGeometry(interface_geometry);
+    }
+    rtcCommitScene(interface_scene);
+    check(device, "updating the interface scene");
 }
 
 void EmbreeScene::Impl::refit(MeshSlot& slot, const SurfaceMesh& mesh) {
@@ -185,13 +260,14 @@ bool EmbreeScene::has_frame() const {
 }
 
 SceneUpdate EmbreeScene::set_frame(const SensorFrame& frame) {
-    const std::array<const SurfaceMesh*, 3> meshes = {&frame.coating, &frame.inner_markers,
-                                                      &frame.outer_markers};
+    const std::array<const SurfaceMesh*, 4> meshes = {&frame.coating, &frame.inner_markers,
+                                                      &frame.outer_markers, &frame.inner_surface};
     for (SurfaceKind kind : kKinds)
         validate(*meshes[geometry_id(kind)], kind);
 
     m_impl->has_frame = false; // until the commit below succeeds
     SceneUpdate update = SceneUpdate::refitted;
+    bool interface_rebuilt = false;
     for (SurfaceKind kind : kKinds) {
         const unsigned id = geometry_id(kind);
         MeshSlot& slot = m_impl->slots[id];
@@ -204,8 +280,11 @@ SceneUpdate EmbreeScene::set_frame(const SensorFrame& frame) {
         } else {
             m_impl->create(slot, mesh, id);
             update = SceneUpdate::built;
+            if (kind == SurfaceKind::inner_surface) interface_rebuilt = true;
         }
+        if (kind == SurfaceKind::inner_surface && slot.geometry) update_vertex_normals(slot);
     }
+    m_impl->set_interface(frame.inner_surface.F.rows() > 0, interface_rebuilt);
     rtcCommitScene(m_impl->scene);
     check(m_impl->device, "rtcCommitScene");
     m_impl->has_frame = true;
@@ -216,28 +295,59 @@ RayHit EmbreeScene::closest_hit(const Vec3& origin_mm, const Vec3& direction, do
                                 double tfar_mm) const {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
-    RTCRayHit query{};
-    query.ray.org_x = float(origin_mm.x());
-    query.ray.org_y = float(origin_mm.y());
-    query.ray.org_z = float(origin_mm.z());
-    query.ray.dir_x = float(direction.x());
-    query.ray.dir_y = float(direction.y());
-    query.ray.dir_z = float(direction.z());
-    query.ray.tnear = float(tnear_mm);
-    query.ray.tfar = float(tfar_mm);
-    query.ray.mask = std::numeric_limits<unsigned>::max();
-    query.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    query.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    RTCRayHit query = make_query(origin_mm, direction, tnear_mm, tfar_mm);
     rtcIntersect1(m_impl->scene, &context, &query);
     if (m_impl->counting) m_impl->rays.fetch_add(1, std::memory_order_relaxed);
+    return m_impl->to_hit(query);
+}
 
+RayHit EmbreeScene::closest_interface_hit(const Vec3& origin_mm, const Vec3& direction,
+                                          double tnear_mm, double tfar_mm) const {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    RTCRayHit query = make_query(origin_mm, direction, tnear_mm, tfar_mm);
+    rtcIntersect1(m_impl->interface_scene, &context, &query);
+    if (m_impl->counting) m_impl->rays.fetch_add(1, std::memory_order_relaxed);
+    if (query.hit.geomID != RTC_INVALID_GEOMETRY_ID)
+        query.hit.geomID = geometry_id(SurfaceKind::inner_surface);
+    return m_impl->to_hit(query);
+}
+
+RayHit EmbreeScene::Impl::to_hit(const RTCRayHit& query) const {
     RayHit hit;
     if (query.hit.geomID == RTC_INVALID_GEOMETRY_ID) return hit;
     hit.t_mm = query.ray.tfar;
     hit.kind = SurfaceKind(query.hit.geomID + 1);
     hit.prim_id = query.hit.primID;
     hit.normal = Vec3(query.hit.Ng_x, query.hit.Ng_y, query.hit.Ng_z).normalized();
+    hit.shading_normal = hit.normal;
+    if (hit.kind == SurfaceKind::inner_surface) {
+        const MeshSlot& slot = slots[geometry_id(SurfaceKind::inner_surface)];
+        const auto f = slot.F.row(hit.prim_id);
+        const double u = query.hit.u, v = query.hit.v;
+        const Vec3 n =
+            ((1.0 - u - v) * slot.N.row(f(0)) + u * slot.N.row(f(1)) + v * slot.N.row(f(2)))
+                .cast<double>()
+                .transpose();
+        // Keep the shading normal on the geometric normal's side whatever the conventions.
+        const double length = n.norm();
+        if (length > 0.0) hit.shading_normal = (n.dot(hit.normal) < 0.0 ? -n : n) / length;
+    }
     return hit;
+}
+
+bool EmbreeScene::has_interface() const {
+    return m_impl->interface_geometry != nullptr;
+}
+
+EmbreeScene::Triangle EmbreeScene::interface_triangle(std::uint32_t prim) const {
+    const MeshSlot& slot = m_impl->slots[geometry_id(SurfaceKind::inner_surface)];
+    Triangle t;
+    for (int k = 0; k < 3; ++k) {
+        t.p[k] = slot.V.row(slot.F(prim, k)).cast<double>().transpose();
+        t.n[k] = slot.N.row(slot.F(prim, k)).cast<double>().transpose();
+    }
+    return t;
 }
 
 void EmbreeScene::count_rays(bool on) {

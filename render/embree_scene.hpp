@@ -11,7 +11,13 @@
 namespace chromasim::render::detail {
 
 /// What a ray hit. The values double as Embree geometry IDs plus one.
-enum class SurfaceKind : std::uint8_t { none = 0, coating = 1, inner_marker = 2, outer_marker = 3 };
+enum class SurfaceKind : std::uint8_t {
+    none = 0,
+    coating = 1,
+    inner_marker = 2,
+    outer_marker = 3,
+    inner_surface = 4, ///< the air / clear-layer interface (SensorFrame::inner_surface)
+};
 
 /// The closest intersection along a ray segment.
 struct RayHit {
@@ -20,6 +26,9 @@ struct RayHit {
     std::uint32_t prim_id = 0;            ///< triangle index within its SurfaceMesh
     Vec3 normal{0.0, 0.0, 0.0};           ///< unit geometric normal (winding order decides the
                                           ///< sign); zero for a degenerate triangle
+    /// Unit shading normal on the same side as `normal`: on the inner surface the vertex
+    /// normals (area-weighted) interpolated at the hit, elsewhere `normal`.
+    Vec3 shading_normal{0.0, 0.0, 0.0};
     bool hit() const { return kind != SurfaceKind::none; }
 };
 
@@ -57,6 +66,19 @@ public:
     /// `direction` must be unit length so that t is in mm. Pre-condition: has_frame().
     RayHit closest_hit(const Vec3& origin_mm, const Vec3& direction, double tnear_mm,
                        double tfar_mm) const;
+
+    /// Closest hit of the inner surface alone (the other surfaces are not in this query's
+    /// BVH); kind none if the ray misses it or the frame has none.
+    RayHit closest_interface_hit(const Vec3& origin_mm, const Vec3& direction, double tnear_mm,
+                                 double tfar_mm) const;
+    /// True when the loaded frame has an inner surface.
+    bool has_interface() const;
+    /// Vertices and unit vertex normals of inner-surface triangle `prim`.
+    struct Triangle {
+        Vec3 p[3];
+        Vec3 n[3];
+    };
+    Triangle interface_triangle(std::uint32_t prim) const;
 
     /// Counting of closest_hit calls for benchmarks (off by default; when off it costs one
     /// predictable branch per ray). Switching it on resets the count.

@@ -43,6 +43,8 @@
 
 #include "render/embree_scene.hpp"
 #include "render/fisheye_camera.hpp"
+#include "render/path_integrator.hpp"
+#include "render/sampling.hpp"
 #include "render/shading.hpp"
 
 #include <tbb/blocked_range.h>
@@ -65,39 +67,6 @@ namespace {
 constexpr double kCoatingInnerRadius_mm = 12.7;
 /// Image value of the undeformed apex at exposure 1, headroom for brighter spots.
 constexpr double kApexImageValue = 0.8;
-
-std::uint64_t mix64(std::uint64_t z) {
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
-
-/// SplitMix64 stream for one pixel: cheap, statistically sound for jitter, and seeded from
-/// (seed, pixel) alone, which makes images independent of thread scheduling.
-class PixelRng {
-public:
-    PixelRng(std::uint64_t seed, std::uint64_t pixel_index)
-        : m_state(mix64(seed) ^ mix64(pixel_index + 0x9E3779B97F4A7C15ull)) {}
-
-    /// Uniform in [0, 1) with 53 random bits.
-    double uniform() {
-        m_state += 0x9E3779B97F4A7C15ull;
-        return double(mix64(m_state) >> 11) * 0x1.0p-53;
-    }
-
-private:
-    std::uint64_t m_state;
-};
-
-/// Stratum grid nx x ny == samples: nx is the largest divisor of samples not above
-/// sqrt(samples), so every count gives equal strata that tile the pixel (7 -> 1 x 7).
-std::pair<int, int> strata_grid(int samples) {
-    int nx = 1;
-    for (int d = 1; d * d <= samples; ++d) {
-        if (samples % d == 0) nx = d;
-    }
-    return {nx, samples / nx};
-}
 
 /// exposure * 0.8 / L_ref (see the model at the top of this file).
 double exposure_scale(const ShadingModel& shading) {
@@ -144,6 +113,7 @@ void validate_marker_layout(const SensorFrame& frame) {
 struct Renderer::Impl {
     FisheyeCamera camera;
     detail::ShadingModel shading;
+    detail::PathIntegrator path{shading};
     detail::EmbreeScene scene;
     double scale;     ///< image value per unit radiance
     double led_scale; ///< spectral mode: relative LED intensity (mean of led_rgb)
@@ -172,14 +142,20 @@ struct Renderer::Impl {
             if (sum2) *sum2 += (value * scale).square();
         };
         const std::optional<SensorSpectra>& spectra = shading.optics().spectra;
+        const detail::LaneOptics<detail::kRgbLanes> rgb_lanes = shading.rgb_lanes();
         const int n = settings.samples_per_pixel;
         for (int sy = 0; sy < ny; ++sy) {
             for (int sx = 0; sx < nx; ++sx) {
                 const double u = (sx + rng.uniform()) / nx;
                 const double v = (sy + rng.uniform()) / ny;
                 const auto direction = camera.direction(Eigen::Vector2d(x + u, y + v));
+                const bool path_traced = settings.integrator == Integrator::path;
                 if (!spectra) {
-                    if (direction) add(shading.radiance(scene, camera.origin_mm(), *direction));
+                    if (direction && path_traced)
+                        add(path.radiance(scene, camera.origin_mm(), *direction, rgb_lanes, rng)
+                                .head<3>());
+                    else if (direction)
+                        add(shading.radiance(scene, camera.origin_mm(), *direction));
                     continue;
                 }
                 // Hero wavelengths, stratified over the pixel's samples: sample k takes stratum
@@ -190,9 +166,10 @@ struct Renderer::Impl {
                 if (!direction) continue;
                 detail::Lanes lambda_nm, pdf_per_nm;
                 wavelengths->sample<detail::kSpectralLanes>(u_lambda, lambda_nm, pdf_per_nm);
+                const auto lanes = detail::spectral_lanes(*spectra, lambda_nm, led_scale);
                 const detail::Lanes radiance =
-                    shading.radiance(scene, camera.origin_mm(), *direction,
-                                     detail::spectral_lanes(*spectra, lambda_nm, led_scale));
+                    path_traced ? path.radiance(scene, camera.origin_mm(), *direction, lanes, rng)
+                                : shading.radiance(scene, camera.origin_mm(), *direction, lanes);
                 add(camera_rgb<detail::kSpectralLanes>(spectra->camera, lambda_nm, pdf_per_nm,
                                                        radiance));
             }
@@ -211,9 +188,10 @@ struct Renderer::Impl {
             const detail::RayHit hit = scene.closest_hit(camera.origin_mm(), *direction, tnear,
                                                          std::numeric_limits<double>::infinity());
             if (!hit.hit() || hit.kind == detail::SurfaceKind::coating) break;
+            tnear = hit.t_mm + detail::kHitGap_mm;
+            if (hit.kind == detail::SurfaceKind::inner_surface) continue;
             std::int32_t& id = ids[hit.kind == detail::SurfaceKind::outer_marker ? 1 : 0];
             if (id < 0) id = std::int32_t(hit.prim_id / std::uint32_t(triangles_per_marker));
-            tnear = hit.t_mm + detail::kHitGap_mm;
         }
         return {ids[0], ids[1]};
     }

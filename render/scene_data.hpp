@@ -96,7 +96,15 @@ struct OpticsParams {
     double outer_marker_scatter_fraction = 0.5; ///< share of light an outer marker scatters back
     int led_count = 6;                          ///< point LEDs evenly on a ring
     double led_ring_radius_mm = 10.0;
-    double led_z_mm = -1.0;      ///< ring height; the dome rim is the plane z = 0
+    double led_z_mm = -1.0; ///< ring height; the dome rim is the plane z = 0
+    /// The path integrator's LEDs: Lambertian rectangles facing +z centred on the ring points,
+    /// `led_width_mm` along the ring's tangent, `led_height_mm` along its radius (SMD 3528),
+    /// radiance led / area so that far away each matches the direct model's point LED.
+    double led_width_mm = 3.5;
+    double led_height_mm = 2.8;
+    /// Refractive index of the clear layers at the inner surface (air / silicone boundary);
+    /// the layers are index-matched among themselves (no other boundary refracts).
+    double refractive_index = 1.4;
     Vec3 led_rgb{1.0, 1.0, 1.0}; ///< relative emission per LED (white)
     double exposure = 1.0;       ///< multiplies the auto exposure (undeformed apex -> 0.8)
     /// Spectral mode when set: every camera sample carries four hero wavelengths; the coating,
@@ -106,12 +114,22 @@ struct OpticsParams {
     std::optional<SensorSpectra> spectra;
 };
 
+/// Light transport (render/renderer.cpp and render/path_integrator.hpp describe both).
+enum class Integrator {
+    /// Direct LED light only, straight rays, no refraction: fast, an approximation.
+    direct,
+    /// Unbiased spectral path tracing: refraction and Fresnel at the inner surface, diffuse
+    /// interreflection, area LEDs with next-event estimation through the interface and MIS.
+    path,
+};
+
 struct RenderSettings {
     int samples_per_pixel = 4; ///< stratified jittered samples for anti-aliasing
     std::uint64_t seed = 1;    ///< same seed, same frame -> identical image
     /// Extra channels, computed only when asked for (Image).
     bool marker_ids = false; ///< the marker seen through each pixel's centre, per layer
     bool variance = false;   ///< per-pixel variance estimate of the mean
+    Integrator integrator = Integrator::direct;
 };
 
 /// Linear RGB image, row-major, top row first, 3 floats per pixel; extra channels are empty

@@ -68,50 +68,6 @@ Vec3 facing(const Vec3& normal, const Vec3& direction) {
 
 } // namespace
 
-/// Where a ray entered the marker volumes it is inside (inner, outer; mm along the ray): the
-/// marker meshes are closed, their triangles facing out of the volume, so each hit is an entry
-/// (the ray against the face's normal) or an exit, and the Beer-Lambert path is the distance
-/// between them. A ray that starts inside a volume has entered it at its own start; a segment
-/// that ends inside one (a shadow ray's end) counts up to its end (`open_path`).
-///
-/// Faces closer than kHitGap_mm (a marker squeezed to nearly nothing) hide each other: the
-/// exit is never seen. An entry left open when the ray meets the coating or enters another
-/// marker of the same layer is such a lost exit and absorbs nothing (at most kHitGap_mm of
-/// path is missed); the outer markers' faces stay 1 % of the layer (5 um) off the coating.
-class MarkerPath {
-public:
-    explicit MarkerPath(double start_mm) : m_start_mm(start_mm) {}
-
-    /// Records a hit of a marker face (`outer` layer or not) at t_mm; returns the path length
-    /// just completed inside that volume on an exit, or a negative number on an entry.
-    double cross(bool outer, double t_mm, bool entering) {
-        const int layer = outer ? 1 : 0;
-        double& entry = m_entry_mm[layer];
-        const bool first = !m_seen[layer];
-        m_seen[layer] = true;
-        if (entering) {
-            entry = t_mm;
-            return -1.0;
-        }
-        // An exit with no entry: the ray started inside (the layer's first face), or the entry
-        // hid behind a face closer than the gap (nothing to count).
-        const double from = !std::isnan(entry) ? entry : first ? m_start_mm : t_mm;
-        entry = std::numeric_limits<double>::quiet_NaN();
-        return std::max(0.0, t_mm - from);
-    }
-    /// Path inside a volume still open at t_mm (a ray stopped by the coating inside a marker).
-    double open_path(bool outer, double t_mm) const {
-        const double entry = m_entry_mm[outer ? 1 : 0];
-        return std::isnan(entry) ? 0.0 : std::max(0.0, t_mm - entry);
-    }
-
-private:
-    double m_start_mm;
-    bool m_seen[2] = {false, false};
-    double m_entry_mm[2] = {std::numeric_limits<double>::quiet_NaN(),
-                            std::numeric_limits<double>::quiet_NaN()};
-};
-
 LaneOptics<kSpectralLanes> spectral_lanes(const SensorSpectra& spectra, const Lanes& lambda_nm,
                                           double led_scale) {
     return {spectra.coating_albedo.at_each(lambda_nm),
@@ -181,19 +137,21 @@ Rgb ShadingModel::irradiance(const EmbreeScene& scene, const Vec3& p_mm, const V
 
 template <int N>
 LanesN<N> ShadingModel::transmittance(const EmbreeScene& scene, const Vec3& from_mm,
-                                      const Vec3& to_mm, const LaneOptics<N>& lanes) const {
+                                      const Vec3& to_mm, const LaneOptics<N>& lanes,
+                                      double tnear_mm) const {
     const Vec3 segment = to_mm - from_mm;
     const double length_mm = segment.norm();
     const double tfar_mm = length_mm - kHitGap_mm;
-    if (!(tfar_mm > 0.0)) return LanesN<N>::Ones();
+    if (!(tfar_mm > tnear_mm)) return LanesN<N>::Ones();
     const Vec3 w = segment / length_mm;
     LanesN<N> result = LanesN<N>::Ones();
-    MarkerPath path(0.0);
-    double tnear_mm = 0.0;
+    MarkerPath path(tnear_mm);
     for (int i = 0; i < kMaxHits; ++i) {
         const RayHit hit = scene.closest_hit(from_mm, w, tnear_mm, tfar_mm);
         const double cos_incidence = hit.normal.dot(w);
         switch (hit.kind) {
+        case SurfaceKind::inner_surface: // the direct model does not refract: see through
+            break;
         case SurfaceKind::none: // the end of the segment, maybe still inside a marker
             return result * marker_absorption(lanes, false, path.open_path(false, tfar_mm)) *
                    marker_absorption(lanes, true, path.open_path(true, tfar_mm));
@@ -257,6 +215,7 @@ LanesN<N> ShadingModel::radiance(const EmbreeScene& scene, const Vec3& origin_mm
             }
             break;
         }
+        case SurfaceKind::inner_surface: // the direct model does not refract: see through
         case SurfaceKind::none:
             break;
         }
@@ -277,9 +236,15 @@ template LanesN<kRgbLanes> ShadingModel::radiance(const EmbreeScene&, const Vec3
 template LanesN<kSpectralLanes> ShadingModel::radiance(const EmbreeScene&, const Vec3&, const Vec3&,
                                                        const LaneOptics<kSpectralLanes>&) const;
 template LanesN<kRgbLanes> ShadingModel::transmittance(const EmbreeScene&, const Vec3&, const Vec3&,
-                                                       const LaneOptics<kRgbLanes>&) const;
-template LanesN<kSpectralLanes>
-ShadingModel::transmittance(const EmbreeScene&, const Vec3&, const Vec3&,
-                            const LaneOptics<kSpectralLanes>&) const;
+                                                       const LaneOptics<kRgbLanes>&, double) const;
+template LanesN<kSpectralLanes> ShadingModel::transmittance(const EmbreeScene&, const Vec3&,
+                                                            const Vec3&,
+                                                            const LaneOptics<kSpectralLanes>&,
+                                                            double) const;
+
+template LanesN<kRgbLanes> ShadingModel::marker_absorption(const LaneOptics<kRgbLanes>&, bool,
+                                                           double) const;
+template LanesN<kSpectralLanes> ShadingModel::marker_absorption(const LaneOptics<kSpectralLanes>&,
+                                                                bool, double) const;
 
 } // namespace chromasim::render::detail

@@ -7,6 +7,9 @@
 
 #include <Eigen/Core>
 
+#include <algorithm>
+#include <cmath>
+#include <limits>
 #include <vector>
 
 namespace chromasim::render::detail {
@@ -44,6 +47,50 @@ template <int N> struct LaneOptics {
 LaneOptics<kSpectralLanes> spectral_lanes(const SensorSpectra& spectra, const Lanes& lambda_nm,
                                           double led_scale);
 
+/// Where a ray entered the marker volumes it is inside (inner, outer; mm along the ray): the
+/// marker meshes are closed, their triangles facing out of the volume, so each hit is an entry
+/// (the ray against the face's normal) or an exit, and the Beer-Lambert path is the distance
+/// between them. A ray that starts inside a volume has entered it at its own start; a segment
+/// that ends inside one (a shadow ray's end) counts up to its end (`open_path`).
+///
+/// Faces closer than kHitGap_mm (a marker squeezed to nearly nothing) hide each other: the
+/// exit is never seen. An entry left open when the ray meets the coating or enters another
+/// marker of the same layer is such a lost exit and absorbs nothing (at most kHitGap_mm of
+/// path is missed); the outer markers' faces stay 1 % of the layer (5 um) off the coating.
+class MarkerPath {
+public:
+    explicit MarkerPath(double start_mm) : m_start_mm(start_mm) {}
+
+    /// Records a hit of a marker face (`outer` layer or not) at t_mm; returns the path length
+    /// just completed inside that volume on an exit, or a negative number on an entry.
+    double cross(bool outer, double t_mm, bool entering) {
+        const int layer = outer ? 1 : 0;
+        double& entry = m_entry_mm[layer];
+        const bool first = !m_seen[layer];
+        m_seen[layer] = true;
+        if (entering) {
+            entry = t_mm;
+            return -1.0;
+        }
+        // An exit with no entry: the ray started inside (the layer's first face), or the entry
+        // hid behind a face closer than the gap (nothing to count).
+        const double from = !std::isnan(entry) ? entry : first ? m_start_mm : t_mm;
+        entry = std::numeric_limits<double>::quiet_NaN();
+        return std::max(0.0, t_mm - from);
+    }
+    /// Path inside a volume still open at t_mm (a ray stopped by the coating inside a marker).
+    double open_path(bool outer, double t_mm) const {
+        const double entry = m_entry_mm[outer ? 1 : 0];
+        return std::isnan(entry) ? 0.0 : std::max(0.0, t_mm - entry);
+    }
+
+private:
+    double m_start_mm;
+    bool m_seen[2] = {false, false};
+    double m_entry_mm[2] = {std::numeric_limits<double>::quiet_NaN(),
+                            std::numeric_limits<double>::quiet_NaN()};
+};
+
 /// The optical model of one sensor: LED ring, coating and the two marker layers.
 class ShadingModel {
 public:
@@ -80,9 +127,11 @@ public:
     /// `to_mm`, so the surface at `to_mm` does not shadow itself): Beer-Lambert over the path
     /// inside each marker volume, (1 - scatter_fraction) per outer marker entered; zero if the
     /// coating is in the way.
+    /// `tnear_mm` > 0 skips the start of the segment (a start on a surface). The inner surface
+    /// (the air / clear-layer interface) does not attenuate: callers that refract handle it.
     template <int N>
     LanesN<N> transmittance(const EmbreeScene& scene, const Vec3& from_mm, const Vec3& to_mm,
-                            const LaneOptics<N>& lanes) const;
+                            const LaneOptics<N>& lanes, double tnear_mm = 0.0) const;
     Rgb transmittance(const EmbreeScene& scene, const Vec3& from_mm, const Vec3& to_mm) const;
 
     /// Beer-Lambert transmittance exp(-absorption * path_mm) of `path_mm` inside a marker of

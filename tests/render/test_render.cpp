@@ -5,6 +5,7 @@
 #include "render/fisheye_camera.hpp"
 #include "render/renderer.hpp"
 #include "render/shading.hpp"
+#include "test_meshes.hpp"
 
 #include <Eigen/Geometry>
 #include <catch2/catch.hpp>
@@ -22,6 +23,7 @@
 #include <vector>
 
 using namespace chromasim::render;
+using namespace chromasim::render::test;
 
 namespace {
 
@@ -33,60 +35,6 @@ constexpr double kMarkerRadius_mm = 0.5;
 constexpr double kThickness_mm = 0.49;
 constexpr double kInnerMarkerZ_mm = 10.75;
 constexpr double kOuterMarkerRadius_mm = 12.45;
-
-Vec3 unit_from_angles(double polar_deg, double azimuth_deg) {
-    const double theta = polar_deg * kDeg;
-    const double phi = azimuth_deg * kDeg;
-    return {std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta)};
-}
-
-/// Growable triangle soup that becomes a SurfaceMesh.
-struct MeshBuilder {
-    std::vector<Vec3> vertices;
-    std::vector<std::array<std::uint32_t, 3>> triangles;
-
-    std::uint32_t add_vertex(const Vec3& v) {
-        vertices.push_back(v);
-        return std::uint32_t(vertices.size() - 1);
-    }
-    SurfaceMesh build() const {
-        SurfaceMesh mesh;
-        mesh.V.resize(Eigen::Index(vertices.size()), 3);
-        mesh.F.resize(Eigen::Index(triangles.size()), 3);
-        for (std::size_t i = 0; i < vertices.size(); ++i)
-            mesh.V.row(i) = vertices[i].cast<float>();
-        for (std::size_t i = 0; i < triangles.size(); ++i) {
-            for (int k = 0; k < 3; ++k)
-                mesh.F(Eigen::Index(i), k) = triangles[i][k];
-        }
-        return mesh;
-    }
-};
-
-/// UV hemisphere z >= 0 with its pole on +z, rings every 90/rings degrees, normals inwards.
-SurfaceMesh hemisphere(double radius_mm, int rings, int segments) {
-    MeshBuilder mesh;
-    const std::uint32_t pole = mesh.add_vertex(Vec3(0.0, 0.0, radius_mm));
-    for (int i = 1; i <= rings; ++i) {
-        for (int j = 0; j < segments; ++j) {
-            mesh.add_vertex(radius_mm * unit_from_angles(90.0 * i / rings, 360.0 * j / segments));
-        }
-    }
-    auto ring_vertex = [&](int i, int j) {
-        return std::uint32_t(1 + (i - 1) * segments + j % segments);
-    };
-    for (int j = 0; j < segments; ++j)
-        mesh.triangles.push_back({pole, ring_vertex(1, j + 1), ring_vertex(1, j)});
-    for (int i = 1; i < rings; ++i) {
-        for (int j = 0; j < segments; ++j) {
-            const std::uint32_t a = ring_vertex(i, j), b = ring_vertex(i, j + 1);
-            const std::uint32_t c = ring_vertex(i + 1, j), d = ring_vertex(i + 1, j + 1);
-            mesh.triangles.push_back({a, b, c});
-            mesh.triangles.push_back({b, d, c});
-        }
-    }
-    return mesh.build();
-}
 
 /// Rim point k of a marker face centred at c with axis n (the 12-gon's frame u, v).
 Vec3 rim_point(const Vec3& c, const Vec3& n, int k) {

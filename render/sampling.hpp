@@ -1,0 +1,92 @@
+#pragma once
+/// Random numbers and sampling helpers shared by the integrators: a per-pixel SplitMix64
+/// stream (images independent of the thread count), the pixel's stratum grid, cosine-weighted
+/// hemisphere directions, Fresnel's equations.
+#include <Eigen/Core>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <numbers>
+#include <utility>
+
+namespace chromasim::render::detail {
+
+inline std::uint64_t mix64(std::uint64_t z) {
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+}
+
+/// SplitMix64 stream for one pixel: cheap, statistically sound, and seeded from (seed, pixel)
+/// alone, which makes images independent of thread scheduling.
+class PixelRng {
+public:
+    PixelRng(std::uint64_t seed, std::uint64_t pixel_index)
+        : m_state(mix64(seed) ^ mix64(pixel_index + 0x9E3779B97F4A7C15ull)) {}
+
+    /// Uniform in [0, 1) with 53 random bits.
+    double uniform() {
+        m_state += 0x9E3779B97F4A7C15ull;
+        return double(mix64(m_state) >> 11) * 0x1.0p-53;
+    }
+
+private:
+    std::uint64_t m_state;
+};
+
+/// Stratum grid nx x ny == samples: nx is the largest divisor of samples not above
+/// sqrt(samples), so every count gives equal strata that tile the pixel (7 -> 1 x 7).
+inline std::pair<int, int> strata_grid(int samples) {
+    int nx = 1;
+    for (int d = 1; d * d <= samples; ++d) {
+        if (samples % d == 0) nx = d;
+    }
+    return {nx, samples / nx};
+}
+
+/// Two unit vectors completing the unit vector `n` to a right-handed orthonormal basis
+/// (Duff et al. 2017, "Building an orthonormal basis, revisited").
+inline void orthonormal_basis(const Eigen::Vector3d& n, Eigen::Vector3d& b1, Eigen::Vector3d& b2) {
+    const double sign = std::copysign(1.0, n.z());
+    const double a = -1.0 / (sign + n.z());
+    const double b = n.x() * n.y() * a;
+    b1 = {1.0 + sign * n.x() * n.x() * a, sign * b, -sign * n.x()};
+    b2 = {b, sign + n.y() * n.y() * a, -n.y()};
+}
+
+/// Cosine-weighted direction about the unit normal `n` from two uniforms; pdf cos / pi.
+inline Eigen::Vector3d cosine_direction(const Eigen::Vector3d& n, double u1, double u2) {
+    const double r = std::sqrt(u1), phi = 2.0 * std::numbers::pi * u2;
+    Eigen::Vector3d b1, b2;
+    orthonormal_basis(n, b1, b2);
+    const double z = std::sqrt(std::max(0.0, 1.0 - u1));
+    return (r * std::cos(phi) * b1 + r * std::sin(phi) * b2 + z * n).normalized();
+}
+
+/// Unpolarised Fresnel reflectance of a smooth dielectric boundary for light arriving at
+/// cos_i (> 0) from the side of index n_i onto n_t, eta = n_i / n_t; 1 beyond the critical
+/// angle (total internal reflection).
+inline double fresnel_dielectric(double cos_i, double eta) {
+    cos_i = std::clamp(cos_i, 0.0, 1.0);
+    const double sin2_t = eta * eta * (1.0 - cos_i * cos_i);
+    if (sin2_t >= 1.0) return 1.0;
+    const double cos_t = std::sqrt(1.0 - sin2_t);
+    const double rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    const double rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    return 0.5 * (rs * rs + rp * rp);
+}
+
+/// Refraction of the unit direction `d` through a boundary with unit normal `n` facing the
+/// incoming side (d . n < 0), eta = n_i / n_t; false on total internal reflection.
+inline bool refract(const Eigen::Vector3d& d, const Eigen::Vector3d& n, double eta,
+                    Eigen::Vector3d& out) {
+    const double cos_i = -d.dot(n);
+    const double sin2_t = eta * eta * (1.0 - cos_i * cos_i);
+    if (sin2_t >= 1.0) return false;
+    const double cos_t = std::sqrt(1.0 - sin2_t);
+    out = (eta * d + (eta * cos_i - cos_t) * n).normalized();
+    return true;
+}
+
+} // namespace chromasim::render::detail

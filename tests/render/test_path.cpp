@@ -1,0 +1,175 @@
+// Tests of the path integrator (render/path_integrator.hpp) against analytic answers and
+// against its own BSDF-only estimator: the integrating-sphere furnace, the refracted
+// connections through the inner surface and their Jacobian, and MIS through the interface.
+#include "render/embree_scene.hpp"
+#include "render/path_integrator.hpp"
+#include "render/shading.hpp"
+#include "test_meshes.hpp"
+
+#include <Eigen/Geometry>
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <numbers>
+
+using namespace chromasim::render;
+using namespace chromasim::render::detail;
+using namespace chromasim::render::test;
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+double mesh_area(const SurfaceMesh& mesh) {
+    double area = 0.0;
+    for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
+        const Vec3 a = mesh.V.row(mesh.F(f, 0)).cast<double>(),
+                   b = mesh.V.row(mesh.F(f, 1)).cast<double>(),
+                   c = mesh.V.row(mesh.F(f, 2)).cast<double>();
+        area += 0.5 * (b - a).cross(c - a).norm();
+    }
+    return area;
+}
+
+LaneOptics<kRgbLanes> rgb_lanes(const RgbLanes& albedo) {
+    LaneOptics<kRgbLanes> lanes;
+    lanes.coating_albedo = albedo;
+    lanes.inner_absorption_per_mm = lanes.outer_absorption_per_mm = RgbLanes::Zero();
+    lanes.outer_albedo = RgbLanes::Zero();
+    lanes.led = RgbLanes(1.0, 1.0, 1.0, 0.0);
+    return lanes;
+}
+
+/// Mean radiance of `paths` paths along one camera ray and its standard error.
+struct Estimate {
+    RgbLanes mean, standard_error;
+};
+Estimate mean_radiance(const PathIntegrator& integrator, const EmbreeScene& scene,
+                       const Vec3& direction, const LaneOptics<kRgbLanes>& lanes, int paths,
+                       std::uint64_t seed) {
+    PixelRng rng(seed, 0);
+    RgbLanes sum = RgbLanes::Zero(), sum2 = RgbLanes::Zero();
+    for (int i = 0; i < paths; ++i) {
+        const RgbLanes L = integrator.radiance(scene, Vec3::Zero(), direction, lanes, rng);
+        sum += L;
+        sum2 += L.square();
+    }
+    const RgbLanes mean = sum / paths;
+    return {mean, ((sum2 / paths - mean.square()).max(0.0) / (paths - 1.0)).sqrt()};
+}
+
+/// The dome's optics without markers: coating hemisphere r = 12.7 mm, inner surface r = 10.5.
+SensorFrame clear_dome() {
+    SensorFrame frame;
+    frame.coating = hemisphere(12.7, 48, 192);
+    frame.inner_surface = hemisphere(10.5, 48, 192);
+    return frame;
+}
+
+} // namespace
+
+TEST_CASE("furnace: an integrating sphere's radiance out of direct light is rho^2 Phi / "
+          "(pi A (1 - rho)) per lane",
+          "[render][path]") {
+    // A closed white sphere with tiny LEDs inside facing +z: below the LED plane there is no
+    // direct light, and the indirect irradiance of a Lambertian sphere is uniform.
+    SensorFrame frame;
+    frame.coating = sphere_cap(12.7, 128, 256, 180.0);
+    EmbreeScene scene;
+    scene.set_frame(frame);
+    OpticsParams optics;
+    optics.led_ring_radius_mm = 5.0;
+    optics.led_width_mm = optics.led_height_mm = 0.05;
+    const ShadingModel shading(optics);
+    const PathIntegrator integrator(shading);
+    const RgbLanes albedo(0.3, 0.6, 0.8, 0.0); // 1.4, 2.5, 5 bounces on average
+    const auto lanes = rgb_lanes(albedo);
+    const double area = mesh_area(frame.coating);
+    const double power = optics.led_count * kPi * 1.0; // pi L_e A per Lambertian LED
+    {
+        const Vec3 direction = unit_from_angles(130.0, 70.0);
+        const Estimate e = mean_radiance(integrator, scene, direction, lanes, 1000000, 7);
+        const RgbLanes& L = e.mean;
+        for (int c = 0; c < 3; ++c) {
+            const double rho = albedo[c];
+            const double expected = rho * rho * power / (kPi * area * (1.0 - rho));
+            INFO("direction " << direction.transpose() << " lane " << c << ": " << L[c] << " +- "
+                              << e.standard_error[c] << " against " << expected);
+            CHECK(e.standard_error[c] < 0.0015 * expected); // the test can see 0.5 %
+            CHECK(L[c] == Approx(expected).epsilon(0.005));
+        }
+        CHECK(L[3] == 0.0);
+    }
+}
+
+TEST_CASE("refracted connections obey Snell's law and their Jacobian matches finite "
+          "differences of the solve",
+          "[render][path]") {
+    EmbreeScene scene;
+    scene.set_frame(clear_dome());
+    REQUIRE(scene.has_interface());
+    const ShadingModel shading(OpticsParams{});
+    const PathIntegrator integrator(shading);
+    // The interface is wound with its normal towards the cavity: a ray from the centre meets
+    // it against the normal.
+    const RayHit hit = scene.closest_hit(Vec3::Zero(), Vec3(0, 0, 1), 0.0, 100.0);
+    REQUIRE(hit.kind == SurfaceKind::inner_surface);
+    CHECK(hit.normal.z() < 0.0);
+    CHECK(hit.shading_normal.z() == Approx(-1.0).margin(1e-6));
+
+    int found = 0, tried = 0;
+    for (double polar : {0.0, 30.0, 60.0}) {
+        const Vec3 p = 12.7 * unit_from_angles(polar, 20.0) * (1.0 - 1e-4);
+        for (int k = 0; k < integrator.led_count(); ++k) {
+            const Vec3 l = integrator.led_point(k, 0.3, 0.6);
+            ++tried;
+            const auto c = integrator.connect(scene, p, l);
+            if (!c) continue;
+            ++found;
+            INFO("polar " << polar << " LED " << k);
+            // Re-trace: the direction meets the surface at x and lands on l.
+            const RayHit h = scene.closest_interface_hit(p, c->direction, 1e-3, 100.0);
+            REQUIRE(h.hit());
+            Vec3 landed;
+            REQUIRE(integrator.through_triangle(scene, h.prim_id, p, c->direction, &landed));
+            CHECK((landed - l).norm() < 1e-5);
+            CHECK((p + h.t_mm * c->direction - c->x_mm).norm() < 1e-4);
+            CHECK(c->fresnel_transmittance > 0.5);
+            CHECK(c->fresnel_transmittance < 1.0);
+            // |det dl/dw| against the solid angle of the directions to three nearby LED points.
+            const double h_mm = 1e-3;
+            const auto cx = integrator.connect(scene, p, l + Vec3(h_mm, 0, 0));
+            const auto cy = integrator.connect(scene, p, l + Vec3(0, h_mm, 0));
+            REQUIRE(cx);
+            REQUIRE(cy);
+            const double solid_angle =
+                (cx->direction - c->direction).cross(cy->direction - c->direction).norm();
+            CHECK(c->jacobian_mm2_per_sr == Approx(h_mm * h_mm / solid_angle).epsilon(1e-3));
+        }
+    }
+    CHECK(found >= tried - 2); // the rim's grazing cases may have no refracted path
+}
+
+TEST_CASE("through the inner surface, next-event estimation with MIS agrees with BSDF "
+          "sampling alone",
+          "[render][path]") {
+    EmbreeScene scene;
+    scene.set_frame(clear_dome());
+    const ShadingModel shading(OpticsParams{});
+    const PathIntegrator mis(shading), bsdf(shading, false);
+    const auto lanes = rgb_lanes(RgbLanes(0.85, 0.6, 0.3, 0.0));
+    for (const Vec3& direction : {Vec3(0, 0, 1), Vec3(unit_from_angles(45.0, 10.0))}) {
+        const Estimate ea = mean_radiance(mis, scene, direction, lanes, 50000, 3);
+        const Estimate eb = mean_radiance(bsdf, scene, direction, lanes, 500000, 5);
+        const RgbLanes &a = ea.mean, &b = eb.mean;
+        for (int c = 0; c < 3; ++c) {
+            INFO("direction " << direction.transpose() << " lane " << c << ": MIS " << a[c]
+                              << " +- " << ea.standard_error[c] << ", BSDF " << b[c] << " +- "
+                              << eb.standard_error[c]);
+            // Within 4 standard errors, and those small enough to see a 6 % bias.
+            const double sigma = std::hypot(ea.standard_error[c], eb.standard_error[c]);
+            CHECK(sigma < 0.015 * b[c]);
+            CHECK(std::abs(a[c] - b[c]) < 4.0 * sigma);
+        }
+    }
+}
