@@ -112,9 +112,10 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     mechanics::FrameRequest request;
     request.coating = render_stage;
     request.markers = render_stage || spec.outputs.markers;
+    const render::RenderSettings settings = render_settings(spec);
+    // Only the path integrator refracts at the inner surface.
+    request.inner_surface = render_stage && settings.integrator == render::Integrator::path;
     render::SensorFrame sensor_frame;
-    const render::RenderSettings settings{spec.render.samples_per_pixel, spec.seed,
-                                          spec.outputs.marker_ids, spec.outputs.variance};
     // The frames form one trial: each starts from the stick/slip state the previous one left.
     mechanics::FrameResult previous;
     for (const FramePlan& f : plan.frames) {

@@ -15,8 +15,8 @@ struct FramePlan {
     double normal_force_N = 0.0;              ///< grip force of this frame
     Eigen::Vector2d tangential_force_N{0, 0}; ///< requested pull (x, y), force control
     double mu = 0.0;
-    bool displacement_control = false;        ///< the object's travel is prescribed
-    Eigen::Vector2d travel_mm{0, 0};          ///< requested travel (x, y), displacement control
+    bool displacement_control = false; ///< the object's travel is prescribed
+    Eigen::Vector2d travel_mm{0, 0};   ///< requested travel (x, y), displacement control
 };
 
 struct Plan {

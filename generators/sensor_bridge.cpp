@@ -129,12 +129,27 @@ render::OpticsParams optics_params(const Spec& spec) {
     o.led_count = spec.sensor.led_count;
     o.led_ring_radius_mm = spec.sensor.led_ring_radius_mm;
     o.led_z_mm = spec.sensor.led_z_mm;
+    o.led_width_mm = spec.sensor.led_width_mm;
+    o.led_height_mm = spec.sensor.led_height_mm;
+    o.refractive_index = spec.sensor.refractive_index;
+    o.frame_inner_radius_mm = mechanics::DomeParams{}.radii_mm[0];
     o.led_rgb = vec(spec.sensor.led_rgb);
     o.exposure = spec.render.exposure;
     if (spec.render.spectral)
         o.spectra = render::load_sensor_spectra(
             render::SensorSpectraFiles::in_directory(spectra_directory(spec)));
     return o;
+}
+
+render::RenderSettings render_settings(const Spec& spec) {
+    render::RenderSettings s;
+    s.samples_per_pixel = spec.render.samples_per_pixel;
+    s.seed = spec.seed;
+    s.marker_ids = spec.outputs.marker_ids;
+    s.variance = spec.outputs.variance;
+    s.integrator =
+        spec.render.integrator == "path" ? render::Integrator::path : render::Integrator::direct;
+    return s;
 }
 
 void fill_sensor_frame(const mechanics::DomeModel& model, const mechanics::FrameResult& frame,

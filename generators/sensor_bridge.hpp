@@ -11,6 +11,8 @@ mechanics::DomeModelOptions dome_options(const Spec& spec);
 mechanics::ObjectShape object_shape(const Spec& spec);
 render::CameraParams camera_params(const Spec& spec);
 render::OpticsParams optics_params(const Spec& spec);
+/// samples per pixel, seed, extra channels and integrator of the spec.
+render::RenderSettings render_settings(const Spec& spec);
 
 /// Fills `out` with the deformed coating and marker discs of `frame`, which must carry the coating
 /// displacement and marker points, and with the inner surface when the frame carries its

@@ -54,7 +54,9 @@ struct Spec {
         int led_count = 6;
         double led_ring_radius_mm = 10.0;
         double led_z_mm = -1.0;
+        double led_width_mm = 3.5, led_height_mm = 2.8;
         Rgb led_rgb{1.0, 1.0, 1.0};
+        double refractive_index = 1.4;
         double marker_thickness_mm = 0.5;
         Rgb coating_albedo{0.85, 0.85, 0.85};
         Rgb inner_marker_absorption_per_mm{0.2, 3.0, 0.3};
@@ -92,6 +94,7 @@ struct Spec {
         int samples_per_pixel = 4;
         double exposure = 1.0;
         bool spectral = true; ///< hero-wavelength spectral mode; false: RGB approximation
+        std::string integrator = "direct"; ///< direct | path
     } render;
 
     struct Outputs {

@@ -255,6 +255,14 @@ void add_sensor_optics(std::vector<SchemaEntry>& out) {
     out.push_back(number("sensor.led.z_mm", -1, closed(-10, 10), "mm",
                          "Height of the LED ring; the dome rim plane is z = 0 [G].",
                          CHROMASIM_FIELD(sensor.led_z_mm)));
+    out.push_back(number("sensor.led.width_mm", 3.5, closed(0.01, 10), "mm",
+                         "Side of each LED's emitting rectangle along the ring (SMD 3528 package "
+                         "[K]); render.integrator path only.",
+                         CHROMASIM_FIELD(sensor.led_width_mm)));
+    out.push_back(number("sensor.led.height_mm", 2.8, closed(0.01, 10), "mm",
+                         "Side of each LED's emitting rectangle across the ring (radial) [K]; "
+                         "render.integrator path only.",
+                         CHROMASIM_FIELD(sensor.led_height_mm)));
     out.push_back(rgb("sensor.led.rgb", {1.0, 1.0, 1.0}, closed(0, 100), "",
                       "Relative emission of each LED, linear RGB (white) [G]; spectral mode: "
                       "their mean scales the LED spectrum.",
@@ -264,6 +272,12 @@ void add_sensor_optics(std::vector<SchemaEntry>& out) {
                          "mesh, at most 98 % of their layer's 0.5 mm; light is absorbed over "
                          "its path inside.",
                          CHROMASIM_FIELD(sensor.marker_thickness_mm)));
+    out.push_back(number("sensor.optics.refractive_index", 1.4, closed(1, 2), "",
+                         "Refractive index of the clear layers, index-matched among themselves "
+                         "[G] (silicones and clear resins: 1.40 to 1.47); the path integrator "
+                         "refracts at the hollow dome's inner surface (air inside); 1: no "
+                         "refraction.",
+                         CHROMASIM_FIELD(sensor.refractive_index)));
     out.push_back(rgb("sensor.optics.coating_albedo", {0.85, 0.85, 0.85}, closed(0, 1), "",
                       "Diffuse albedo of the white coating, linear RGB [G] (RGB mode only: "
                       "render.spectral false).",
@@ -368,10 +382,17 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                          "Linear scale applied to the rendered radiance before writing.",
                          CHROMASIM_FIELD(render.exposure)));
     out.push_back(boolean("render.spectral", true,
-                          "Spectral rendering (four hero wavelengths per sample, colour mixing "
+                          "Spectral rendering (16 hero wavelengths per sample, colour mixing "
                           "per wavelength, the spectra of sensor.optics.spectra_dir); false: "
                           "the RGB approximation with the sensor.optics RGB values.",
                           CHROMASIM_FIELD(render.spectral)));
+    out.push_back(choice("render.integrator", "direct", {"direct", "path"},
+                         "Light transport. direct: LED light straight to the coating and the "
+                         "markers, one bounce, no refraction (fast). path: unbiased path "
+                         "tracing with refraction and Fresnel at the inner surface, diffuse "
+                         "interreflection and area LEDs (the reference; docs/VALIDATION.md has "
+                         "the difference and the cost).",
+                         CHROMASIM_FIELD(render.integrator)));
     out.push_back(boolean("outputs.images", true,
                           "Write a PNG per frame (8-bit sRGB); with outputs.exr false too, the "
                           "render stage is skipped.",

@@ -238,7 +238,8 @@ LanesN<N> PathIntegrator::next_event(const EmbreeScene& scene, const Vec3& p, co
     const Vec3 air = l - c->x_mm;
     const double air_mm = air.norm();
     if (air_mm > 2.0 * kHitGap_mm &&
-        scene.closest_hit(c->x_mm, air / air_mm, kHitGap_mm, air_mm - kHitGap_mm).hit())
+        (m_shading.crosses_frame(c->x_mm, air / air_mm, 0.0, air_mm) ||
+         scene.closest_hit(c->x_mm, air / air_mm, kHitGap_mm, air_mm - kHitGap_mm).hit()))
         return LanesN<N>::Zero();
     const LanesN<N> T = m_shading.transmittance(scene, c->x_mm, p, lanes, kHitGap_mm);
     const double pdf_nee = pdf_area * c->jacobian_mm2_per_sr;
@@ -295,6 +296,7 @@ LanesN<N> PathIntegrator::radiance(const EmbreeScene& scene, const Vec3& origin,
     for (int event = 0; event < kMaxBounces * kMaxHits; ++event) {
         const RayHit hit = scene.closest_hit(o, d, tnear, inf);
         const double tfar = hit.hit() ? hit.t_mm : inf;
+        if (m_shading.crosses_frame(o, d, tnear, tfar)) break; // absorbed by the black frame
         if (const auto led = led_hit(o, d, tnear, tfar)) {
             if (!led->second) break; // the black back of an LED
             double weight = 1.0;

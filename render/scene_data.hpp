@@ -102,6 +102,10 @@ struct OpticsParams {
     /// radiance led / area so that far away each matches the direct model's point LED.
     double led_width_mm = 3.5;
     double led_height_mm = 2.8;
+    /// The rigid frame that clamps the dome covers the rim plane z = 0 from this radius outwards
+    /// (the dome's inner radius): light crossing the plane there is absorbed, so LED light
+    /// enters the dome only through the opening, and light in the layers does not leak out.
+    double frame_inner_radius_mm = 10.5;
     /// Refractive index of the clear layers at the inner surface (air / silicone boundary);
     /// the layers are index-matched among themselves (no other boundary refracts).
     double refractive_index = 1.4;

@@ -47,6 +47,12 @@ const OpticsParams& validated(const OpticsParams& o) {
     require_in("led_ring_radius_mm", o.led_ring_radius_mm, 0.0, big, "finite, >= 0 (mm)");
     require_in("led_z_mm", o.led_z_mm, -big, big, "finite (mm)");
     require_in("led_rgb", o.led_rgb, 0.0, big, "each channel finite and >= 0");
+    require_in("led_width_mm", o.led_width_mm, std::numeric_limits<double>::min(), big,
+               "finite, > 0 (mm)");
+    require_in("led_height_mm", o.led_height_mm, std::numeric_limits<double>::min(), big,
+               "finite, > 0 (mm)");
+    require_in("refractive_index", o.refractive_index, 1.0, 4.0, "[1, 4]");
+    require_in("frame_inner_radius_mm", o.frame_inner_radius_mm, 0.0, big, "finite, >= 0 (mm)");
     require_in("exposure", o.exposure, std::numeric_limits<double>::min(), big, "finite, > 0");
     return o;
 }
@@ -144,6 +150,7 @@ LanesN<N> ShadingModel::transmittance(const EmbreeScene& scene, const Vec3& from
     const double tfar_mm = length_mm - kHitGap_mm;
     if (!(tfar_mm > tnear_mm)) return LanesN<N>::Ones();
     const Vec3 w = segment / length_mm;
+    if (crosses_frame(from_mm, w, tnear_mm, tfar_mm)) return LanesN<N>::Zero();
     LanesN<N> result = LanesN<N>::Ones();
     MarkerPath path(tnear_mm);
     for (int i = 0; i < kMaxHits; ++i) {

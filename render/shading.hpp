@@ -139,6 +139,16 @@ public:
     template <int N>
     LanesN<N> marker_absorption(const LaneOptics<N>& lanes, bool outer, double path_mm) const;
 
+    /// True if the segment origin + t * direction, t in (t0, t1), crosses the rim plane z = 0
+    /// on the frame (at a radius >= frame_inner_radius_mm).
+    bool crosses_frame(const Vec3& origin_mm, const Vec3& direction, double t0, double t1) const {
+        if (direction.z() == 0.0) return false;
+        const double t = -origin_mm.z() / direction.z();
+        if (!(t > t0 && t < t1)) return false;
+        return (origin_mm + t * direction).head<2>().squaredNorm() >=
+               m_optics.frame_inner_radius_mm * m_optics.frame_inner_radius_mm;
+    }
+
     /// LED positions, mm: led_count points on the ring, the first on the +x axis.
     const std::vector<Vec3>& led_positions_mm() const { return m_led_positions_mm; }
     const OpticsParams& optics() const { return m_optics; }

@@ -253,7 +253,7 @@ TEST_CASE("the spec's material model, load steps and interior reach the mechanic
     CHECK(d.load_path.normal_steps == 4);
 }
 
-TEST_CASE("a glTF mesh object from the spec presses like the analytic sphere it tessellates; a "
+TEST_CASE("a glTF mesh object from the spec presses like the analytic sphere it tessellates, a "
           "missing or broken file stops before any work",
           "[generators][e2e]") {
     const std::string asset = CHROMASIM_SOURCE_DIR "/assets/objects/sphere_cap_r45.glb";

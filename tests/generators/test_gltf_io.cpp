@@ -155,7 +155,7 @@ TEST_CASE("the writer picks 16-bit indices below 65535 vertices and 32-bit above
     }
 }
 
-TEST_CASE("node hierarchies: TRS and column-major matrices compose; mirroring keeps the "
+TEST_CASE("node hierarchies: TRS and column-major matrices compose, mirroring keeps the "
           "winding",
           "[gltf]") {
     ScratchDir dir("nodes");
@@ -189,7 +189,7 @@ TEST_CASE("node hierarchies: TRS and column-major matrices compose; mirroring ke
     CHECK(s.V.col(0).minCoeff() == Approx(-10.0).margin(tol));
 }
 
-TEST_CASE("strips, fans, non-indexed triangles; points skipped, degenerate triangles dropped",
+TEST_CASE("strips, fans, non-indexed triangles, points skipped, degenerate triangles dropped",
           "[gltf]") {
     ScratchDir dir("modes");
     Bytes b;

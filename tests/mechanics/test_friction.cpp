@@ -59,7 +59,7 @@ TEST_CASE("one node under a displacement cycle: elastic stick, slip at mu P, rev
     }
 }
 
-TEST_CASE("force and displacement control agree; a zero increment changes nothing",
+TEST_CASE("force and displacement control agree, a zero increment changes nothing",
           "[mechanics][friction]") {
     const DomeModel& model = coarse_model();
     const FrameResult f = model.solve({1.5, {0.5, 0.2}, 0.8}, {});
@@ -84,7 +84,7 @@ TEST_CASE("force and displacement control agree; a zero increment changes nothin
 }
 
 TEST_CASE("sliding ramp (seed 001): force rises to mu P, stick zone shrinks to nothing, Gamma "
-          "falls to 0; history matters on the way back",
+          "falls to 0, history matters on the way back",
           "[mechanics][friction]") {
     const DomeModel& model = coarse_model();
     const double P = 1.2, mu = 0.8;
@@ -133,7 +133,7 @@ TEST_CASE("sliding ramp (seed 001): force rises to mu P, stick zone shrinks to n
     CHECK(back.stick_area_mm2 > 0);
 }
 
-TEST_CASE("friction during indentation: converges, obeys Coulomb, locks in traction; "
+TEST_CASE("friction during indentation: converges, obeys Coulomb, locks in traction, "
           "Goodman's approximation leaves the normal problem frictionless",
           "[mechanics][friction]") {
     const DomeModel& model = coarse_model();
@@ -193,7 +193,7 @@ TEST_CASE("surface strain: exact for a linear field, eq. 3's quadratic terms, si
     CHECK(at_x(3.0) < 0);
 }
 
-TEST_CASE("a tessellated 45 mm sphere presses like the analytic sphere; a posed plate like a "
+TEST_CASE("a tessellated 45 mm sphere presses like the analytic sphere, a posed plate like a "
           "flat",
           "[mechanics][object_mesh]") {
     const DomeModel& model = coarse_model();
@@ -258,7 +258,7 @@ TEST_CASE("neo-Hookean frames: the linear answer at small load, deeper and still
     CHECK(next.contact.object_displacement_mm.x() > 0);
 }
 
-TEST_CASE("friction law: the solver's linearization against central finite differences; Euler's "
+TEST_CASE("friction law: the solver's linearization against central finite differences, Euler's "
           "identity makes the Newton rows homogeneous",
           "[mechanics][friction]") {
     const double mu = 0.7, r = 3.0, h = 1e-6;

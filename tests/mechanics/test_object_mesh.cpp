@@ -132,7 +132,7 @@ TEST_CASE("height field of a tessellated sphere is the analytic underside within
     CHECK_FALSE(field.lowest_z(C.x(), C.y() - R - 1e-3));
 }
 
-TEST_CASE("a plate is a plane; a tilted plate is the tilted plane", "[object_mesh]") {
+TEST_CASE("a plate is a plane, a tilted plate is the tilted plane", "[object_mesh]") {
     const TriangleSurface plate = make_plate(40.0, 40.0, 3);
     SECTION("level") {
         Pose pose;

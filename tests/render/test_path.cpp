@@ -80,6 +80,7 @@ TEST_CASE("furnace: an integrating sphere's radiance out of direct light is rho^
     OpticsParams optics;
     optics.led_ring_radius_mm = 5.0;
     optics.led_width_mm = optics.led_height_mm = 0.05;
+    optics.frame_inner_radius_mm = 1e9; // no clamping frame: the sphere is closed
     const ShadingModel shading(optics);
     const PathIntegrator integrator(shading);
     const RgbLanes albedo(0.3, 0.6, 0.8, 0.0); // 1.4, 2.5, 5 bounces on average

@@ -398,7 +398,7 @@ TEST_CASE("shadow transmittance multiplies marker transmissions, the coating blo
     }
 }
 
-TEST_CASE("grazing rays through markers take the real chord; squeezed markers stay finite",
+TEST_CASE("grazing rays through markers take the real chord, squeezed markers stay finite",
           "[render]") {
     // A ray along (almost) +z through an inner prism tilted 85 deg: thickness / |cos| would
     // be 5.6 mm; the volume's real chord is about a disc diameter.
