@@ -22,6 +22,23 @@ namespace {
 using Clock = std::chrono::steady_clock;
 using mechanics::seconds_since;
 
+void write_markers(DatasetWriter& writer, int frame, const mechanics::DomeModel& model,
+                   const mechanics::FrameResult& r) {
+    const mechanics::MarkerDiscs& discs = model.markers();
+    for (int layer = 0; layer < 2; ++layer)
+        for (int m = 0; m < discs.markers_per_layer; ++m) {
+            const int row = (layer * discs.markers_per_layer + m) * discs.points_per_marker;
+            double x0[3], u[3];
+            for (int k = 0; k < 3; ++k) {
+                x0[k] = discs.points(row, k);
+                u[k] = r.marker_points_mm(row, k) - x0[k];
+            }
+            writer.write_marker(frame, layer == 0 ? "inner" : "outer", m, x0, u);
+        }
+}
+
+} // namespace
+
 LabelRow label_row(const FramePlan& f, const mechanics::FrameResult& r) {
     LabelRow row;
     row.frame = f.index;
@@ -47,22 +64,15 @@ LabelRow label_row(const FramePlan& f, const mechanics::FrameResult& r) {
     return row;
 }
 
-void write_markers(DatasetWriter& writer, int frame, const mechanics::DomeModel& model,
-                   const mechanics::FrameResult& r) {
-    const mechanics::MarkerDiscs& discs = model.markers();
-    for (int layer = 0; layer < 2; ++layer)
-        for (int m = 0; m < discs.markers_per_layer; ++m) {
-            const int row = (layer * discs.markers_per_layer + m) * discs.points_per_marker;
-            double x0[3], u[3];
-            for (int k = 0; k < 3; ++k) {
-                x0[k] = discs.points(row, k);
-                u[k] = r.marker_points_mm(row, k) - x0[k];
-            }
-            writer.write_marker(frame, layer == 0 ? "inner" : "outer", m, x0, u);
-        }
+void log_dome_model(const Spec& spec, const mechanics::DomeModel& model, double precompute_s,
+                    const std::filesystem::path& cache_dir, std::ostream& log) {
+    const auto& st = model.stats();
+    log << "chromasim: dome mesh '" << spec.sensor.mesh_level << "': " << st.nodes << " nodes, "
+        << st.tets << " tets, " << st.candidates << " contact candidates; precomputed in "
+        << precompute_s << " s (cache: " << st.cache
+        << (cache_dir.empty() ? "" : ", " + cache_dir.string()) << ")\n";
+    if (!st.cache_note.empty()) log << "chromasim: cache: " << st.cache_note << '\n';
 }
-
-} // namespace
 
 std::filesystem::path default_cache_dir() {
     if (const char* dir = std::getenv("CHROMASIM_CACHE_DIR"); dir && *dir) return dir;
@@ -101,12 +111,7 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     std::unique_ptr<render::Renderer> renderer;
     if (render_stage) renderer = std::make_unique<render::Renderer>(camera_params(spec), *optics);
     report.precompute_s = seconds_since(t0);
-    const auto& st = model.stats();
-    log << "chromasim: dome mesh '" << spec.sensor.mesh_level << "': " << st.nodes << " nodes, "
-        << st.tets << " tets, " << st.candidates << " contact candidates; precomputed in "
-        << report.precompute_s << " s (cache: " << st.cache
-        << (options.cache_dir.empty() ? "" : ", " + options.cache_dir.string()) << ")\n";
-    if (!st.cache_note.empty()) log << "chromasim: cache: " << st.cache_note << '\n';
+    log_dome_model(spec, model, report.precompute_s, options.cache_dir, log);
 
     // 3. Frames: mechanics, then (only if images are asked for) render, then writers.
     mechanics::FrameRequest request;
@@ -120,13 +125,8 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     mechanics::FrameResult previous;
     for (const FramePlan& f : plan.frames) {
         t0 = Clock::now();
-        mechanics::ContactLoad load{f.normal_force_N, f.tangential_force_N, f.mu};
-        if (f.displacement_control) {
-            load.tangential = mechanics::TangentialControl::displacement;
-            load.tangential_displacement_mm = f.travel_mm;
-        }
         mechanics::FrameResult r =
-            model.solve(load, request, object, f.index > 0 ? &previous : nullptr);
+            model.solve(contact_load(f), request, object, f.index > 0 ? &previous : nullptr);
         report.mechanics_s += seconds_since(t0);
         LabelRow row = label_row(f, r);
         if (renderer) {
@@ -158,6 +158,7 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     }
     report.frames = int(plan.frames.size());
     report.total_s = seconds_since(t_start);
+    const auto& st = model.stats();
     std::ostringstream extra;
     extra << "frames: " << report.frames << "\nflagged_frames: " << report.flagged_frames
           << "\nmesh: {level: " << spec.sensor.mesh_level << ", nodes: " << st.nodes

@@ -93,6 +93,15 @@ mechanics::ObjectShape object_shape(const Spec& spec) {
     return o;
 }
 
+mechanics::ContactLoad contact_load(const FramePlan& f) {
+    mechanics::ContactLoad load{f.normal_force_N, f.tangential_force_N, f.mu};
+    if (f.displacement_control) {
+        load.tangential = mechanics::TangentialControl::displacement;
+        load.tangential_displacement_mm = f.travel_mm;
+    }
+    return load;
+}
+
 render::CameraParams camera_params(const Spec& spec) {
     const Spec::Sensor& s = spec.sensor;
     render::CameraParams c;

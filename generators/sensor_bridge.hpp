@@ -1,6 +1,7 @@
 #pragma once
 /// Where mechanics and render meet: translates a spec into each stage's parameters and a
 /// mechanics frame into the plain SensorFrame that render takes. Render never sees mechanics.
+#include "generators/plan.hpp"
 #include "generators/spec.hpp"
 #include "mechanics/dome_model.hpp"
 #include "render/scene_data.hpp"
@@ -10,6 +11,9 @@ namespace chromasim::generators {
 mechanics::DomeModelOptions dome_options(const Spec& spec);
 mechanics::ObjectShape object_shape(const Spec& spec);
 render::CameraParams camera_params(const Spec& spec);
+/// The load of a planned frame: its grip force, mu and pull (a force, or the object's travel
+/// under displacement control).
+mechanics::ContactLoad contact_load(const FramePlan& f);
 render::OpticsParams optics_params(const Spec& spec);
 /// samples per pixel, seed, extra channels and integrator of the spec.
 render::RenderSettings render_settings(const Spec& spec);

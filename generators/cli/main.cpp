@@ -1,6 +1,7 @@
 // chromasim: the command line. Parses arguments and calls the libraries; nothing else.
 #include "generators/bench.hpp"
 #include "generators/generate.hpp"
+#include "generators/scene_export.hpp"
 #include "generators/spec.hpp"
 #include "generators/verify.hpp"
 #include "generators/verify_render.hpp"
@@ -8,6 +9,7 @@
 #include <CLI/CLI.hpp>
 #include <tbb/global_control.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -37,6 +39,27 @@ int run_generate(const std::string& spec_path, const gen::GenerateOptions& optio
     return 0;
 }
 
+int run_export_scene(const std::string& spec_path, int frame, const std::string& out,
+                     const gen::SceneExportOptions& options) {
+    const gen::Spec spec = gen::load_spec(spec_path); // validation before any work
+    const gen::SceneExportReport r = gen::export_scene(spec, frame, out, options, std::cerr);
+    const gen::LabelRow& l = r.labels;
+    std::cout << "chromasim: wrote frame " << r.frame << " of " << r.frames << " (" << l.phase
+              << ", Fn " << l.normal_force_N << " N, Ft "
+              << std::hypot(l.tangential_x_N, l.tangential_y_N) << " N, Gamma " << l.gamma
+              << ") to " << out << " in " << r.total_s << " s\n";
+    return 0;
+}
+
+// --cache-dir (default: default_cache_dir()) and --no-cache on `command`.
+void add_cache_options(CLI::App* command, std::string& cache_dir, bool& no_cache) {
+    command
+        ->add_option("--cache-dir", cache_dir,
+                     "cache of mesh and contact responses, reused across runs")
+        ->capture_default_str();
+    command->add_flag("--no-cache", no_cache, "neither read nor write the cache");
+}
+
 } // namespace
 
 int main(int argc, char** argv) {
@@ -59,11 +82,19 @@ int main(int argc, char** argv) {
     generate->add_flag("-q,--quiet", options.quiet, "no per-frame progress");
     std::string cache_dir = gen::default_cache_dir().string();
     bool no_cache = false;
-    generate
-        ->add_option("--cache-dir", cache_dir,
-                     "cache of mesh and contact responses, reused across runs")
-        ->capture_default_str();
-    generate->add_flag("--no-cache", no_cache, "neither read nor write the cache");
+    add_cache_options(generate, cache_dir, no_cache);
+
+    auto* export_scene = app.add_subcommand(
+        "export-scene", "write one frame's scene as glTF 2.0 (meshes, materials, LEDs, camera)");
+    export_scene->add_option("spec", spec_path, "spec file (YAML)")->required();
+    int export_frame = 0;
+    export_scene->add_option("--frame", export_frame, "frame to export (0: the first)")->required();
+    std::string export_out;
+    export_scene
+        ->add_option("-o,--output", export_out,
+                     "output file: .gltf (JSON, embedded buffers) or .glb (binary)")
+        ->required();
+    add_cache_options(export_scene, cache_dir, no_cache);
 
     std::vector<std::string> validate_paths;
     auto* validate = app.add_subcommand("validate", "check spec files; do no work");
@@ -140,6 +171,11 @@ int main(int argc, char** argv) {
             options.out_dir = out_dir;
             if (!no_cache) options.cache_dir = cache_dir;
             return run_generate(spec_path, options);
+        }
+        if (*export_scene) {
+            gen::SceneExportOptions export_options;
+            if (!no_cache) export_options.cache_dir = cache_dir;
+            return run_export_scene(spec_path, export_frame, export_out, export_options);
         }
         if (*validate) {
             for (const auto& p : validate_paths)

@@ -1,4 +1,6 @@
 // The executable as a user meets it: exit codes, messages, and nothing written on bad input.
+#include "generators/gltf_io.hpp"
+
 #include <catch2/catch.hpp>
 
 #include <cstdlib>
@@ -6,6 +8,8 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <variant>
+#include <vector>
 
 #include <unistd.h>
 
@@ -87,4 +91,82 @@ TEST_CASE("schema prints the documented key table", "[generators][cli]") {
     const Run r = run_chromasim("schema");
     CHECK(r.code == 0);
     CHECK(r.output.find("`render.samples_per_pixel`") != std::string::npos);
+}
+
+TEST_CASE("export-scene writes any frame as glTF, reuses the cache, and refuses a frame out of "
+          "range or a bad output before any work",
+          "[generators][cli][gltf]") {
+    const fs::path dir =
+        fs::temp_directory_path() / ("chromasim_cli_export_" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const fs::path spec = write_spec(
+        "chromasim_export.yaml",
+        "name: export\nsensor: {mesh_level: coarse}\nrender: {width_px: 64, height_px: 48}\n"
+        "protocol: {press: {normal_force_N: 1.0, frames: 2}, pull: {tangential_force_N: 0.3, "
+        "frames: 1}}\n");
+    const auto export_frame = [&](int frame, const std::string& file) {
+        return run_chromasim("export-scene " + spec.string() + " --frame " + std::to_string(frame) +
+                             " -o " + (dir / file).string() + " --cache-dir " +
+                             (dir / "cache").string());
+    };
+    using chromasim::generators::GltfScene;
+    const auto number = [](const GltfScene& s, const char* key) {
+        return std::get<double>(s.extras.at(key));
+    };
+    const auto text = [](const GltfScene& s, const char* key) {
+        return std::get<std::string>(s.extras.at(key));
+    };
+
+    // The last frame (after the two press frames) as .glb; computes and stores the model.
+    const Run last = export_frame(2, "last.glb");
+    INFO(last.output);
+    REQUIRE(last.code == 0);
+    CHECK(last.output.find("cache: miss") != std::string::npos);
+    const GltfScene scene = chromasim::generators::read_gltf_scene(dir / "last.glb").scene;
+    std::vector<std::string> names;
+    for (const auto& m : scene.meshes)
+        names.push_back(m.name);
+    CHECK(names == std::vector<std::string>{"coating", "inner_surface", "inner_markers",
+                                            "outer_markers", "leds"});
+    CHECK(scene.meshes[0].surface.V.rows() > 100);
+    CHECK(scene.meshes[2].surface.F.rows() == 82 * 48); // 82 prisms of 48 triangles per layer
+    CHECK(scene.meshes[3].surface.F.rows() == 82 * 48);
+    CHECK(scene.lights.size() == 6);
+    REQUIRE(scene.camera.has_value());
+    CHECK(scene.camera->aspect_ratio == Approx(64.0 / 48.0));
+    CHECK(number(scene, "frame") == 2.0);
+    CHECK(text(scene, "phase") == "pull");
+    CHECK(number(scene, "normal_force_N") == Approx(1.0));
+    CHECK(number(scene, "tangential_force_x_N") == Approx(0.3));
+    CHECK(number(scene, "converged") == 1.0);
+
+    // The first frame as .gltf, from the cache; half the force: the apex (highest y) is less
+    // pushed in.
+    const Run first = export_frame(0, "first.gltf");
+    INFO(first.output);
+    REQUIRE(first.code == 0);
+    CHECK(first.output.find("cache: hit") != std::string::npos);
+    const GltfScene scene0 = chromasim::generators::read_gltf_scene(dir / "first.gltf").scene;
+    CHECK(text(scene0, "phase") == "press");
+    CHECK(number(scene0, "normal_force_N") == Approx(0.5));
+    CHECK(scene0.meshes[0].surface.V.col(1).maxCoeff() >
+          scene.meshes[0].surface.V.col(1).maxCoeff() + 0.05);
+
+    // Out of range: named, with the allowed range; no meshing started, nothing written.
+    const Run range = export_frame(3, "range.glb");
+    INFO(range.output);
+    CHECK(range.code != 0);
+    CHECK(range.output.find("--frame 3") != std::string::npos);
+    CHECK(range.output.find("[0, 2]") != std::string::npos);
+    CHECK(range.output.find("dome mesh") == std::string::npos);
+    CHECK_FALSE(fs::exists(dir / "range.glb"));
+    const Run obj = export_frame(0, "scene.obj");
+    CHECK(obj.code != 0);
+    CHECK(obj.output.find((dir / "scene.obj").string()) != std::string::npos);
+    CHECK(obj.output.find(".glb") != std::string::npos);
+    CHECK(obj.output.find("dome mesh") == std::string::npos);
+    CHECK_FALSE(fs::exists(dir / "scene.obj"));
+    fs::remove_all(dir);
+    fs::remove(spec);
 }

@@ -1,4 +1,5 @@
 #include "generators/gltf_io.hpp"
+#include "scratch_dir.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -8,7 +9,6 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
-#include <unistd.h>
 #include <vector>
 
 using namespace chromasim;
@@ -28,25 +28,6 @@ mechanics::TriangleSurface sphere_asset_surface() {
 mechanics::TriangleSurface plate_asset_surface() {
     return mechanics::make_plate(40.0, 40.0, 1);
 }
-
-// A scratch folder, removed with everything in it at the end of the test.
-struct ScratchDir {
-    fs::path path;
-    explicit ScratchDir(const std::string& name)
-        : path(fs::temp_directory_path() /
-               ("chromasim_gltf_" + name + "_" + std::to_string(::getpid()))) {
-        fs::remove_all(path);
-        fs::create_directories(path);
-    }
-    ~ScratchDir() {
-        std::error_code ec;
-        fs::remove_all(path, ec);
-    }
-    fs::path write(const std::string& name, const std::string& text) const {
-        std::ofstream(path / name, std::ios::binary) << text;
-        return path / name;
-    }
-};
 
 // Little-endian bytes of a glTF buffer, built from readable values.
 struct Bytes {

@@ -1,0 +1,309 @@
+#include "generators/scene_export.hpp"
+
+#include "generators/generate.hpp"
+#include "generators/sensor_bridge.hpp"
+#include "mechanics/model_cache.hpp"
+#include "mechanics/stopwatch.hpp"
+#include "render/fisheye_camera.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+#include <ostream>
+#include <stdexcept>
+
+namespace chromasim::generators {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+/// Vertical field of the perspective stand-in for the fisheye. The fisheye sees up to 180 deg
+/// across; viewers refuse or badly distort perspective fields near that, 120 deg they show.
+constexpr double kStandInYfov_deg = 120.0;
+/// The LED package (SMD 3528, SENSOR.md), mm: the long side along the ring.
+constexpr double kLedLength_mm = 3.5, kLedWidth_mm = 2.8;
+/// The package's face sits this far below the light, so that it does not shadow it.
+constexpr double kLedFaceBelowLight_mm = 0.05;
+/// On-axis luminous intensity of an LED of led_rgb (1, 1, 1), cd: the order of a 3528 white
+/// LED's. chromasim's own images are in relative units (auto exposure), so this only sets how
+/// bright a viewer draws the scene.
+constexpr double kLedIntensity_cd = 1.0;
+/// Distance over which the marker volumes' attenuationColor is the transmittance, mm.
+constexpr double kAttenuationDistance_mm = 1.0;
+
+/// Refractive index of the clear silicone: OpticsParams::refractive_index where render's
+/// parameters carry that field, else 1.4, the clear layers' value in issue 4 (the spec has no
+/// key for it).
+template <class Optics> double refractive_index(const Optics& optics) {
+    if constexpr (requires { optics.refractive_index; })
+        return optics.refractive_index;
+    else
+        return 1.4;
+}
+
+Eigen::Vector4d rgba(const render::Vec3& rgb) {
+    return {rgb[0], rgb[1], rgb[2], 1.0};
+}
+
+/// `rgb` scaled to a largest channel of 1 (black stays black).
+Eigen::Vector3d normalised_colour(const render::Vec3& rgb) {
+    const double peak = rgb.maxCoeff();
+    return peak > 0.0 ? Eigen::Vector3d(rgb / peak) : Eigen::Vector3d::Zero();
+}
+
+GltfMesh mesh(const std::string& name, const render::SurfaceMesh& surface, bool smooth) {
+    GltfMesh m;
+    m.name = name;
+    m.surface = surface;
+    if (smooth) m.normals = area_weighted_normals(surface);
+    m.material.name = name;
+    m.material.metallic = 0.0;
+    return m;
+}
+
+/// A clear silicone surface or volume: smooth, fully transmissive.
+void make_clear(GltfMaterial& m, double ior) {
+    m.roughness = 0.0;
+    m.transmission = 1.0;
+    m.ior = ior;
+}
+
+/// A dyed marker volume: Beer-Lambert absorption a (1/mm) as glTF's attenuation, the
+/// transmittance exp(-a d) over d = kAttenuationDistance_mm.
+void make_dyed(GltfMaterial& m, const render::Vec3& absorption_per_mm, double thickness_mm,
+               double ior) {
+    make_clear(m, ior);
+    GltfVolume v;
+    v.thickness_mm = thickness_mm;
+    v.attenuation_distance_mm = kAttenuationDistance_mm;
+    v.attenuation_color = (-absorption_per_mm * kAttenuationDistance_mm).array().exp();
+    m.volume = v;
+}
+
+/// Azimuth of LED k on the ring (render's layout: evenly spaced, the first on +x), rad.
+double led_azimuth(const render::OpticsParams& o, int k) {
+    return 2.0 * std::numbers::pi * k / o.led_count;
+}
+
+/// Position of LED k, mm.
+Eigen::Vector3d led_position(const render::OpticsParams& o, int k) {
+    const double phi = led_azimuth(o, k);
+    return {o.led_ring_radius_mm * std::cos(phi), o.led_ring_radius_mm * std::sin(phi), o.led_z_mm};
+}
+
+/// One emissive rectangle per LED, facing +z (towards the dome), just below its light.
+GltfMesh led_packages(const render::OpticsParams& o) {
+    render::SurfaceMesh s;
+    s.V.resize(4 * o.led_count, 3);
+    s.F.resize(2 * o.led_count, 3);
+    for (int k = 0; k < o.led_count; ++k) {
+        const double phi = led_azimuth(o, k);
+        const Eigen::Vector3d radial(std::cos(phi), std::sin(phi), 0.0);
+        const Eigen::Vector3d along(-std::sin(phi), std::cos(phi), 0.0); // the ring's tangent
+        const Eigen::Vector3d c =
+            led_position(o, k) - kLedFaceBelowLight_mm * Eigen::Vector3d::UnitZ();
+        const double a = kLedLength_mm / 2, b = kLedWidth_mm / 2;
+        const int v = 4 * k;
+        s.V.row(v + 0) = (c - b * radial - a * along).transpose().cast<float>();
+        s.V.row(v + 1) = (c + b * radial - a * along).transpose().cast<float>();
+        s.V.row(v + 2) = (c + b * radial + a * along).transpose().cast<float>();
+        s.V.row(v + 3) = (c - b * radial + a * along).transpose().cast<float>();
+        const auto u = std::uint32_t(v); // counter-clockwise seen from +z
+        s.F.row(2 * k) << u, u + 1, u + 2;
+        s.F.row(2 * k + 1) << u, u + 2, u + 3;
+    }
+    GltfMesh m = mesh("leds", s, false);
+    m.material.name = "led";
+    m.material.emissive = normalised_colour(o.led_rgb);
+    return m;
+}
+
+/// The LEDs as spot lights along +z: a 90 deg outer cone stands in for their Lambertian
+/// emission into the half space above the board.
+std::vector<GltfLight> led_lights(const render::OpticsParams& o) {
+    std::vector<GltfLight> lights;
+    for (int k = 0; k < o.led_count; ++k) {
+        GltfLight& l = lights.emplace_back();
+        l.name = "led_" + std::to_string(k);
+        l.type = GltfLight::Type::spot;
+        l.position_mm = led_position(o, k);
+        l.direction = Eigen::Vector3d::UnitZ();
+        l.color = normalised_colour(o.led_rgb);
+        l.intensity_cd = kLedIntensity_cd * o.led_rgb.maxCoeff();
+        l.inner_cone_rad = 0.0;
+        l.outer_cone_rad = 0.5 * std::numbers::pi;
+    }
+    return lights;
+}
+
+/// The fisheye's intrinsics in OpenCV's cv::fisheye convention (the equidistant camera's
+/// own for the equidistant model) and image size.
+GltfExtras fisheye_extras(const render::CameraParams& c) {
+    const bool kb = c.model == render::CameraModel::kannala_brandt;
+    const render::CameraParams k = kb ? c : render::with_equidistant_intrinsics(c);
+    return {{"model", std::string(kb ? "kannala_brandt" : "equidistant")},
+            {"half_fov_deg", c.half_fov_deg},
+            {"fx", k.fx_px},
+            {"fy", k.fy_px},
+            {"cx", k.cx_px},
+            {"cy", k.cy_px},
+            {"k1", k.k1},
+            {"k2", k.k2},
+            {"k3", k.k3},
+            {"k4", k.k4},
+            {"width", double(c.width_px)},
+            {"height", double(c.height_px)},
+            {"pixel_convention", std::string("OpenCV: centre of the first pixel at (0, 0)")},
+            {"note", std::string("glTF has no fisheye model: this perspective camera stands in "
+                                 "for the pose only; the real camera is the fisheye above")}};
+}
+
+GltfCamera stand_in_camera(const render::CameraParams& params) {
+    const render::FisheyeCamera fisheye(params); // validates, and applies the pose
+    GltfCamera c;
+    c.name = "fisheye_camera";
+    c.position_mm = fisheye.origin_mm();
+    c.rotation = fisheye.rotation();
+    c.yfov_rad = kStandInYfov_deg * kDeg;
+    c.aspect_ratio = double(params.width_px) / params.height_px;
+    c.extras = fisheye_extras(params);
+    return c;
+}
+
+std::string hex(std::uint64_t x) {
+    char text[17];
+    std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(x));
+    return text;
+}
+
+GltfExtras frame_extras(const Spec& spec, const LabelRow& row, int frames) {
+    return {{"chromasim_version", std::string(CHROMASIM_VERSION)},
+            {"spec_name", spec.name},
+            {"spec_hash", hex(mechanics::fnv1a64(stored_spec_text(spec)))},
+            {"frame", double(row.frame)},
+            {"frames", double(frames)},
+            {"phase", row.phase},
+            {"mu", row.mu},
+            {"gamma", row.gamma},
+            {"sliding", row.sliding ? 1.0 : 0.0},
+            {"normal_force_N", row.normal_force_N},
+            {"tangential_force_x_N", row.tangential_x_N},
+            {"tangential_force_y_N", row.tangential_y_N},
+            {"requested_tangential_force_N", row.requested_tangential_N},
+            {"indentation_mm", row.indentation_mm},
+            {"contact_area_mm2", row.contact_area_mm2},
+            {"converged", row.converged ? 1.0 : 0.0},
+            {"status", row.status}};
+}
+
+} // namespace
+
+render::VertexArray area_weighted_normals(const render::SurfaceMesh& mesh) {
+    Eigen::MatrixX3d sum = Eigen::MatrixX3d::Zero(mesh.V.rows(), 3);
+    for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
+        const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)).cast<double>();
+        const Eigen::Vector3d b = mesh.V.row(mesh.F(f, 1)).cast<double>();
+        const Eigen::Vector3d c = mesh.V.row(mesh.F(f, 2)).cast<double>();
+        const Eigen::RowVector3d n = (b - a).cross(c - a).transpose(); // |n| = twice the area
+        for (int k = 0; k < 3; ++k)
+            sum.row(mesh.F(f, k)) += n;
+    }
+    render::VertexArray N(mesh.V.rows(), 3);
+    for (Eigen::Index v = 0; v < sum.rows(); ++v) {
+        const double length = sum.row(v).norm();
+        N.row(v) = length > 0.0 ? (sum.row(v) / length).cast<float>().eval()
+                                : Eigen::RowVector3f(0.0f, 0.0f, 1.0f);
+    }
+    return N;
+}
+
+GltfScene make_gltf_scene(const render::SensorFrame& frame, const render::CameraParams& camera,
+                          const render::OpticsParams& optics, const SceneInfo& info) {
+    const double ior = refractive_index(optics);
+    GltfScene scene;
+    scene.name = info.name;
+    scene.extras = info.extras;
+    // The white diffusing coating, seen from both sides (a viewer outside sees its back).
+    GltfMesh coating = mesh("coating", frame.coating, true);
+    coating.material.base_color = rgba(optics.coating_albedo);
+    coating.material.roughness = 1.0;
+    coating.material.double_sided = true;
+    scene.meshes.push_back(std::move(coating));
+    if (frame.inner_surface.F.rows() > 0) {
+        GltfMesh inner = mesh("inner_surface", frame.inner_surface, true);
+        make_clear(inner.material, ior);
+        inner.material.double_sided = true;
+        scene.meshes.push_back(std::move(inner));
+    }
+    GltfMesh magenta = mesh("inner_markers", frame.inner_markers, false);
+    make_dyed(magenta.material, optics.inner_marker_absorption_per_mm, info.marker_thickness_mm,
+              ior);
+    scene.meshes.push_back(std::move(magenta));
+    // The cyan layer also scatters: that share of the light is diffuse, of the marker albedo.
+    GltfMesh cyan = mesh("outer_markers", frame.outer_markers, false);
+    make_dyed(cyan.material, optics.outer_marker_absorption_per_mm, info.marker_thickness_mm, ior);
+    cyan.material.base_color = rgba(optics.outer_marker_albedo);
+    cyan.material.transmission = 1.0 - optics.outer_marker_scatter_fraction;
+    scene.meshes.push_back(std::move(cyan));
+    scene.meshes.push_back(led_packages(optics));
+    scene.lights = led_lights(optics);
+    scene.camera = stand_in_camera(camera);
+    return scene;
+}
+
+SceneExportReport export_scene(const Spec& spec, int frame, const std::filesystem::path& out,
+                               const SceneExportOptions& options, std::ostream& log) {
+    const auto t_start = Clock::now();
+    SceneExportReport report;
+    // 1. Validate, then work: the frame index and the output path; the object's mesh file,
+    // the camera and the optics are read before the mechanics start.
+    const Plan plan = make_plan(spec);
+    report.frame = frame;
+    report.frames = int(plan.frames.size());
+    if (frame < 0 || frame >= report.frames)
+        throw std::out_of_range("--frame " + std::to_string(frame) + " is out of range: spec '" +
+                                spec.name + "' plans " + std::to_string(report.frames) +
+                                " frame(s), so --frame must be in [0, " +
+                                std::to_string(report.frames - 1) + "]");
+    check_gltf_output_path(out);
+    const mechanics::ObjectShape object = object_shape(spec);
+    const render::CameraParams camera = camera_params(spec);
+    const render::OpticsParams optics = optics_params(spec);
+
+    // 2. The dome model (from the cache when there).
+    auto t0 = Clock::now();
+    mechanics::DomeModelOptions model_options = dome_options(spec);
+    model_options.cache_dir = options.cache_dir;
+    const mechanics::DomeModel model(model_options);
+    log_dome_model(spec, model, mechanics::seconds_since(t0), options.cache_dir, log);
+
+    // 3. Frames 0 to `frame`, one trial: each starts from the state the previous one left.
+    // Only the exported frame needs the surfaces.
+    mechanics::FrameResult r;
+    for (int k = 0; k <= frame; ++k) {
+        mechanics::FrameRequest request;
+        request.coating = request.markers = request.inner_surface = k == frame;
+        mechanics::FrameResult next = model.solve(contact_load(plan.frames[std::size_t(k)]),
+                                                  request, object, k > 0 ? &r : nullptr);
+        r = std::move(next);
+    }
+    report.labels = label_row(plan.frames[std::size_t(frame)], r);
+    if (!report.labels.converged)
+        log << "chromasim: warning: frame " << frame << " flagged: " << report.labels.status
+            << " (exported all the same; the scene extras say so)\n";
+
+    // 4. The scene, written atomically.
+    render::SensorFrame sensor;
+    fill_sensor_frame(model, r, sensor);
+    const SceneInfo info{spec.name + " frame " + std::to_string(frame),
+                         spec.sensor.marker_thickness_mm,
+                         frame_extras(spec, report.labels, report.frames)};
+    write_gltf_scene(out, make_gltf_scene(sensor, camera, optics, info));
+    report.total_s = mechanics::seconds_since(t_start);
+    return report;
+}
+
+} // namespace chromasim::generators
