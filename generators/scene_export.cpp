@@ -34,16 +34,6 @@ constexpr double kLedIntensity_cd = 1.0;
 /// Distance over which the marker volumes' attenuationColor is the transmittance, mm.
 constexpr double kAttenuationDistance_mm = 1.0;
 
-/// Refractive index of the clear silicone: OpticsParams::refractive_index where render's
-/// parameters carry that field, else 1.4, the clear layers' value in issue 4 (the spec has no
-/// key for it).
-template <class Optics> double refractive_index(const Optics& optics) {
-    if constexpr (requires { optics.refractive_index; })
-        return optics.refractive_index;
-    else
-        return 1.4;
-}
-
 Eigen::Vector4d rgba(const render::Vec3& rgb) {
     return {rgb[0], rgb[1], rgb[2], 1.0};
 }
@@ -222,7 +212,7 @@ render::VertexArray area_weighted_normals(const render::SurfaceMesh& mesh) {
 
 GltfScene make_gltf_scene(const render::SensorFrame& frame, const render::CameraParams& camera,
                           const render::OpticsParams& optics, const SceneInfo& info) {
-    const double ior = refractive_index(optics);
+    const double ior = optics.refractive_index; // sensor.optics.refractive_index
     GltfScene scene;
     scene.name = info.name;
     scene.extras = info.extras;
