@@ -147,7 +147,9 @@ void bench_dome(const DomeBenchOptions& o, std::ostream& out) {
 void bench_render(const RenderBenchOptions& o, std::ostream& out) {
     mechanics::DomeModelOptions options;
     const mechanics::DomeModel model(options);
-    const mechanics::FrameResult frame = model.solve({1.5, {0.6, 0.0}, 0.8}, {true, true, false});
+    mechanics::FrameRequest request{true, true, false};
+    request.inner_surface = true; // the path integrator's refraction
+    const mechanics::FrameResult frame = model.solve({1.5, {0.6, 0.0}, 0.8}, request);
     render::SensorFrame sensor;
     fill_sensor_frame(model, frame, sensor);
     // Spectral: the shipped spectra. RGB: the same sensor reduced to camera RGB (albedos as
@@ -173,40 +175,61 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
 
     const render::CameraParams camera{o.size_px, o.size_px, 84.0};
     render::Renderer reference_renderer(camera, spectral);
-    reference_renderer.set_frame(sensor);
-    const render::Image ref = reference_renderer.render({o.reference_spp, 1});
+    render::SensorFrame reference_frame = sensor;
+    if (o.reference_integrator == "direct") reference_frame.inner_surface = {};
+    reference_renderer.set_frame(reference_frame);
+    const auto integrator_of = [](const std::string& name) {
+        return name == "path" ? render::Integrator::path : render::Integrator::direct;
+    };
+    const auto settings = [&](int spp, std::uint64_t seed, const std::string& integrator) {
+        render::RenderSettings s;
+        s.samples_per_pixel = spp;
+        s.seed = seed;
+        s.integrator = integrator_of(integrator);
+        return s;
+    };
+    const render::Image ref =
+        reference_renderer.render(settings(o.reference_spp, 1, o.reference_integrator));
     constexpr double kWhite = 0.8; // the undeformed apex's image value
     out << "render " << o.size_px << " x " << o.size_px << ", coarse dome at 1.5 N + 0.6 N "
-        << "pull, error against the spectral render at " << o.reference_spp
-        << " spp, in % of the white level (0.8, the undeformed apex); RGB mode: the spectra "
+        << "pull, error against the spectral render at " << o.reference_spp << " spp ("
+        << o.reference_integrator << " integrator), in % of the white level "
+        << "(0.8, the undeformed apex); RGB mode: the spectra "
         << "reduced to camera RGB (absorption at " << path_mm << " mm); times are medians of "
         << o.repeats << "\n\n"
-        << "| mode | spp | render ms | RMS error % | max error % |\n|---|---|---|---|---|\n"
+        << "| integrator | mode | spp | render ms | RMS error % | max error % |\n"
+        << "|---|---|---|---|---|---|\n"
         << std::fixed;
     std::map<std::string, std::pair<double, double>> rays; // mode -> (rays, seconds)
-    for (const std::string& mode : o.modes) {
-        render::Renderer renderer(camera, mode == "rgb" ? rgb : spectral);
-        renderer.set_frame(sensor);
-        for (int spp : o.samples_per_pixel) {
-            render::Image img;
-            const double t = time_median(o.repeats, [&] { img = renderer.render({spp, 7}); });
-            double sum2 = 0, max_err = 0;
-            for (std::size_t i = 0; i < img.rgb.size(); ++i) {
-                const double e = std::abs(double(img.rgb[i]) - ref.rgb[i]);
-                sum2 += e * e;
-                max_err = std::max(max_err, e);
+    for (const std::string& integrator : o.integrators)
+        for (const std::string& mode : o.modes) {
+            render::Renderer renderer(camera, mode == "rgb" ? rgb : spectral);
+            // The direct integrator does not refract: no inner surface, as in generate.
+            render::SensorFrame frame = sensor;
+            if (integrator == "direct") frame.inner_surface = {};
+            renderer.set_frame(frame);
+            for (int spp : o.samples_per_pixel) {
+                render::Image img;
+                const double t = time_median(
+                    o.repeats, [&] { img = renderer.render(settings(spp, 7, integrator)); });
+                double sum2 = 0, max_err = 0;
+                for (std::size_t i = 0; i < img.rgb.size(); ++i) {
+                    const double e = std::abs(double(img.rgb[i]) - ref.rgb[i]);
+                    sum2 += e * e;
+                    max_err = std::max(max_err, e);
+                }
+                if (spp == o.samples_per_pixel.front()) { // rays of one render, counted once
+                    renderer.count_rays(true);
+                    renderer.render(settings(spp, 7, integrator));
+                    rays[integrator + " " + mode] = {double(renderer.rays_counted()), t};
+                    renderer.count_rays(false);
+                }
+                out << "| " << integrator << " | " << mode << " | " << spp << " | "
+                    << std::setprecision(1) << 1e3 * t << " | " << std::setprecision(3)
+                    << 100 * std::sqrt(sum2 / img.rgb.size()) / kWhite << " | "
+                    << 100 * max_err / kWhite << " |\n";
             }
-            if (spp == o.samples_per_pixel.front()) { // rays of one render, counted once
-                renderer.count_rays(true);
-                renderer.render({spp, 7});
-                rays[mode] = {double(renderer.rays_counted()), t};
-                renderer.count_rays(false);
-            }
-            out << "| " << mode << " | " << spp << " | " << std::setprecision(1) << 1e3 * t << " | "
-                << std::setprecision(3) << 100 * std::sqrt(sum2 / img.rgb.size()) / kWhite << " | "
-                << 100 * max_err / kWhite << " |\n";
         }
-    }
     // Embree's raw rate on the same scene: incoherent rays from the camera and the LEDs in
     // uniformly random directions, nothing but closest_hit, in parallel as the renderer does.
     render::detail::EmbreeScene scene;

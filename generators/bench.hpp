@@ -30,11 +30,16 @@ struct RenderBenchOptions {
     int reference_spp = 64; ///< the error reference
     int size_px = 256;
     std::vector<std::string> modes{"spectral", "rgb"}; ///< spectral | rgb
+    std::vector<std::string> integrators{"direct"};    ///< direct | path, each with every mode
+    /// The reference is always spectral; `path` makes it the physical reference, so a direct
+    /// row's error includes the direct model's own bias.
+    std::string reference_integrator = "direct";
     int repeats = 5;
 };
 
 /// Samples per pixel vs image error and time on the quickstart's loaded frame (coarse mesh,
-/// 1.5 N, 0.6 N pull): median render time, RMS and max error against `reference_spp`.
+/// 1.5 N, 0.6 N pull): median render time, RMS and max error against the spectral render of
+/// `reference_integrator` at `reference_spp`, per integrator and mode.
 void bench_render(const RenderBenchOptions& options, std::ostream& out);
 
 } // namespace chromasim::generators

@@ -5,6 +5,7 @@
 #include "mechanics/dome_model.hpp"
 #include "render/embree_scene.hpp"
 #include "render/fisheye_camera.hpp"
+#include "render/furnace.hpp"
 #include "render/renderer.hpp"
 
 #include <tbb/global_control.h>
@@ -41,10 +42,14 @@ render::SensorFrame dome_frame(const mechanics::DomeModel& model,
                                const mechanics::ContactLoad* load) {
     mechanics::FrameResult r;
     if (load) {
-        r = model.solve(*load, {true, true, false});
+        mechanics::FrameRequest request{true, true, false};
+        request.inner_surface = true;
+        r = model.solve(*load, request);
     } else {
         r.coating_displacement_mm =
             mechanics::Points::Zero(Eigen::Index(model.coating_surface().nodes.size()), 3);
+        r.inner_surface_displacement_mm =
+            mechanics::Points::Zero(Eigen::Index(model.inner_surface().nodes.size()), 3);
         r.marker_points_mm = model.markers().points;
     }
     render::SensorFrame frame;
@@ -216,15 +221,18 @@ void filter_product_cases(const mechanics::DomeModel& model, std::vector<RenderV
     }
 }
 
-void determinism_case(const render::SensorFrame& frame, std::vector<RenderVerifyCase>& out) {
+void determinism_case(const render::SensorFrame& frame, render::Integrator integrator, int size,
+                      std::vector<RenderVerifyCase>& out) {
     const auto t0 = Clock::now();
     const render::OpticsParams optics = spectral_optics();
     auto render_with = [&](int threads) {
         const tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
                                         std::size_t(threads));
-        render::Renderer renderer({224, 224, 84.0}, optics);
+        render::Renderer renderer({size, size, 84.0}, optics);
         renderer.set_frame(frame);
-        return renderer.render({4, 11});
+        render::RenderSettings settings{4, 11};
+        settings.integrator = integrator;
+        return renderer.render(settings);
     };
     const render::Image one = render_with(1), two = render_with(2);
     int differing = 0;
@@ -232,24 +240,56 @@ void determinism_case(const render::SensorFrame& frame, std::vector<RenderVerify
         differing += std::memcmp(&one.rgb[i], &two.rgb[i], sizeof(float)) != 0;
     RenderVerifyCase c;
     c.key = "determinism";
-    c.mode = "spectral";
+    c.mode = integrator == render::Integrator::path ? "spectral path" : "spectral direct";
     c.measured = differing;
     c.error = differing;
     c.target = 0;
     c.unit = "floats";
     c.seconds = seconds_since(t0);
-    c.note = "values that differ between 1 and 2 threads (224 px, 4 spp, loaded dome)";
+    c.note = "values that differ between 1 and 2 threads (" + std::to_string(size) +
+             " px, 4 spp, loaded dome)";
     out.push_back(c);
 }
 
-void convergence_case(const render::SensorFrame& frame, std::vector<RenderVerifyCase>& out) {
+void furnace_cases(std::vector<RenderVerifyCase>& out) {
+    const render::FurnaceResult r = render::run_furnace({});
+    const render::FurnaceSettings s;
+    for (int k = 0; k < 3; ++k) {
+        RenderVerifyCase c;
+        c.key = "furnace";
+        c.mode = "path";
+        c.measured = r.measured[k];
+        c.reference = r.expected[k];
+        c.relative = true;
+        c.error = (c.measured - c.reference) / c.reference;
+        c.target = 0.005;
+        c.seconds = r.seconds / 3;
+        std::ostringstream note;
+        note << std::setprecision(3) << "integrating sphere R " << s.radius_mm << " mm, albedo "
+             << s.albedo[k] << ", " << s.paths << " paths, standard error "
+             << 100 * r.standard_error[k] / r.expected[k] << " %";
+        c.note = note.str();
+        out.push_back(c);
+    }
+}
+
+/// Slope of log RMSE against log spp for `integrator` on `frame` (size px square).
+void convergence_case(const render::SensorFrame& frame, render::Integrator integrator, int size,
+                      int reference_spp, std::vector<RenderVerifyCase>& out) {
     const auto t0 = Clock::now();
-    render::Renderer renderer({224, 224, 84.0}, spectral_optics());
+    render::Renderer renderer({size, size, 84.0}, spectral_optics());
     renderer.set_frame(frame);
-    const render::Image ref = renderer.render({256, 1});
+    const auto settings = [integrator](int spp, std::uint64_t seed) {
+        render::RenderSettings s;
+        s.samples_per_pixel = spp;
+        s.seed = seed;
+        s.integrator = integrator;
+        return s;
+    };
+    const render::Image ref = renderer.render(settings(reference_spp, 1));
     std::vector<double> log_spp, log_rmse;
     for (int spp : {1, 2, 4, 8, 16}) {
-        const render::Image img = renderer.render({spp, 7});
+        const render::Image img = renderer.render(settings(spp, 7));
         double sum2 = 0;
         for (std::size_t i = 0; i < img.rgb.size(); ++i)
             sum2 += std::pow(double(img.rgb[i]) - ref.rgb[i], 2);
@@ -264,18 +304,34 @@ void convergence_case(const render::SensorFrame& frame, std::vector<RenderVerify
     }
     RenderVerifyCase c;
     c.key = "convergence_slope";
-    c.mode = "spectral";
+    c.mode = integrator == render::Integrator::path ? "spectral path" : "spectral direct";
     c.measured = (n * sxy - sx * sy) / (n * sxx - sx * sx);
     c.reference = -0.5;
     c.error = c.measured - c.reference;
     c.target = 0.1;
     c.seconds = seconds_since(t0);
-    c.note = "log RMSE against log spp, 1 to 16 spp against 256 spp (224 px, loaded dome); "
-             "stratified jitter converges faster than -0.5 at edges";
+    std::ostringstream note;
+    note << "log RMSE against log spp, 1 to 16 spp against " << reference_spp << " spp (" << size
+         << " px, loaded dome)"
+         << (integrator == render::Integrator::path
+                 ? ""
+                 : "; direct light only: stratified jitter converges faster than -0.5 at edges");
+    c.note = note.str();
     out.push_back(c);
 }
 
 } // namespace
+
+render::Image render_reference_dome(int samples_per_pixel, std::uint64_t seed) {
+    const mechanics::DomeModel model{dome_options(Spec{})};
+    render::Renderer renderer({kReferenceDomeSize_px, kReferenceDomeSize_px, 84.0},
+                              optics_params(Spec{}));
+    renderer.set_frame(dome_frame(model, nullptr));
+    render::RenderSettings settings{samples_per_pixel, seed};
+    settings.variance = true;
+    settings.integrator = render::Integrator::path;
+    return renderer.render(settings);
+}
 
 std::vector<RenderVerifyCase> verify_render() {
     const mechanics::DomeModel model{mechanics::DomeModelOptions{}};
@@ -284,8 +340,11 @@ std::vector<RenderVerifyCase> verify_render() {
     filter_product_cases(model, out);
     const mechanics::ContactLoad load{1.5, {0.6, 0.0}, 0.8};
     const render::SensorFrame loaded = dome_frame(model, &load);
-    determinism_case(loaded, out);
-    convergence_case(loaded, out);
+    determinism_case(loaded, render::Integrator::direct, 224, out);
+    determinism_case(loaded, render::Integrator::path, 96, out);
+    convergence_case(loaded, render::Integrator::direct, 224, 256, out);
+    convergence_case(loaded, render::Integrator::path, 64, 1024, out);
+    furnace_cases(out);
     return out;
 }
 

@@ -30,74 +30,96 @@ Vec3 facing(const Vec3& normal, const Vec3& direction) {
     return normal.dot(direction) > 0.0 ? Vec3(-normal) : normal;
 }
 
-/// The refracted ray of one interface triangle, continued to the LED plane.
+/// A chain followed to the LED plane.
 struct PlanePoint {
-    Vec3 l;   ///< on the plane z = led_z
-    Vec3 x;   ///< on the triangle's plane
-    double F; ///< Fresnel reflectance at x
+    Vec3 l;         ///< on the plane z = led_z
+    Vec3 x[2];      ///< on the triangles' planes
+    double fresnel; ///< (1 - F) of the refraction, times F of the reflection
 };
 
-/// p (inside the clear layers) -> the plane of `t` along w, refract into the air (index 1)
-/// with the normal interpolated from the vertex normals, -> the plane z = led_z.
-std::optional<PlanePoint> to_led_plane(const EmbreeScene::Triangle& t, const Vec3& p, const Vec3& w,
-                                       double eta, double led_z) {
-    const Vec3 e1 = t.p[1] - t.p[0], e2 = t.p[2] - t.p[0];
-    const Vec3 ng = e1.cross(e2);
-    const double denom = ng.dot(w);
-    if (!(std::abs(denom) > 1e-300)) return std::nullopt;
-    const double s = ng.dot(t.p[0] - p) / denom;
-    if (!(s > 0.0)) return std::nullopt;
-    const Vec3 x = p + s * w;
-    // Barycentric coordinates in the triangle's plane (outside it: linear extrapolation).
-    const Vec3 q = x - t.p[0];
-    const double d00 = e1.dot(e1), d01 = e1.dot(e2), d11 = e2.dot(e2);
-    const double d20 = q.dot(e1), d21 = q.dot(e2);
-    const double det = d00 * d11 - d01 * d01;
-    if (!(det > 0.0)) return std::nullopt;
-    const double b1 = (d11 * d20 - d01 * d21) / det, b2 = (d00 * d21 - d01 * d20) / det;
-    Vec3 n = (1.0 - b1 - b2) * t.n[0] + b1 * t.n[1] + b2 * t.n[2];
-    if (!(n.norm() > 0.0)) return std::nullopt;
-    n = facing(n.normalized(), w);
-    Vec3 out;
-    if (!refract(w, n, eta, out)) return std::nullopt; // total internal reflection
-    if (!(out.z() < 0.0)) return std::nullopt;
-    const double r = (led_z - x.z()) / out.z();
+/// p (inside the clear layers) along w through the events of `chain` on the planes of
+/// `tris` (normals interpolated from the vertex normals, linearly extrapolated off the
+/// triangle): refract into the air (index 1) at the first, reflect off the second from the
+/// cavity side; then on to the plane z = led_z.
+std::optional<PlanePoint> to_led_plane(const EmbreeScene::Triangle* tris, Chain chain,
+                                       const Vec3& p, const Vec3& w, double eta, double led_z) {
+    PlanePoint out{};
+    out.fresnel = 1.0;
+    Vec3 pos = p, dir = w;
+    for (int k = 0; k < chain_length(chain); ++k) {
+        const EmbreeScene::Triangle& t = tris[k];
+        const Vec3 e1 = t.p[1] - t.p[0], e2 = t.p[2] - t.p[0];
+        const Vec3 ng = e1.cross(e2);
+        const double denom = ng.dot(dir);
+        if (!(std::abs(denom) > 1e-300)) return std::nullopt;
+        const double s = ng.dot(t.p[0] - pos) / denom;
+        if (!(s > 0.0)) return std::nullopt;
+        const Vec3 x = pos + s * dir;
+        // Barycentric coordinates in the triangle's plane (outside it: linear extrapolation).
+        const Vec3 q = x - t.p[0];
+        const double d00 = e1.dot(e1), d01 = e1.dot(e2), d11 = e2.dot(e2);
+        const double d20 = q.dot(e1), d21 = q.dot(e2);
+        const double det = d00 * d11 - d01 * d01;
+        if (!(det > 0.0)) return std::nullopt;
+        const double b1 = (d11 * d20 - d01 * d21) / det, b2 = (d00 * d21 - d01 * d20) / det;
+        Vec3 n = (1.0 - b1 - b2) * t.n[0] + b1 * t.n[1] + b2 * t.n[2];
+        if (!(n.norm() > 0.0)) return std::nullopt;
+        n = facing(n.normalized(), dir);
+        const double cos_i = -dir.dot(n);
+        if (k == 0) { // out of the layers
+            Vec3 refracted;
+            if (!refract(dir, n, eta, refracted)) return std::nullopt; // total reflection
+            out.fresnel *= 1.0 - fresnel_dielectric(cos_i, eta);
+            dir = refracted;
+        } else { // off the surface, from the air
+            out.fresnel *= fresnel_dielectric(cos_i, 1.0 / eta);
+            dir = (dir + 2.0 * cos_i * n).normalized();
+        }
+        out.x[k] = pos = x;
+    }
+    if (!(dir.z() < 0.0)) return std::nullopt;
+    const double r = (led_z - pos.z()) / dir.z();
     if (!(r > 0.0)) return std::nullopt;
-    return PlanePoint{x + r * out, x, fresnel_dielectric(-w.dot(n), eta)};
+    out.l = pos + r * dir;
+    return out;
 }
 
 /// 2 x 2 Jacobian of the LED-plane point (x, y) with respect to the direction w, in the
 /// tangent coordinates (b1, b2) of w (an isometry to first order: |det| is per steradian).
-bool led_plane_jacobian(const EmbreeScene::Triangle& t, const Vec3& p, const Vec3& w, double eta,
-                        double led_z, Eigen::Matrix2d& J) {
+bool led_plane_jacobian(const EmbreeScene::Triangle* tris, Chain chain, const Vec3& p,
+                        const Vec3& w, double eta, double led_z, Eigen::Matrix2d& J) {
     Vec3 b1, b2;
     orthonormal_basis(w, b1, b2);
     const Vec3 tangents[2] = {b1, b2};
     for (int c = 0; c < 2; ++c) {
-        const auto plus =
-            to_led_plane(t, p, (w + kJacobianStep * tangents[c]).normalized(), eta, led_z);
-        const auto minus =
-            to_led_plane(t, p, (w - kJacobianStep * tangents[c]).normalized(), eta, led_z);
+        const auto plus = to_led_plane(tris, chain, p,
+                                       (w + kJacobianStep * tangents[c]).normalized(), eta, led_z);
+        const auto minus = to_led_plane(tris, chain, p,
+                                        (w - kJacobianStep * tangents[c]).normalized(), eta, led_z);
         if (!plus || !minus) return false;
         J.col(c) = (plus->l - minus->l).head<2>() / (2.0 * kJacobianStep);
     }
     return J.allFinite();
 }
 
-/// The first guess of a connection p -> x -> l: the path refracted by a sphere about the
-/// origin of radius `radius` (the inner surface as built), found by bisection on the angle of x
-/// in the plane of the origin, p and l; Snell's law says the tangential components of the unit
-/// directions match, n (w_in . tau) = w_out . tau.
-Vec3 sphere_guess(const Vec3& p, const Vec3& l, double radius, double eta) {
+/// The point on the circle of radius R about the origin, in the plane of unit vectors e1, e2,
+/// at angle psi from e1, and the circle's unit tangent there.
+std::pair<Vec3, Vec3> on_circle(const Vec3& e1, const Vec3& e2, double R, double psi) {
+    return {R * (std::cos(psi) * e1 + std::sin(psi) * e2),
+            -std::sin(psi) * e1 + std::cos(psi) * e2};
+}
+
+/// The refraction of p -> l by the sphere about the origin of radius R: the direction from p
+/// to the point x where the tangential components of the unit directions obey Snell's law,
+/// n (w_in . tau) = w_out . tau, found by bisection on x's angle in the plane of O, p and l.
+Vec3 sphere_refraction(const Vec3& p, const Vec3& l, double R, double eta) {
     const Vec3 e1 = p.normalized();
     Vec3 e2 = l - l.dot(e1) * e1;
     if (!(e2.norm() > 1e-9)) return (l - p).normalized(); // l on p's axis: straight down
     e2.normalize();
     const double psi_l = std::atan2(l.dot(e2), l.dot(e1)); // p is at angle 0
     auto mismatch = [&](double psi) {
-        const Vec3 radial = std::cos(psi) * e1 + std::sin(psi) * e2;
-        const Vec3 tau = -std::sin(psi) * e1 + std::cos(psi) * e2;
-        const Vec3 x = radius * radial;
+        const auto [x, tau] = on_circle(e1, e2, R, psi);
         return eta * (x - p).normalized().dot(tau) - (l - x).normalized().dot(tau);
     };
     double lo = 0.0, hi = psi_l;
@@ -105,13 +127,68 @@ Vec3 sphere_guess(const Vec3& p, const Vec3& l, double radius, double eta) {
     if (f_lo * mismatch(hi) > 0.0) return (l - p).normalized();
     for (int i = 0; i < 60; ++i) {
         const double mid = 0.5 * (lo + hi);
-        if ((mismatch(mid) > 0.0) == (f_lo > 0.0))
-            lo = mid;
-        else
-            hi = mid;
+        ((mismatch(mid) > 0.0) == (f_lo > 0.0) ? lo : hi) = mid;
     }
-    const double psi = 0.5 * (lo + hi);
-    return (radius * (std::cos(psi) * e1 + std::sin(psi) * e2) - p).normalized();
+    return (on_circle(e1, e2, R, 0.5 * (lo + hi)).first - p).normalized();
+}
+
+/// The reflections of a -> l off the inside of the sphere about the origin of radius R (a on
+/// the sphere, l inside): the angles of the points x where the mirror law holds,
+/// (x - a)^ . tau = (l - x)^ . tau, in the plane of O, a and l (e1 = a^), found by scanning
+/// the circle and bisecting each sign change.
+std::vector<Vec3> sphere_reflections(const Vec3& a, const Vec3& l, double R) {
+    const Vec3 e1 = a.normalized();
+    Vec3 e2 = l - l.dot(e1) * e1;
+    if (!(e2.norm() > 1e-9)) return {};
+    e2.normalize();
+    auto mismatch = [&](double psi) {
+        const auto [x, tau] = on_circle(e1, e2, R, psi);
+        return (x - a).normalized().dot(tau) - (l - x).normalized().dot(tau);
+    };
+    constexpr int kScan = 90;
+    constexpr double kEdge = 1e-3; // x = a is no reflection
+    std::vector<Vec3> points;
+    double prev_psi = kEdge, prev = mismatch(prev_psi);
+    for (int i = 1; i <= kScan; ++i) {
+        const double psi = kEdge + (2.0 * std::numbers::pi - 2.0 * kEdge) * i / kScan;
+        const double f = mismatch(psi);
+        if ((f > 0.0) != (prev > 0.0)) {
+            double lo = prev_psi, hi = psi;
+            for (int j = 0; j < 50; ++j) {
+                const double mid = 0.5 * (lo + hi);
+                ((mismatch(mid) > 0.0) == (prev > 0.0) ? lo : hi) = mid;
+            }
+            const auto [x, tau] = on_circle(e1, e2, R, 0.5 * (lo + hi));
+            // A sign change across the pole of (x - a)^ is a jump, not a root.
+            if (std::abs(mismatch(0.5 * (lo + hi))) < 1e-6) points.push_back(x);
+        }
+        prev_psi = psi, prev = f;
+    }
+    return points;
+}
+
+/// The mirror points of the sphere model through which p (in the layers) reaches l by leaving
+/// the layers below p and reflecting off the sphere: sphere_reflections from the point below p,
+/// keeping those above the rim plane (the dome is a hemisphere) that p reaches by a refraction
+/// without total internal reflection.
+std::vector<Vec3> sphere_mirrors(const Vec3& p, const Vec3& l, double R, double eta) {
+    std::vector<Vec3> kept;
+    for (const Vec3& mirror : sphere_reflections(R * p.normalized(), l, R)) {
+        if (!(mirror.z() > 0.0)) continue;
+        const Vec3 w = sphere_refraction(p, mirror, R, eta);
+        // Where w meets the sphere (from outside it, p being in the shell), and the refraction.
+        const double b = p.dot(w), c = p.squaredNorm() - R * R;
+        const double disc = b * b - c;
+        if (!(disc >= 0.0)) continue;
+        const double t = -b - std::sqrt(disc);
+        if (!(t > 0.0)) continue;
+        const Vec3 x = p + t * w;
+        Vec3 out;
+        if (!refract(w, x.normalized(), eta, out)) continue;
+        // The refracted ray heads for the mirror point.
+        if ((mirror - x).normalized().dot(out) > 1.0 - 1e-6) kept.push_back(mirror);
+    }
+    return kept;
 }
 
 } // namespace
@@ -151,60 +228,118 @@ std::optional<std::pair<double, bool>> PathIntegrator::led_hit(const Vec3& origi
     return std::nullopt;
 }
 
-std::optional<InterfaceConnection> PathIntegrator::through_triangle(const EmbreeScene& scene,
-                                                                    std::uint32_t prim,
-                                                                    const Vec3& p, const Vec3& w,
-                                                                    Vec3* led_plane_point) const {
-    const EmbreeScene::Triangle t = scene.interface_triangle(prim);
+std::optional<InterfaceConnection> PathIntegrator::along(const EmbreeScene& scene, Chain chain,
+                                                         const std::uint32_t* prims, const Vec3& p,
+                                                         const Vec3& w, Vec3* landed) const {
+    EmbreeScene::Triangle tris[2];
+    for (int k = 0; k < chain_length(chain); ++k)
+        tris[k] = scene.interface_triangle(prims[k]);
     const double led_z = m_shading.optics().led_z_mm;
-    const auto point = to_led_plane(t, p, w, m_eta, led_z);
+    const auto point = to_led_plane(tris, chain, p, w, m_eta, led_z);
     Eigen::Matrix2d J;
-    if (!point || !led_plane_jacobian(t, p, w, m_eta, led_z, J)) return std::nullopt;
-    if (led_plane_point) *led_plane_point = point->l;
-    return InterfaceConnection{w, point->x, 1.0 - point->F, std::abs(J.determinant())};
+    if (!point || !led_plane_jacobian(tris, chain, p, w, m_eta, led_z, J)) return std::nullopt;
+    if (landed) *landed = point->l;
+    InterfaceConnection c;
+    c.direction = w;
+    for (int k = 0; k < chain_length(chain); ++k) {
+        c.x_mm[k] = point->x[k];
+        c.prim[k] = prims[k];
+    }
+    c.fresnel = point->fresnel;
+    c.jacobian_mm2_per_sr = std::abs(J.determinant());
+    return c;
+}
+
+std::optional<double> PathIntegrator::radius_below(const EmbreeScene& scene, const Vec3& p) const {
+    const RayHit below = scene.closest_interface_hit(p, -p.normalized(), kHitGap_mm,
+                                                     std::numeric_limits<double>::infinity());
+    if (!below.hit()) return std::nullopt;
+    return (p - below.t_mm * p.normalized()).norm();
+}
+
+int PathIntegrator::sphere_candidates(const EmbreeScene& scene, const Vec3& p, const Vec3& l,
+                                      Chain chain) const {
+    if (chain == Chain::refracted) return 1;
+    const auto radius = radius_below(scene, p);
+    return radius ? int(sphere_mirrors(p, l, *radius, m_eta).size()) : 0;
 }
 
 std::optional<InterfaceConnection> PathIntegrator::connect(const EmbreeScene& scene, const Vec3& p,
-                                                           const Vec3& l) const {
+                                                           const Vec3& l, Chain chain,
+                                                           double u) const {
     constexpr double inf = std::numeric_limits<double>::infinity();
-    const double led_z = m_shading.optics().led_z_mm;
-    // First guess: refraction by the sphere through the inner surface below p.
-    const RayHit below = scene.closest_interface_hit(p, -p.normalized(), kHitGap_mm, inf);
-    if (!below.hit()) return std::nullopt;
-    const double radius = (p - below.t_mm * p.normalized()).norm();
-    Vec3 w = sphere_guess(p, l, radius, m_eta);
-    // Newton on w in its tangent plane; a step that leaves the valid region (total internal
-    // reflection, a miss) is halved.
+    const int n = chain_length(chain);
+    // Start: the same chain on the sphere through the surface below p.
+    const auto radius = radius_below(scene, p);
+    if (!radius) return std::nullopt;
+    Vec3 w;
+    int candidates = 1;
+    if (chain == Chain::refracted) {
+        w = sphere_refraction(p, l, *radius, m_eta);
+    } else {
+        // Leave the layers at the point below p, bounce off one of the sphere's mirror points.
+        const std::vector<Vec3> mirrors = sphere_mirrors(p, l, *radius, m_eta);
+        if (mirrors.empty()) return std::nullopt;
+        candidates = int(mirrors.size());
+        const Vec3& mirror = mirrors[std::min(std::size_t(u * candidates), mirrors.size() - 1)];
+        w = sphere_refraction(p, mirror, *radius, m_eta);
+    }
+    // Newton on w in its tangent plane: each iterate traces the chain to find its triangles
+    // (the first surface hit from p, then from x[0]), then solves on their planes; a step that
+    // leaves the valid region (total internal reflection, a miss) is halved.
     struct Iterate {
-        Vec3 w;
-        std::uint32_t prim;
-        PlanePoint point;
+        InterfaceConnection c;
+        Vec3 landed;
         Eigen::Matrix2d J;
     };
+    const double led_z = m_shading.optics().led_z_mm;
     auto evaluate = [&](const Vec3& dir) -> std::optional<Iterate> {
-        const RayHit hit = scene.closest_interface_hit(p, dir, kHitGap_mm, inf);
-        if (!hit.hit()) return std::nullopt;
-        const EmbreeScene::Triangle t = scene.interface_triangle(hit.prim_id);
-        const auto point = to_led_plane(t, p, dir, m_eta, led_z);
+        EmbreeScene::Triangle tris[2];
+        std::uint32_t prims[2] = {0, 0};
+        Vec3 pos = p, d = dir;
+        for (int k = 0; k < n; ++k) {
+            const RayHit hit = scene.closest_interface_hit(pos, d, kHitGap_mm, inf);
+            if (!hit.hit()) return std::nullopt;
+            prims[k] = hit.prim_id;
+            tris[k] = scene.interface_triangle(hit.prim_id);
+            if (k + 1 == n) break;
+            // Follow the refraction to find where the reflection happens.
+            Vec3 out = Vec3::Zero();
+            const Vec3 nx = facing(hit.shading_normal, d);
+            if (!refract(d, nx, m_eta, out)) return std::nullopt;
+            pos = pos + hit.t_mm * d;
+            d = out;
+        }
+        const auto point = to_led_plane(tris, chain, p, dir, m_eta, led_z);
         Eigen::Matrix2d J;
-        if (!point || !led_plane_jacobian(t, p, dir, m_eta, led_z, J)) return std::nullopt;
-        return Iterate{dir, hit.prim_id, *point, J};
+        if (!point || !led_plane_jacobian(tris, chain, p, dir, m_eta, led_z, J))
+            return std::nullopt;
+        Iterate it;
+        it.c.direction = dir;
+        for (int k = 0; k < n; ++k) {
+            it.c.x_mm[k] = point->x[k];
+            it.c.prim[k] = prims[k];
+        }
+        it.c.fresnel = point->fresnel;
+        it.c.jacobian_mm2_per_sr = std::abs(J.determinant());
+        it.c.candidates = candidates;
+        it.landed = point->l;
+        it.J = J;
+        return it;
     };
     std::optional<Iterate> current = evaluate(w);
     if (!current) return std::nullopt;
     for (int it = 0; it < kConnectIterations; ++it) {
-        const Eigen::Vector2d g = (current->point.l - l).head<2>();
-        if (g.norm() < kConnectTolerance_mm)
-            return InterfaceConnection{current->w, current->point.x, 1.0 - current->point.F,
-                                       std::abs(current->J.determinant())};
+        const Eigen::Vector2d g = (current->landed - l).head<2>();
+        if (g.norm() < kConnectTolerance_mm) return current->c;
         if (!(std::abs(current->J.determinant()) > 1e-12)) return std::nullopt;
         Eigen::Vector2d step = -current->J.inverse() * g;
         if (step.norm() > kConnectMaxStep) step *= kConnectMaxStep / step.norm();
         Vec3 b1, b2;
-        orthonormal_basis(current->w, b1, b2);
+        orthonormal_basis(current->c.direction, b1, b2);
         std::optional<Iterate> next;
         for (int halving = 0; halving < 8 && !next; ++halving, step *= 0.5)
-            next = evaluate((current->w + step.x() * b1 + step.y() * b2).normalized());
+            next = evaluate((current->c.direction + step.x() * b1 + step.y() * b2).normalized());
         if (!next) return std::nullopt;
         current = next;
     }
@@ -230,22 +365,31 @@ LanesN<N> PathIntegrator::next_event(const EmbreeScene& scene, const Vec3& p, co
         const double pdf_nee = pdf_area * d2 / cos_l;
         return emitted * T * (cos_p / pdf_nee * power_heuristic(pdf_nee, cos_p * kInvPi));
     }
-    const auto c = connect(scene, p, l);
-    if (!c) return LanesN<N>::Zero();
-    const double cos_p = n.dot(c->direction);
-    if (!(cos_p > 0.0)) return LanesN<N>::Zero();
-    // Nothing between x and the LED in the cavity (the surface again, a marker poking out).
-    const Vec3 air = l - c->x_mm;
-    const double air_mm = air.norm();
-    if (air_mm > 2.0 * kHitGap_mm &&
-        (m_shading.crosses_frame(c->x_mm, air / air_mm, 0.0, air_mm) ||
-         scene.closest_hit(c->x_mm, air / air_mm, kHitGap_mm, air_mm - kHitGap_mm).hit()))
-        return LanesN<N>::Zero();
-    const LanesN<N> T = m_shading.transmittance(scene, c->x_mm, p, lanes, kHitGap_mm);
-    const double pdf_nee = pdf_area * c->jacobian_mm2_per_sr;
-    const double pdf_bsdf = cos_p * kInvPi * c->fresnel_transmittance;
-    return emitted * T *
-           (c->fresnel_transmittance * cos_p / pdf_nee * power_heuristic(pdf_nee, pdf_bsdf));
+    LanesN<N> total = LanesN<N>::Zero();
+    const double u_choice = rng.uniform();
+    for (Chain chain : {Chain::refracted, Chain::refracted_reflected}) {
+        const auto c = connect(scene, p, l, chain, u_choice);
+        if (!c) continue;
+        const double cos_p = n.dot(c->direction);
+        if (!(cos_p > 0.0)) continue;
+        // Nothing in the way in the cavity (the surface again, a marker poking out, the frame).
+        const int last = chain_length(chain) - 1;
+        bool blocked = false;
+        for (int k = 0; k <= last && !blocked; ++k) {
+            const Vec3 from = c->x_mm[k], to = k == last ? l : c->x_mm[k + 1];
+            const Vec3 seg = to - from;
+            const double len = seg.norm();
+            blocked = len > 2.0 * kHitGap_mm &&
+                      (m_shading.crosses_frame(from, seg / len, 0.0, len) ||
+                       scene.closest_hit(from, seg / len, kHitGap_mm, len - kHitGap_mm).hit());
+        }
+        if (blocked) continue;
+        const LanesN<N> T = m_shading.transmittance(scene, c->x_mm[0], p, lanes, kHitGap_mm);
+        const double pdf_nee = pdf_area * c->jacobian_mm2_per_sr / c->candidates;
+        const double pdf_bsdf = cos_p * kInvPi * c->fresnel;
+        total += emitted * T * (c->fresnel * cos_p / pdf_nee * power_heuristic(pdf_nee, pdf_bsdf));
+    }
+    return total;
 }
 
 template <int N>
@@ -263,11 +407,11 @@ LanesN<N> PathIntegrator::radiance(const EmbreeScene& scene, const Vec3& origin,
     // The last diffuse vertex and what happened since, for the MIS weight of an LED hit.
     struct {
         bool diffuse = false;
-        Vec3 p, w;              ///< the vertex and the direction sampled there
-        double pdf_bsdf = 0.0;  ///< cos / pi
-        int transmissions = 0;  ///< interface crossings since
-        bool reflected = false; ///< a reflection at the interface since
-        std::uint32_t prim = 0; ///< triangle of the last crossing
+        Vec3 p, w;                       ///< the vertex and the direction sampled there
+        double pdf_bsdf = 0.0;           ///< cos / pi
+        int events = 0;                  ///< interface events since, while they form a Chain
+        bool chain = true;               ///< false once they no longer do
+        std::uint32_t prims[2] = {0, 0}; ///< their triangles
     } last;
     int bounces = 0;
     // Lambertian scattering at p (normal n facing the incoming ray): NEE, then a new direction.
@@ -286,8 +430,8 @@ LanesN<N> PathIntegrator::radiance(const EmbreeScene& scene, const Vec3& origin,
         last.p = p;
         last.w = d;
         last.pdf_bsdf = std::max(0.0, n.dot(d)) * kInvPi;
-        last.transmissions = 0;
-        last.reflected = false;
+        last.events = 0;
+        last.chain = true;
         o = p;
         tnear = kHitGap_mm;
         path = MarkerPath(0.0);
@@ -300,15 +444,19 @@ LanesN<N> PathIntegrator::radiance(const EmbreeScene& scene, const Vec3& origin,
         if (const auto led = led_hit(o, d, tnear, tfar)) {
             if (!led->second) break; // the black back of an LED
             double weight = 1.0;
-            if (m_next_event && last.diffuse && !last.reflected) {
-                if (!scene.has_interface() && last.transmissions == 0) {
-                    const Vec3 l = o + led->first * d;
+            if (m_next_event && last.diffuse && last.chain) {
+                const Vec3 l = o + led->first * d;
+                if (!scene.has_interface() && last.events == 0) {
                     const double pdf_nee = pdf_area * (l - last.p).squaredNorm() / -d.z();
                     weight = power_heuristic(last.pdf_bsdf, pdf_nee);
-                } else if (scene.has_interface() && last.transmissions == 1) {
-                    if (const auto c = through_triangle(scene, last.prim, last.p, last.w))
-                        weight = power_heuristic(last.pdf_bsdf * c->fresnel_transmittance,
-                                                 pdf_area * c->jacobian_mm2_per_sr);
+                } else if (scene.has_interface() && last.events > 0) {
+                    // The density next-event estimation gives this chain (what next_event does).
+                    const Chain chain = Chain(last.events);
+                    const int candidates = sphere_candidates(scene, last.p, l, chain);
+                    const auto c = along(scene, chain, last.prims, last.p, last.w);
+                    if (c && candidates > 0)
+                        weight = power_heuristic(last.pdf_bsdf * c->fresnel,
+                                                 pdf_area * c->jacobian_mm2_per_sr / candidates);
                 }
             }
             L += beta * (lanes.led / m_led_area_mm2) * weight;
@@ -351,12 +499,19 @@ LanesN<N> PathIntegrator::radiance(const EmbreeScene& scene, const Vec3& origin,
             Vec3 next = Vec3::Zero();
             if (rng.uniform() < fresnel_dielectric(cos_i, eta)) {
                 next = (d + 2.0 * cos_i * n).normalized();
-                last.reflected = true;
+                // A reflection in the cavity after the refraction continues a Chain.
+                if (last.events == 1 && cos_g < 0.0)
+                    last.prims[last.events++] = hit.prim_id;
+                else
+                    last.chain = false;
                 go_on = next.dot(n_geometric) > 0.0; // shading normal sent it through
             } else {
                 go_on = refract(d, n, eta, next) && next.dot(n_geometric) < 0.0;
-                ++last.transmissions;
-                last.prim = hit.prim_id;
+                // A refraction out of the layers starts a Chain.
+                if (last.events == 0 && cos_g > 0.0)
+                    last.prims[last.events++] = hit.prim_id;
+                else
+                    last.chain = false;
             }
             o = p;
             d = next;

@@ -23,15 +23,18 @@
 ///
 /// Next-event estimation at each diffuse vertex p: one point l drawn uniformly on one LED
 /// drawn uniformly. Without an inner surface the connection is a straight shadow ray. With
-/// one, the light reaching p from l is refracted once: a Newton solve on the direction w
-/// leaving p finds the path p -> x -> l obeying Snell's law at the (shading-normal) interface
-/// point x (manifold next-event estimation, Hanika et al. 2015, for one refraction); its
-/// solid-angle density is pdf_area * |det dl/dw| with the 2 x 2 Jacobian of the map w -> l
-/// taken by central differences on x's triangle. Weight: (1 - F) times the markers'
-/// transmittance on p -> x, zero if anything lies between x and l. Both strategies are
-/// combined with the power heuristic on (pdf_nee, cos/pi (1 - F)); a path MNEE cannot make
-/// (a reflection at the interface between p and the LED, two crossings) gets weight 1 from
-/// BSDF sampling.
+/// one, the light reaching p from l passes the surface along a chain of specular events (Chain):
+/// refracted once, or refracted and then reflected off the surface from the cavity side. For
+/// each chain a Newton solve on the direction w leaving p finds the path obeying Snell's law
+/// and the mirror law at the (shading-normal) surface points (manifold next-event estimation,
+/// Hanika et al. 2015); it starts from the same chain on the sphere through the surface below
+/// p (one start for a refraction; for a reflection one of the sphere's solutions, drawn
+/// uniformly, the density divided by their number). The solid-angle density is pdf_area *
+/// |det dl/dw| / candidates, the 2 x 2 Jacobian of the map w -> l taken by central differences
+/// on the chain's triangles. Weight: the Fresnel factors times the markers' transmittance on
+/// p -> x, zero if anything lies between x and l. NEE and BSDF sampling are combined with the
+/// power heuristic on (pdf_nee, cos/pi times the Fresnel factors); a path no chain makes (more
+/// crossings or reflections) gets weight 1 from BSDF sampling.
 #include "render/embree_scene.hpp"
 #include "render/sampling.hpp"
 #include "render/shading.hpp"
@@ -43,12 +46,25 @@ namespace chromasim::render::detail {
 /// Most bounces of a path (Russian roulette ends nearly all paths long before).
 inline constexpr int kMaxBounces = 256;
 
-/// One refracted connection p -> x -> l found by `PathIntegrator::connect`.
+/// The specular events at the inner surface on a connection from a point p in the layers to an
+/// LED: the light leaves the layers (refracted), and may then reflect off the surface from the
+/// cavity side on its way to the LED (refracted_reflected: the LED seen in the cavity wall,
+/// strong at the grazing angles near the rim). Next-event estimation tries both.
+enum class Chain : std::uint8_t { refracted = 1, refracted_reflected = 2 };
+inline int chain_length(Chain c) {
+    return int(c);
+}
+
+/// One connection p -> x[0] (-> x[1]) -> l found by `PathIntegrator::connect`.
 struct InterfaceConnection {
-    Vec3 direction;               ///< unit direction leaving p towards x
-    Vec3 x_mm;                    ///< the point on the inner surface
-    double fresnel_transmittance; ///< 1 - F at x
-    double jacobian_mm2_per_sr;   ///< |det dl / dw|: LED-plane area per solid angle at p
+    Vec3 direction;                 ///< unit direction leaving p
+    Vec3 x_mm[2];                   ///< the surface points (the second for refracted_reflected)
+    std::uint32_t prim[2] = {0, 0}; ///< their triangles
+    double fresnel = 1.0;           ///< (1 - F) at x[0], times F at x[1]
+    double jacobian_mm2_per_sr;     ///< |det dl / dw|: LED-plane area per solid angle at p
+    /// Number of connections of the sphere model the start was drawn from (refracted: 1);
+    /// the connection's density is divided by it.
+    int candidates = 1;
 };
 
 class PathIntegrator {
@@ -64,21 +80,27 @@ public:
     LanesN<N> radiance(const EmbreeScene& scene, const Vec3& origin_mm, const Vec3& direction,
                        const LaneOptics<N>& lanes, PixelRng& rng) const;
 
-    /// The refracted path from `p_mm` (inside the clear layers) to `led_point_mm` (in the
-    /// cavity) through the inner surface, or nullopt if the Newton solve fails (no such path
-    /// through the surface the first ray meets, total internal reflection, no convergence).
-    /// Does not check occlusion. Pre-condition: scene.has_interface().
+    /// A path from `p_mm` (inside the clear layers) to `led_point_mm` (in the cavity) through
+    /// the inner surface with the events of `chain`, or nullopt if the Newton solve fails
+    /// (total internal reflection, a miss, no convergence). The start is the connection of the
+    /// sphere model through the surface below p; where that model has several (a reflection),
+    /// `u` picks one uniformly. Does not check occlusion. Pre-condition: scene.has_interface().
     std::optional<InterfaceConnection> connect(const EmbreeScene& scene, const Vec3& p_mm,
-                                               const Vec3& led_point_mm) const;
+                                               const Vec3& led_point_mm, Chain chain,
+                                               double u = 0.5) const;
 
-    /// Where the ray from `p_mm` along `direction` meets the LED plane after refracting at the
-    /// interface triangle `prim` (the plane of the triangle, its normals interpolated and
-    /// extrapolated linearly), with |det dl/dw| there; nullopt on total internal reflection or
-    /// when the refracted ray does not go down to the plane.
-    std::optional<InterfaceConnection> through_triangle(const EmbreeScene& scene,
-                                                        std::uint32_t prim, const Vec3& p_mm,
-                                                        const Vec3& direction,
-                                                        Vec3* led_plane_point_mm = nullptr) const;
+    /// The chain followed from `p_mm` along `direction` on the planes of the given triangles
+    /// (normals interpolated, and extrapolated linearly off the triangle) down to the LED plane,
+    /// with |det dl/dw| there and `landed` the LED-plane point; nullopt on total internal
+    /// reflection or when the ray does not go down to the plane. `candidates` is left 1.
+    std::optional<InterfaceConnection> along(const EmbreeScene& scene, Chain chain,
+                                             const std::uint32_t* prims, const Vec3& p_mm,
+                                             const Vec3& direction,
+                                             Vec3* landed_mm = nullptr) const;
+
+    /// Connections of the sphere model from p to l for `chain` (refracted: 1).
+    int sphere_candidates(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& led_point_mm,
+                          Chain chain) const;
 
     /// Number of LEDs, their area (mm^2), and the LED rectangle hit by the segment, if any.
     int led_count() const { return int(m_led_centres.size()); }
@@ -94,6 +116,8 @@ private:
     template <int N>
     LanesN<N> next_event(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& normal,
                          const LaneOptics<N>& lanes, PixelRng& rng) const;
+    /// Radius of the inner surface below p (the sphere model's), or nullopt without one.
+    std::optional<double> radius_below(const EmbreeScene& scene, const Vec3& p_mm) const;
 
     const ShadingModel& m_shading;
     bool m_next_event;

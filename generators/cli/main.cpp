@@ -4,6 +4,7 @@
 #include "generators/scene_export.hpp"
 #include "generators/spec.hpp"
 #include "generators/verify.hpp"
+#include "generators/image_io.hpp"
 #include "generators/verify_render.hpp"
 
 #include <CLI/CLI.hpp>
@@ -137,6 +138,13 @@ int main(int argc, char** argv) {
     bench_render->add_option("--modes", render_bench.modes, "spectral and/or rgb")
         ->delimiter(',')
         ->check(CLI::IsMember({"spectral", "rgb"}));
+    bench_render->add_option("--integrators", render_bench.integrators, "direct and/or path")
+        ->delimiter(',')
+        ->check(CLI::IsMember({"direct", "path"}));
+    bench_render
+        ->add_option("--reference-integrator", render_bench.reference_integrator,
+                     "integrator of the error reference")
+        ->check(CLI::IsMember({"direct", "path"}));
 
     auto* verify = app.add_subcommand("verify", "validation against analytic references");
     verify->require_subcommand(1);
@@ -160,6 +168,14 @@ int main(int argc, char** argv) {
     auto* verify_rend = verify->add_subcommand(
         "render", "fisheye projection, filter product, determinism, convergence slope");
     verify_rend->add_option("--json", verify_json, "also write the cases to this JSON file");
+    std::string reference_out;
+    int reference_spp = 4096;
+    verify_rend
+        ->add_option("--write-reference", reference_out,
+                     "only write the committed reference image (EXR) and stop")
+        ->check(CLI::NonexistentPath);
+    verify_rend->add_option("--reference-spp", reference_spp, "its samples per pixel")
+        ->check(CLI::Range(1, 1 << 20));
 
     CLI11_PARSE(app, argc, argv);
     std::unique_ptr<tbb::global_control> limit;
@@ -204,6 +220,12 @@ int main(int argc, char** argv) {
                 gen::write_verify_json(cases, json);
                 if (!json) throw std::runtime_error("cannot write " + verify_json);
             }
+            return 0;
+        }
+        if (*verify_rend && !reference_out.empty()) {
+            gen::write_exr(reference_out, gen::render_reference_dome(reference_spp, 1));
+            std::cout << "wrote " << reference_out << " (" << gen::kReferenceDomeSize_px << " px, "
+                      << reference_spp << " spp)\n";
             return 0;
         }
         if (*verify_rend) {
