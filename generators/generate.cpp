@@ -110,6 +110,10 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     const mechanics::DomeModel model(model_options);
     std::unique_ptr<render::Renderer> renderer;
     if (render_stage) renderer = std::make_unique<render::Renderer>(camera_params(spec), *optics);
+    // The camera sensor turns the PNG's pixels into a recording; the EXR stays noise-free.
+    std::optional<render::SensorModel> sensor;
+    if (spec.outputs.images && spec.render.sensor.enabled)
+        sensor.emplace(camera_params(spec), sensor_params(spec));
     report.precompute_s = seconds_since(t0);
     log_dome_model(spec, model, report.precompute_s, options.cache_dir, log);
 
@@ -134,9 +138,12 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
             fill_sensor_frame(model, r, sensor_frame);
             renderer->set_frame(sensor_frame);
             const render::Image image = renderer->render(settings);
+            std::optional<render::Image> recorded;
+            if (sensor) recorded = sensor->capture(image, std::uint64_t(f.index));
             report.render_s += seconds_since(t0);
             t0 = Clock::now();
-            if (spec.outputs.images) write_png(writer.image_path(f.index, &row.image), image);
+            if (spec.outputs.images)
+                write_png(writer.image_path(f.index, &row.image), recorded ? *recorded : image);
             if (spec.outputs.exr) write_exr(writer.image_path(f.index, &row.exr, "exr"), image);
             report.write_s += seconds_since(t0);
             ++report.images;

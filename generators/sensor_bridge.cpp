@@ -161,6 +161,23 @@ render::RenderSettings render_settings(const Spec& spec) {
     return s;
 }
 
+render::SensorParams sensor_params(const Spec& spec) {
+    const Spec::Render::Sensor& in = spec.render.sensor;
+    render::SensorParams p;
+    p.seed = in.seed;
+    p.gain = in.gain;
+    p.full_well_e = in.full_well_e;
+    p.read_noise_e = in.read_noise_e;
+    p.adc_bits = in.adc_bits;
+    p.shot_noise = in.shot_noise;
+    p.vignetting = in.vignetting == "none"   ? render::Vignetting::none
+                   : in.vignetting == "cos4" ? render::Vignetting::cos4
+                                             : render::Vignetting::polynomial;
+    p.vignetting_k1 = in.vignetting_k1;
+    p.vignetting_k2 = in.vignetting_k2;
+    return p;
+}
+
 void fill_sensor_frame(const mechanics::DomeModel& model, const mechanics::FrameResult& frame,
                        render::SensorFrame& out) {
     if (frame.coating_displacement_mm.rows() == 0 || frame.marker_points_mm.rows() == 0)

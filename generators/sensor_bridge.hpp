@@ -5,6 +5,7 @@
 #include "generators/spec.hpp"
 #include "mechanics/dome_model.hpp"
 #include "render/scene_data.hpp"
+#include "render/sensor_model.hpp"
 
 namespace chromasim::generators {
 
@@ -17,6 +18,8 @@ mechanics::ContactLoad contact_load(const FramePlan& f);
 render::OpticsParams optics_params(const Spec& spec);
 /// samples per pixel, seed, extra channels and integrator of the spec.
 render::RenderSettings render_settings(const Spec& spec);
+/// The camera sensor model's parameters of render.sensor (used only when it is enabled).
+render::SensorParams sensor_params(const Spec& spec);
 
 /// Fills `out` with the deformed coating and marker discs of `frame`, which must carry the coating
 /// displacement and marker points, and with the inner surface when the frame carries its

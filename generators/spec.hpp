@@ -95,6 +95,19 @@ struct Spec {
         double exposure = 1.0;
         bool spectral = true; ///< hero-wavelength spectral mode; false: RGB approximation
         std::string integrator = "direct"; ///< direct | path
+        /// The camera sensor model (render/sensor_model.hpp); the PNG only, the EXR stays the
+        /// noise-free render.
+        struct Sensor {
+            bool enabled = false;
+            std::uint64_t seed = 1;
+            double gain = 1.0;
+            double full_well_e = 1.0e4;
+            double read_noise_e = 2.3;
+            int adc_bits = 12;
+            bool shot_noise = true;
+            std::string vignetting = "polynomial"; ///< none | cos4 | polynomial
+            double vignetting_k1 = -0.3, vignetting_k2 = 0.0;
+        } sensor;
     } render;
 
     struct Outputs {

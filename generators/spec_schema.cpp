@@ -1,6 +1,7 @@
 #include "generators/spec_schema.hpp"
 
 #include "render/fisheye_camera.hpp"
+#include "render/sensor_model.hpp"
 
 #include <algorithm>
 #include <charconv>
@@ -370,6 +371,67 @@ void add_object_and_protocol(std::vector<SchemaEntry>& out) {
                           CHROMASIM_FIELD(pull.frames)));
 }
 
+/// render.sensor: the optional camera sensor model (render/sensor_model.hpp). The ranges are the
+/// ones render::SensorModel checks.
+void add_render_sensor(std::vector<SchemaEntry>& out) {
+    const std::string defaults =
+        " [G]: a typical value for the Sony IMX392 of the Basler dart daA1920-160uc (datasheet "
+        "class, SENSOR.md 1); replace it with your camera's measurement.";
+    out.push_back(boolean("render.sensor.enabled", false,
+                          "Pass the PNG through the camera sensor model: exposure gain, "
+                          "vignetting, shot and read noise, full-well clipping, ADC "
+                          "quantization, then the sRGB encoding of every PNG. The EXR keeps "
+                          "the noise-free linear render. false: the PNG is the render itself.",
+                          CHROMASIM_FIELD(render.sensor.enabled)));
+    out.push_back(integer("render.sensor.seed", 1, closed(0, 2147483647), "",
+                          "Seed of the sensor noise, independent of the top-level seed; mixed "
+                          "with the frame index, so every frame has its own noise.",
+                          CHROMASIM_FIELD(render.sensor.seed)));
+    out.push_back(number("render.sensor.gain", 1, left_open(0, render::kSensorMaxGain), "",
+                         "Exposure multiplier on the linear render before photo-conversion "
+                         "(1.0 in the render = full well): more light, relatively less shot "
+                         "noise.",
+                         CHROMASIM_FIELD(render.sensor.gain)));
+    out.push_back(number("render.sensor.full_well_e", 10000,
+                         left_open(0, render::kSensorMaxFullWellE), "e-",
+                         "Full-well capacity: photo-electrons at linear value 1.0, where the "
+                         "pixel saturates; sets the shot noise (sqrt of the electron count)." +
+                             defaults,
+                         CHROMASIM_FIELD(render.sensor.full_well_e)));
+    out.push_back(number("render.sensor.read_noise_e", 2.3, closed(0, render::kSensorMaxReadNoiseE),
+                         "e-",
+                         "Read noise, standard deviation of a Gaussian in electrons." + defaults,
+                         CHROMASIM_FIELD(render.sensor.read_noise_e)));
+    out.push_back(integer("render.sensor.adc_bits", 12,
+                          closed(render::kSensorMinAdcBits, render::kSensorMaxAdcBits), "bit",
+                          "ADC bit depth: the full well maps to code 2^bits - 1." + defaults,
+                          CHROMASIM_FIELD(render.sensor.adc_bits)));
+    out.push_back(boolean("render.sensor.shot_noise", true,
+                          "Poisson photon (shot) noise: by inversion below a mean of 64 "
+                          "electrons, by its normal approximation above; false: no shot noise.",
+                          CHROMASIM_FIELD(render.sensor.shot_noise)));
+    out.push_back(choice("render.sensor.vignetting.model", "polynomial",
+                         {"none", "cos4", "polynomial"},
+                         "Relative illumination RI at the field angle theta of each pixel: none "
+                         "(1), cos4 (cos^4 theta, a rectilinear lens's natural vignetting: far "
+                         "too dark near 90 deg for a fisheye), polynomial (max(0, 1 + k1 t^2 + "
+                         "k2 t^4), t = theta / sensor.camera.half_fov_deg, the image radius over "
+                         "the image circle's for the equidistant lens).",
+                         CHROMASIM_FIELD(render.sensor.vignetting)));
+    out.push_back(
+        number("render.sensor.vignetting.k1", -0.3,
+               closed(-render::kSensorMaxVignettingCoeff, render::kSensorMaxVignettingCoeff), "",
+               "t^2 coefficient of the polynomial vignetting [G]: -0.3 gives 70 % "
+               "illumination at the edge of the field, an assumed mild fall-off (not from the "
+               "lens's datasheet); fit your own to a flat-field image.",
+               CHROMASIM_FIELD(render.sensor.vignetting_k1)));
+    out.push_back(
+        number("render.sensor.vignetting.k2", 0,
+               closed(-render::kSensorMaxVignettingCoeff, render::kSensorMaxVignettingCoeff), "",
+               "t^4 coefficient of the polynomial vignetting [G].",
+               CHROMASIM_FIELD(render.sensor.vignetting_k2)));
+}
+
 void add_render_and_outputs(std::vector<SchemaEntry>& out) {
     out.push_back(integer("render.width_px", 256, closed(16, 4096), "px", "Image width.",
                           CHROMASIM_FIELD(render.width_px)));
@@ -393,6 +455,7 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                          "interreflection and area LEDs (the reference; docs/VALIDATION.md has "
                          "the difference and the cost).",
                          CHROMASIM_FIELD(render.integrator)));
+    add_render_sensor(out);
     out.push_back(boolean("outputs.images", true,
                           "Write a PNG per frame (8-bit sRGB); with outputs.exr false too, the "
                           "render stage is skipped.",

@@ -400,3 +400,50 @@ TEST_CASE("EXR output: linear RGB like the PNG, marker ids and variance channels
                       Catch::Contains("outputs.exr") && Catch::Contains("marker_ids"));
     fs::remove_all(dir);
 }
+
+TEST_CASE("render.sensor: the PNG is the sensor's recording, the EXR stays the noise-free render",
+          "[generators][e2e]") {
+    const fs::path dir = fresh_dir("sensor");
+    fs::create_directories(dir);
+    GenerateOptions options;
+    options.quiet = true;
+    options.cache_dir = dir / "cache"; // the second run reuses the first one's mesh
+    auto run = [&](const std::string& name, const std::string& sensor) {
+        const fs::path spec_file = dir / (name + ".yaml");
+        std::ofstream(spec_file)
+            << "name: sensor\nrender:\n  width_px: 48\n  height_px: 48\n  samples_per_pixel: 1\n"
+            << sensor << "protocol:\n  press:\n    frames: 2\n  pull:\n    frames: 0\n"
+            << "outputs:\n  exr: true\n  markers: false\n";
+        options.out_dir = dir / name;
+        std::ostringstream log;
+        generate(load_spec(spec_file), options, log);
+        return options.out_dir / "images";
+    };
+    const fs::path plain = run("plain", "");
+    const fs::path noisy = run("noisy", "  sensor:\n    enabled: true\n    vignetting:\n"
+                                        "      model: none\n");
+    for (const char* frame : {"frame_000000", "frame_000001"}) {
+        INFO(frame);
+        const ImageF exr_plain = read_image_float(plain / (std::string(frame) + ".exr"));
+        const ImageF exr_noisy = read_image_float(noisy / (std::string(frame) + ".exr"));
+        CHECK(exr_plain.data == exr_noisy.data); // the EXR is the render, bit for bit
+        const Image8 png_plain = read_image8(plain / (std::string(frame) + ".png"));
+        const Image8 png_noisy = read_image8(noisy / (std::string(frame) + ".png"));
+        REQUIRE(png_plain.data.size() == png_noisy.data.size());
+        // Noise of a few 8-bit levels about the same image: unbiased, no vignetting asked for.
+        double sum = 0, sum_abs = 0;
+        int differ = 0;
+        for (std::size_t i = 0; i < png_plain.data.size(); ++i) {
+            const double d = double(png_noisy.data[i]) - double(png_plain.data[i]);
+            sum += d;
+            sum_abs += std::abs(d);
+            differ += d != 0;
+        }
+        const double n = double(png_plain.data.size());
+        INFO("mean difference " << sum / n << ", mean |difference| " << sum_abs / n);
+        CHECK(differ > n / 4);
+        CHECK(std::abs(sum / n) < 0.2);
+        CHECK(sum_abs / n < 4.0);
+    }
+    fs::remove_all(dir);
+}

@@ -162,7 +162,7 @@ TEST_CASE("an unknown key is named with its position and the allowed keys", "[ge
     CHECK(error_of("render:\n  widht_px: 300\n") ==
           "bad.yaml:2:3: render.widht_px: unknown key 'widht_px' (did you mean 'width_px'?); "
           "allowed keys in 'render': width_px, height_px, samples_per_pixel, exposure, spectral, "
-          "integrator");
+          "integrator, sensor");
     CHECK(error_of("name: x\nfrobnicate: 1\n") ==
           "bad.yaml:2:1: frobnicate: unknown key 'frobnicate'; allowed keys at the top level: "
           "name, seed, sensor, object, protocol, render, outputs");
@@ -207,7 +207,7 @@ TEST_CASE("a value of the wrong type is rejected", "[generators][spec]") {
         CHECK(error_of("render: 5\n") ==
               "bad.yaml:1:9: render: value '5' is a single value, not a mapping; allowed: a "
               "mapping with keys in 'render': width_px, height_px, samples_per_pixel, exposure, "
-              "spectral, integrator");
+              "spectral, integrator, sensor");
     }
     SECTION("anything but true or false for a bool") {
         CHECK(error_of("outputs:\n  images: yes\n") ==
@@ -360,6 +360,43 @@ TEST_CASE("the camera keys reach the renderer's camera", "[generators][spec]") {
                                  "half_fov_deg: 40}\n",
                                  "ok.yaml"));
         CHECK_NOTHROW(parse_spec("sensor:\n  camera: {k1: -0.5}\n", "ok.yaml"));
+    }
+}
+
+TEST_CASE("the render.sensor keys reach the sensor model", "[generators][spec]") {
+    using chromasim::render::Vignetting;
+    SECTION("off by default, IMX392-class values when on") {
+        const Spec spec = parse_spec("name: x\n", "ok.yaml");
+        CHECK_FALSE(spec.render.sensor.enabled);
+        const chromasim::render::SensorParams p = sensor_params(spec);
+        CHECK(p.full_well_e == 10000.0);
+        CHECK(p.read_noise_e == 2.3);
+        CHECK(p.adc_bits == 12);
+        CHECK(p.vignetting == Vignetting::polynomial);
+        CHECK(p.vignetting_k1 == -0.3);
+    }
+    SECTION("every key is passed on") {
+        const chromasim::render::SensorParams p = sensor_params(
+            parse_spec("render:\n  sensor:\n    enabled: true\n    seed: 9\n    gain: 2.5\n"
+                       "    full_well_e: 6000\n    read_noise_e: 4\n    adc_bits: 10\n"
+                       "    shot_noise: false\n    vignetting: {model: cos4, k1: 0.1, k2: -0.2}\n",
+                       "ok.yaml"));
+        CHECK(p.seed == 9);
+        CHECK(p.gain == 2.5);
+        CHECK(p.full_well_e == 6000.0);
+        CHECK(p.read_noise_e == 4.0);
+        CHECK(p.adc_bits == 10);
+        CHECK_FALSE(p.shot_noise);
+        CHECK(p.vignetting == Vignetting::cos4);
+        CHECK(p.vignetting_k1 == 0.1);
+        CHECK(p.vignetting_k2 == -0.2);
+    }
+    SECTION("out of range values are rejected with what is allowed") {
+        CHECK(error_of("render:\n  sensor:\n    adc_bits: 20\n") ==
+              "bad.yaml:3:15: render.sensor.adc_bits: value '20' is out of range; allowed: "
+              "integer in [1, 16] (bit)");
+        CHECK_THAT(error_of("render:\n  sensor:\n    full_well_e: -5\n"),
+                   Contains("render.sensor.full_well_e: value '-5' is out of range"));
     }
 }
 
