@@ -178,6 +178,8 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
     render::SensorFrame reference_frame = sensor;
     if (o.reference_integrator == "direct") reference_frame.inner_surface = {};
     reference_renderer.set_frame(reference_frame);
+    const render::SensorFrame rest = undeformed_sensor_frame(model);
+    reference_renderer.set_exposure_reference(rest);
     const auto integrator_of = [](const std::string& name) {
         return name == "path" ? render::Integrator::path : render::Integrator::direct;
     };
@@ -208,6 +210,7 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
             render::SensorFrame frame = sensor;
             if (integrator == "direct") frame.inner_surface = {};
             renderer.set_frame(frame);
+            renderer.set_exposure_reference(rest); // used by the path integrator only
             for (int spp : o.samples_per_pixel) {
                 render::Image img;
                 const double t = time_median(

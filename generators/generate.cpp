@@ -109,7 +109,12 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     model_options.cache_dir = options.cache_dir;
     const mechanics::DomeModel model(model_options);
     std::unique_ptr<render::Renderer> renderer;
-    if (render_stage) renderer = std::make_unique<render::Renderer>(camera_params(spec), *optics);
+    if (render_stage) {
+        renderer = std::make_unique<render::Renderer>(camera_params(spec), *optics);
+        // The path integrator's auto exposure: its own undeformed apex (render/renderer.hpp).
+        if (spec.render.integrator == "path")
+            renderer->set_exposure_reference(undeformed_sensor_frame(model));
+    }
     // The camera sensor turns the PNG's pixels into a recording; the EXR stays noise-free.
     std::optional<render::SensorModel> sensor;
     if (spec.outputs.images && spec.render.sensor.enabled)

@@ -178,6 +178,18 @@ render::SensorParams sensor_params(const Spec& spec) {
     return p;
 }
 
+render::SensorFrame undeformed_sensor_frame(const mechanics::DomeModel& model) {
+    mechanics::FrameResult rest;
+    rest.coating_displacement_mm =
+        mechanics::Points::Zero(Eigen::Index(model.coating_surface().nodes.size()), 3);
+    rest.inner_surface_displacement_mm =
+        mechanics::Points::Zero(Eigen::Index(model.inner_surface().nodes.size()), 3);
+    rest.marker_points_mm = model.markers().points;
+    render::SensorFrame frame;
+    fill_sensor_frame(model, rest, frame);
+    return frame;
+}
+
 void fill_sensor_frame(const mechanics::DomeModel& model, const mechanics::FrameResult& frame,
                        render::SensorFrame& out) {
     if (frame.coating_displacement_mm.rows() == 0 || frame.marker_points_mm.rows() == 0)

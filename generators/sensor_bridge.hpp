@@ -21,6 +21,9 @@ render::RenderSettings render_settings(const Spec& spec);
 /// The camera sensor model's parameters of render.sensor (used only when it is enabled).
 render::SensorParams sensor_params(const Spec& spec);
 
+/// The sensor at rest: coating, inner surface (if the dome has one) and markers undeformed.
+render::SensorFrame undeformed_sensor_frame(const mechanics::DomeModel& model);
+
 /// Fills `out` with the deformed coating and marker discs of `frame`, which must carry the coating
 /// displacement and marker points, and with the inner surface when the frame carries its
 /// displacement (else it is left empty). Reuses `out`'s buffers (same sizes every frame).

@@ -40,18 +40,10 @@ render::OpticsParams spectral_optics() {
 /// The coarse dome's sensor frame, undeformed (`load` empty) or under a load from rest.
 render::SensorFrame dome_frame(const mechanics::DomeModel& model,
                                const mechanics::ContactLoad* load) {
-    mechanics::FrameResult r;
-    if (load) {
-        mechanics::FrameRequest request{true, true, false};
-        request.inner_surface = true;
-        r = model.solve(*load, request);
-    } else {
-        r.coating_displacement_mm =
-            mechanics::Points::Zero(Eigen::Index(model.coating_surface().nodes.size()), 3);
-        r.inner_surface_displacement_mm =
-            mechanics::Points::Zero(Eigen::Index(model.inner_surface().nodes.size()), 3);
-        r.marker_points_mm = model.markers().points;
-    }
+    if (!load) return undeformed_sensor_frame(model);
+    mechanics::FrameRequest request{true, true, false};
+    request.inner_surface = true;
+    const mechanics::FrameResult r = model.solve(*load, request);
     render::SensorFrame frame;
     fill_sensor_frame(model, r, frame);
     return frame;
@@ -326,7 +318,9 @@ render::Image render_reference_dome(int samples_per_pixel, std::uint64_t seed) {
     const mechanics::DomeModel model{dome_options(Spec{})};
     render::Renderer renderer({kReferenceDomeSize_px, kReferenceDomeSize_px, 84.0},
                               optics_params(Spec{}));
-    renderer.set_frame(dome_frame(model, nullptr));
+    const render::SensorFrame rest = undeformed_sensor_frame(model);
+    renderer.set_exposure_reference(rest);
+    renderer.set_frame(rest);
     render::RenderSettings settings{samples_per_pixel, seed};
     settings.variance = true;
     settings.integrator = render::Integrator::path;

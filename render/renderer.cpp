@@ -115,7 +115,9 @@ struct Renderer::Impl {
     detail::ShadingModel shading;
     detail::PathIntegrator path{shading};
     detail::EmbreeScene scene;
-    double scale;     ///< image value per unit radiance
+    double scale; ///< image value per unit radiance (analytic: the direct model's apex)
+    /// The path integrator's scale once set_exposure_reference measured its apex.
+    std::optional<double> path_scale;
     double led_scale; ///< spectral mode: relative LED intensity (mean of led_rgb)
     /// Spectral mode: wavelengths drawn in proportion to what the camera sees of the LED
     /// (camera_weight), 10 % uniform: per sample, a white surface's standard deviation falls
@@ -133,6 +135,8 @@ struct Renderer::Impl {
     /// sum of the squared (scaled) samples.
     detail::Rgb render_pixel(int x, int y, const RenderSettings& settings,
                              detail::Rgb* sum2 = nullptr) const {
+        const double scale =
+            settings.integrator == Integrator::path && path_scale ? *path_scale : this->scale;
         const auto [nx, ny] = detail::strata_grid(settings.samples_per_pixel);
         const std::uint64_t index = std::uint64_t(y) * std::uint64_t(camera.width_px()) + x;
         detail::PixelRng rng(settings.seed, index);
@@ -203,6 +207,48 @@ Renderer::Renderer(const CameraParams& camera, const OpticsParams& optics)
     : m_impl(std::make_unique<Impl>(camera, optics)) {}
 
 Renderer::~Renderer() = default;
+
+void Renderer::set_exposure_reference(const SensorFrame& undeformed) {
+    // The apex seen through the bare dome: coating and inner surface, no markers.
+    SensorFrame bare;
+    bare.coating = undeformed.coating;
+    bare.inner_surface = undeformed.inner_surface;
+    detail::EmbreeScene apex;
+    apex.set_frame(bare);
+    // Fixed blocks, each with its own stream, summed in order: the same value on any threads.
+    constexpr int kBlocks = 64, kPathsPerBlock = 512;
+    std::vector<detail::Rgb> partial(kBlocks, detail::Rgb::Zero());
+    const Impl& m = *m_impl;
+    const std::optional<SensorSpectra>& spectra = m.shading.optics().spectra;
+    const detail::LaneOptics<detail::kRgbLanes> rgb_lanes = m.shading.rgb_lanes();
+    const Vec3 origin = Vec3::Zero(), up(0.0, 0.0, 1.0);
+    tbb::parallel_for(0, kBlocks, [&](int b) {
+        detail::PixelRng rng(0xA9E7, std::uint64_t(b));
+        for (int i = 0; i < kPathsPerBlock; ++i) {
+            if (!spectra) {
+                partial[b] += m.path.radiance(apex, origin, up, rgb_lanes, rng).head<3>();
+                continue;
+            }
+            const double u = (i + rng.uniform()) / kPathsPerBlock;
+            detail::Lanes lambda_nm, pdf_per_nm;
+            m.wavelengths->sample<detail::kSpectralLanes>(u, lambda_nm, pdf_per_nm);
+            const auto lanes = detail::spectral_lanes(*spectra, lambda_nm, m.led_scale);
+            partial[b] +=
+                camera_rgb<detail::kSpectralLanes>(spectra->camera, lambda_nm, pdf_per_nm,
+                                                   m.path.radiance(apex, origin, up, lanes, rng));
+        }
+    });
+    detail::Rgb sum = detail::Rgb::Zero();
+    for (const detail::Rgb& p : partial)
+        sum += p;
+    const double reference = (sum / (kBlocks * kPathsPerBlock)).maxCoeff();
+    if (!(reference > 0.0)) {
+        throw std::invalid_argument(
+            "Renderer::set_exposure_reference: the path-traced undeformed apex is dark, so auto "
+            "exposure is undefined; allowed: a frame whose coating the LEDs light");
+    }
+    m_impl->path_scale = m.shading.optics().exposure * detail::kApexImageValue / reference;
+}
 
 void Renderer::set_frame(const SensorFrame& frame) {
     detail::validate_marker_layout(frame);

@@ -21,6 +21,13 @@ public:
     /// Loads (first call, or changed topology) or refits (same topology) the scene.
     void set_frame(const SensorFrame& frame);
 
+    /// Auto exposure of the path integrator: path-traces the apex of `undeformed` (its
+    /// coating and inner surface, no markers) along the camera axis at the dome centre and
+    /// scales path images so that it maps to 0.8 (times OpticsParams::exposure), as the direct
+    /// integrator's analytic exposure does for its own model. Deterministic (fixed seed and
+    /// blocks). Without it, path images use the direct model's analytic scale.
+    void set_exposure_reference(const SensorFrame& undeformed);
+
     /// Renders the current frame. Linear RGB, auto-exposed so that the undeformed apex of a
     /// white coating maps to about 0.8 (times OpticsParams::exposure).
     Image render(const RenderSettings& settings) const;

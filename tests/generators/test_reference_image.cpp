@@ -44,6 +44,7 @@ TEST_CASE("the undeformed dome, path-traced afresh, matches the committed refere
                         << rms << " against " << predicted << " predicted");
         CHECK(std::abs(mean_diff) < 4.0 * predicted / std::sqrt(n));
         CHECK(rms == Approx(predicted).epsilon(0.3));
-        CHECK(predicted < 0.1 * level / n); // the comparison can see a 1 % shift of the mean
+        // The comparison can see a 2 % shift of the image's mean.
+        CHECK(4.0 * predicted / std::sqrt(n) < 0.02 * level / n);
     }
 }

@@ -147,10 +147,13 @@ Eigen::Array3d pixel_at(const Renderer& renderer, const Image& image, const Vec3
 }
 
 Image render_frame(const CameraParams& camera, const OpticsParams& optics, const SensorFrame& frame,
-                   int spp = 2, std::uint64_t seed = 1) {
+                   int spp = 2, std::uint64_t seed = 1,
+                   Integrator integrator = Integrator::direct) {
     Renderer renderer(camera, optics);
     renderer.set_frame(frame);
-    return renderer.render({spp, seed});
+    RenderSettings settings{spp, seed};
+    settings.integrator = integrator;
+    return renderer.render(settings);
 }
 
 /// 33 x 33 px over +-8 deg: the centre pixel sees only the apex region (+-0.25 deg).
@@ -586,12 +589,21 @@ TEST_CASE("degenerate deformation: zero-area triangles and rays at the image cir
     OpticsParams spectral;
     spectral.spectra = load_sensor_spectra(SensorSpectraFiles::in_directory(
         std::filesystem::path(CHROMASIM_SOURCE_DIR) / "assets" / "spectra"));
-    for (const OpticsParams& optics : {OpticsParams{}, spectral}) {
-        // 84 deg: the rim pixels' rays run almost along the rim plane, grazing the coating.
-        const Image image = render_frame(CameraParams{96, 96, 84.0}, optics, frame, 4, 9);
-        CHECK(all_finite(image));
-        CHECK(*std::max_element(image.rgb.begin(), image.rgb.end()) < 100.0f);
-        // A camera wider than the dome (100 deg): rays below the rim plane see nothing.
-        CHECK(all_finite(render_frame(CameraParams{64, 64, 100.0}, optics, frame, 2, 9)));
-    }
+    // The path integrator also refracts at an inner surface with a collapsed triangle.
+    frame.inner_surface = hemisphere(10.5, 24, 48);
+    const Eigen::RowVector3f q = frame.inner_surface.V.row(frame.inner_surface.F(7, 0));
+    for (int k = 0; k < 3; ++k)
+        frame.inner_surface.V.row(frame.inner_surface.F(7, k)) = q;
+    for (const Integrator integrator : {Integrator::direct, Integrator::path})
+        for (const OpticsParams& optics : {OpticsParams{}, spectral}) {
+            INFO("integrator " << int(integrator) << ", spectral " << bool(optics.spectra));
+            // 84 deg: the rim pixels' rays run almost along the rim plane, grazing the coating.
+            const Image image =
+                render_frame(CameraParams{96, 96, 84.0}, optics, frame, 4, 9, integrator);
+            CHECK(all_finite(image));
+            CHECK(*std::max_element(image.rgb.begin(), image.rgb.end()) < 100.0f);
+            // A camera wider than the dome (100 deg): rays below the rim plane see nothing.
+            CHECK(all_finite(
+                render_frame(CameraParams{64, 64, 100.0}, optics, frame, 2, 9, integrator)));
+        }
 }
