@@ -86,7 +86,7 @@ DatasetWriter::DatasetWriter(fs::path out_dir, const Spec& spec, bool overwrite)
 }
 
 void DatasetWriter::open_outputs() {
-    if (m_spec.outputs.images) fs::create_directories(m_staging / "images");
+    if (m_spec.outputs.images || m_spec.outputs.exr) fs::create_directories(m_staging / "images");
     if (m_spec.outputs.labels)
         m_labels = open_csv(m_staging / "labels.csv",
                             "frame,phase,image,exr,normal_force_N,tangential_force_N,"

@@ -103,11 +103,19 @@ bool led_plane_jacobian(const EmbreeScene::Triangle* tris, Chain chain, const Ve
 }
 
 /// The point on the circle of radius R about the origin, in the plane of unit vectors e1, e2,
-/// at angle psi from e1, and the circle's unit tangent there.
-std::pair<Vec3, Vec3> on_circle(const Vec3& e1, const Vec3& e2, double R, double psi) {
-    return {R * (std::cos(psi) * e1 + std::sin(psi) * e2),
-            -std::sin(psi) * e1 + std::cos(psi) * e2};
+/// at the angle of cosine c and sine s from e1, and the circle's unit tangent there.
+std::pair<Vec3, Vec3> on_circle(const Vec3& e1, const Vec3& e2, double R, double c, double s) {
+    return {R * (c * e1 + s * e2), -s * e1 + c * e2};
 }
+std::pair<Vec3, Vec3> on_circle(const Vec3& e1, const Vec3& e2, double R, double psi) {
+    return on_circle(e1, e2, R, std::cos(psi), std::sin(psi));
+}
+
+/// Bisection steps of the sphere model's angles: 2^-30 of the bracket (below 1e-8 rad), far
+/// finer than the Newton solve on the mesh that starts from them needs.
+constexpr int kBisections = 30;
+/// Samples of the circle when looking for the sphere model's mirror points.
+constexpr int kMirrorScan = 64;
 
 /// The refraction of p -> l by the sphere about the origin of radius R: the direction from p
 /// to the point x where the tangential components of the unit directions obey Snell's law,
@@ -125,7 +133,7 @@ Vec3 sphere_refraction(const Vec3& p, const Vec3& l, double R, double eta) {
     double lo = 0.0, hi = psi_l;
     const double f_lo = mismatch(lo);
     if (f_lo * mismatch(hi) > 0.0) return (l - p).normalized();
-    for (int i = 0; i < 60; ++i) {
+    for (int i = 0; i < kBisections; ++i) {
         const double mid = 0.5 * (lo + hi);
         ((mismatch(mid) > 0.0) == (f_lo > 0.0) ? lo : hi) = mid;
     }
@@ -135,26 +143,36 @@ Vec3 sphere_refraction(const Vec3& p, const Vec3& l, double R, double eta) {
 /// The reflections of a -> l off the inside of the sphere about the origin of radius R (a on
 /// the sphere, l inside): the angles of the points x where the mirror law holds,
 /// (x - a)^ . tau = (l - x)^ . tau, in the plane of O, a and l (e1 = a^), found by scanning
-/// the circle and bisecting each sign change.
+/// the circle and bisecting each sign change; arcs below the rim plane z = 0 are skipped.
 std::vector<Vec3> sphere_reflections(const Vec3& a, const Vec3& l, double R) {
     const Vec3 e1 = a.normalized();
     Vec3 e2 = l - l.dot(e1) * e1;
     if (!(e2.norm() > 1e-9)) return {};
     e2.normalize();
-    auto mismatch = [&](double psi) {
-        const auto [x, tau] = on_circle(e1, e2, R, psi);
+    auto mismatch_at = [&](double c, double s) {
+        const auto [x, tau] = on_circle(e1, e2, R, c, s);
         return (x - a).normalized().dot(tau) - (l - x).normalized().dot(tau);
     };
-    constexpr int kScan = 90;
+    auto mismatch = [&](double psi) { return mismatch_at(std::cos(psi), std::sin(psi)); };
     constexpr double kEdge = 1e-3; // x = a is no reflection
+    const double step = (2.0 * std::numbers::pi - 2.0 * kEdge) / kMirrorScan;
+    const double cos_step = std::cos(step), sin_step = std::sin(step);
     std::vector<Vec3> points;
-    double prev_psi = kEdge, prev = mismatch(prev_psi);
-    for (int i = 1; i <= kScan; ++i) {
-        const double psi = kEdge + (2.0 * std::numbers::pi - 2.0 * kEdge) * i / kScan;
-        const double f = mismatch(psi);
-        if ((f > 0.0) != (prev > 0.0)) {
+    double c = std::cos(kEdge), s = std::sin(kEdge); // the scan turns (c, s) by step
+    double prev_psi = kEdge, prev = mismatch_at(c, s);
+    for (int i = 1; i <= kMirrorScan; ++i) {
+        const double psi = kEdge + step * i;
+        const double c_next = c * cos_step - s * sin_step;
+        s = s * cos_step + c * sin_step;
+        c = c_next;
+        const double f = mismatch_at(c, s);
+        // Mirror points below the rim plane are no use (the dome is a hemisphere): skip arcs
+        // whose ends both lie there (an arc of 2 pi / kMirrorScan rises at most 0.02 mm).
+        const bool below = (c * e1.z() + s * e2.z()) <= 0.0 &&
+                           (std::cos(prev_psi) * e1.z() + std::sin(prev_psi) * e2.z()) <= 0.0;
+        if (!below && (f > 0.0) != (prev > 0.0)) {
             double lo = prev_psi, hi = psi;
-            for (int j = 0; j < 50; ++j) {
+            for (int j = 0; j < kBisections; ++j) {
                 const double mid = 0.5 * (lo + hi);
                 ((mismatch(mid) > 0.0) == (prev > 0.0) ? lo : hi) = mid;
             }

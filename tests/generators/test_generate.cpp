@@ -398,6 +398,17 @@ TEST_CASE("EXR output: linear RGB like the PNG, marker ids and variance channels
     // Channels without the EXR they belong to are refused before any work.
     CHECK_THROWS_WITH(parse_spec("outputs:\n  marker_ids: true\n", "bad.yaml"),
                       Catch::Contains("outputs.exr") && Catch::Contains("marker_ids"));
+    // The EXR alone: no PNG, and the images folder still made for it.
+    {
+        std::ofstream f(spec_file);
+        f << "name: exr_only\nrender:\n  width_px: 32\n  height_px: 32\n  samples_per_pixel: 1\n"
+             "protocol:\n  press:\n    frames: 1\n  pull:\n    frames: 0\n"
+             "outputs:\n  images: false\n  exr: true\n  markers: false\n";
+    }
+    options.out_dir = dir / "exr_only";
+    generate(load_spec(spec_file), options, log);
+    CHECK(read_image_float(options.out_dir / "images" / "frame_000000.exr").width == 32);
+    CHECK_FALSE(fs::exists(options.out_dir / "images" / "frame_000000.png"));
     fs::remove_all(dir);
 }
 
