@@ -145,40 +145,44 @@ struct Renderer::Impl {
             sum += value;
             if (sum2) *sum2 += (value * scale).square();
         };
-        const std::optional<SensorSpectra>& spectra = shading.optics().spectra;
-        const detail::LaneOptics<detail::kRgbLanes> rgb_lanes = shading.rgb_lanes();
         const int n = settings.samples_per_pixel;
         for (int sy = 0; sy < ny; ++sy) {
             for (int sx = 0; sx < nx; ++sx) {
                 const double u = (sx + rng.uniform()) / nx;
                 const double v = (sy + rng.uniform()) / ny;
                 const auto direction = camera.direction(Eigen::Vector2d(x + u, y + v));
-                const bool path_traced = settings.integrator == Integrator::path;
-                if (!spectra) {
-                    if (direction && path_traced)
-                        add(path.radiance(scene, camera.origin_mm(), *direction, rgb_lanes, rng)
-                                .head<3>());
-                    else if (direction)
-                        add(shading.radiance(scene, camera.origin_mm(), *direction));
-                    continue;
-                }
                 // Hero wavelengths, stratified over the pixel's samples: sample k takes stratum
                 // (3 k + 1) mod n (a fixed shuffle, so position and wavelength strata do not
-                // pair up along the pixel's rows).
+                // pair up along the pixel's rows). The RGB mode draws none.
                 const int k = sy * nx + sx;
-                const double u_lambda = (double((3 * k + 1) % n) + rng.uniform()) / n;
-                if (!direction) continue;
-                detail::Lanes lambda_nm, pdf_per_nm;
-                wavelengths->sample<detail::kSpectralLanes>(u_lambda, lambda_nm, pdf_per_nm);
-                const auto lanes = detail::spectral_lanes(*spectra, lambda_nm, led_scale);
-                const detail::Lanes radiance =
-                    path_traced ? path.radiance(scene, camera.origin_mm(), *direction, lanes, rng)
-                                : shading.radiance(scene, camera.origin_mm(), *direction, lanes);
-                add(camera_rgb<detail::kSpectralLanes>(spectra->camera, lambda_nm, pdf_per_nm,
-                                                       radiance));
+                const double u_lambda =
+                    wavelengths ? (double((3 * k + 1) % n) + rng.uniform()) / n : 0.0;
+                if (direction)
+                    add(sample_rgb(scene, camera.origin_mm(), *direction, settings.integrator,
+                                   u_lambda, rng));
             }
         }
         return sum * (scale / settings.samples_per_pixel);
+    }
+
+    /// Camera RGB (before exposure) of one sample along the ray: the RGB mode's lanes, or 16
+    /// hero wavelengths drawn from u_lambda, through either integrator.
+    detail::Rgb sample_rgb(const detail::EmbreeScene& in, const Vec3& origin, const Vec3& direction,
+                           Integrator integrator, double u_lambda, detail::PixelRng& rng) const {
+        const bool path_traced = integrator == Integrator::path;
+        const std::optional<SensorSpectra>& spectra = shading.optics().spectra;
+        if (!spectra)
+            return path_traced
+                       ? detail::Rgb(path.radiance(in, origin, direction, shading.rgb_lanes(), rng)
+                                         .head<3>())
+                       : shading.radiance(in, origin, direction);
+        detail::Lanes lambda_nm, pdf_per_nm;
+        wavelengths->sample<detail::kSpectralLanes>(u_lambda, lambda_nm, pdf_per_nm);
+        const auto lanes = detail::spectral_lanes(*spectra, lambda_nm, led_scale);
+        const detail::Lanes radiance = path_traced
+                                           ? path.radiance(in, origin, direction, lanes, rng)
+                                           : shading.radiance(in, origin, direction, lanes);
+        return camera_rgb<detail::kSpectralLanes>(spectra->camera, lambda_nm, pdf_per_nm, radiance);
     }
 
     /// The marker of each layer (index within the layer, or -1) that the ray through the
@@ -219,23 +223,12 @@ void Renderer::set_exposure_reference(const SensorFrame& undeformed) {
     constexpr int kBlocks = 64, kPathsPerBlock = 512;
     std::vector<detail::Rgb> partial(kBlocks, detail::Rgb::Zero());
     const Impl& m = *m_impl;
-    const std::optional<SensorSpectra>& spectra = m.shading.optics().spectra;
-    const detail::LaneOptics<detail::kRgbLanes> rgb_lanes = m.shading.rgb_lanes();
     const Vec3 origin = Vec3::Zero(), up(0.0, 0.0, 1.0);
     tbb::parallel_for(0, kBlocks, [&](int b) {
         detail::PixelRng rng(0xA9E7, std::uint64_t(b));
         for (int i = 0; i < kPathsPerBlock; ++i) {
-            if (!spectra) {
-                partial[b] += m.path.radiance(apex, origin, up, rgb_lanes, rng).head<3>();
-                continue;
-            }
-            const double u = (i + rng.uniform()) / kPathsPerBlock;
-            detail::Lanes lambda_nm, pdf_per_nm;
-            m.wavelengths->sample<detail::kSpectralLanes>(u, lambda_nm, pdf_per_nm);
-            const auto lanes = detail::spectral_lanes(*spectra, lambda_nm, m.led_scale);
-            partial[b] +=
-                camera_rgb<detail::kSpectralLanes>(spectra->camera, lambda_nm, pdf_per_nm,
-                                                   m.path.radiance(apex, origin, up, lanes, rng));
+            const double u_lambda = m.wavelengths ? (i + rng.uniform()) / kPathsPerBlock : 0.0;
+            partial[b] += m.sample_rgb(apex, origin, up, Integrator::path, u_lambda, rng);
         }
     });
     detail::Rgb sum = detail::Rgb::Zero();
