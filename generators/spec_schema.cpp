@@ -438,7 +438,10 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
     out.push_back(integer("render.height_px", 256, closed(16, 4096), "px", "Image height.",
                           CHROMASIM_FIELD(render.height_px)));
     out.push_back(integer("render.samples_per_pixel", 4, closed(1, 1024), "",
-                          "Path-tracing samples per pixel.",
+                          "Samples per pixel (stratified positions and wavelengths). Direct "
+                          "integrator at 224 px: 4 spp gives 3.1 % RMS of the white level in "
+                          "0.34 s, 16 spp 1.2 % in 1.3 s (docs/VALIDATION.md); the path "
+                          "integrator needs thousands for 1 %.",
                           CHROMASIM_FIELD(render.samples_per_pixel)));
     out.push_back(number("render.exposure", 1, left_open(0, 100), "",
                          "Linear scale applied to the rendered radiance before writing.",
