@@ -285,22 +285,28 @@ int PathIntegrator::sphere_candidates(const EmbreeScene& scene, const Vec3& p, c
 std::optional<InterfaceConnection> PathIntegrator::connect(const EmbreeScene& scene, const Vec3& p,
                                                            const Vec3& l, Chain chain,
                                                            double u) const {
+    const auto radius = radius_below(scene, p);
+    if (!radius) return std::nullopt;
+    return connect(scene, p, l, chain, u, *radius);
+}
+
+std::optional<InterfaceConnection> PathIntegrator::connect(const EmbreeScene& scene, const Vec3& p,
+                                                           const Vec3& l, Chain chain, double u,
+                                                           double radius_mm) const {
     constexpr double inf = std::numeric_limits<double>::infinity();
     const int n = chain_length(chain);
     // Start: the same chain on the sphere through the surface below p.
-    const auto radius = radius_below(scene, p);
-    if (!radius) return std::nullopt;
     Vec3 w;
     int candidates = 1;
     if (chain == Chain::refracted) {
-        w = sphere_refraction(p, l, *radius, m_eta);
+        w = sphere_refraction(p, l, radius_mm, m_eta);
     } else {
         // Leave the layers at the point below p, bounce off one of the sphere's mirror points.
-        const std::vector<Vec3> mirrors = sphere_mirrors(p, l, *radius, m_eta);
+        const std::vector<Vec3> mirrors = sphere_mirrors(p, l, radius_mm, m_eta);
         if (mirrors.empty()) return std::nullopt;
         candidates = int(mirrors.size());
         const Vec3& mirror = mirrors[std::min(std::size_t(u * candidates), mirrors.size() - 1)];
-        w = sphere_refraction(p, mirror, *radius, m_eta);
+        w = sphere_refraction(p, mirror, radius_mm, m_eta);
     }
     // Newton on w in its tangent plane: each iterate traces the chain to find its triangles
     // (the first surface hit from p, then from x[0]), then solves on their planes; a step that
@@ -385,8 +391,10 @@ LanesN<N> PathIntegrator::next_event(const EmbreeScene& scene, const Vec3& p, co
     }
     LanesN<N> total = LanesN<N>::Zero();
     const double u_choice = rng.uniform();
+    const auto radius = radius_below(scene, p); // the sphere model's, for both chains
+    if (!radius) return total;
     for (Chain chain : {Chain::refracted, Chain::refracted_reflected}) {
-        const auto c = connect(scene, p, l, chain, u_choice);
+        const auto c = connect(scene, p, l, chain, u_choice, *radius);
         if (!c) continue;
         const double cos_p = n.dot(c->direction);
         if (!(cos_p > 0.0)) continue;

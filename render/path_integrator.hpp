@@ -88,6 +88,10 @@ public:
     std::optional<InterfaceConnection> connect(const EmbreeScene& scene, const Vec3& p_mm,
                                                const Vec3& led_point_mm, Chain chain,
                                                double u = 0.5) const;
+    /// The same with the sphere model's radius below p already known (radius_below).
+    std::optional<InterfaceConnection> connect(const EmbreeScene& scene, const Vec3& p_mm,
+                                               const Vec3& led_point_mm, Chain chain, double u,
+                                               double radius_mm) const;
 
     /// The chain followed from `p_mm` along `direction` on the planes of the given triangles
     /// (normals interpolated, and extrapolated linearly off the triangle) down to the LED plane,
