@@ -11,14 +11,15 @@
 
 namespace chromasim::render {
 
-SurfaceMesh uv_sphere(double radius_mm, int rings, int segments) {
+SurfaceMesh uv_sphere(double radius_mm, int rings, int segments, double max_polar_deg) {
     constexpr double kPi = std::numbers::pi;
     SurfaceMesh mesh;
     mesh.V.resize(1 + Eigen::Index(rings) * segments, 3);
     mesh.V.row(0) << 0.0f, 0.0f, float(radius_mm);
     for (int i = 1; i <= rings; ++i)
         for (int j = 0; j < segments; ++j) {
-            const double theta = kPi * i / rings, phi = 2.0 * kPi * j / segments;
+            const double theta = max_polar_deg * kPi / 180.0 * i / rings;
+            const double phi = 2.0 * kPi * j / segments;
             mesh.V.row(1 + Eigen::Index(i - 1) * segments + j) =
                 (radius_mm * Eigen::Vector3d(std::sin(theta) * std::cos(phi),
                                              std::sin(theta) * std::sin(phi), std::cos(theta)))

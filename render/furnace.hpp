@@ -32,7 +32,9 @@ struct FurnaceResult {
 /// analytic value.
 FurnaceResult run_furnace(const FurnaceSettings& settings);
 
-/// UV sphere (pole on +z), normals inwards; the last ring collapses onto the south pole.
-SurfaceMesh uv_sphere(double radius_mm, int rings, int segments);
+/// UV sphere cap (pole on +z) from the pole down to `max_polar_deg` (90: the hemisphere
+/// z >= 0; 180: the closed sphere, its last ring collapsed onto the south pole), rings every
+/// max_polar_deg / rings degrees, normals inwards.
+SurfaceMesh uv_sphere(double radius_mm, int rings, int segments, double max_polar_deg = 180.0);
 
 } // namespace chromasim::render
