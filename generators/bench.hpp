@@ -1,7 +1,10 @@
 #pragma once
 /// Benchmarks that print numbers (medians of repeated runs), never pass/fail: the machine is
 /// shared and noisy. Each prints a Markdown table that docs/VALIDATION.md quotes.
+#include "render/scene_data.hpp"
 #include <iosfwd>
+
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -30,11 +33,18 @@ struct RenderBenchOptions {
     int reference_spp = 64; ///< the error reference
     int size_px = 256;
     std::vector<std::string> modes{"spectral", "rgb"}; ///< spectral | rgb
-    std::vector<std::string> integrators{"direct"};    ///< direct | path, each with every mode
+    std::vector<std::string> integrators{"direct"}; ///< direct | path | fast, each with every mode
     /// The reference is always spectral; `path` makes it the physical reference, so a direct
     /// row's error includes the direct model's own bias.
     std::string reference_integrator = "direct";
     int repeats = 5;
+    /// The fast integrator's light cache.
+    render::LightCacheSettings light_cache;
+    /// Read the reference from this EXR (R, G, B and variance.*, as written by
+    /// `reference_out`) instead of rendering it; it must be size_px square.
+    std::filesystem::path reference_in;
+    /// Write the rendered reference (with its variance channels) to this EXR.
+    std::filesystem::path reference_out;
 };
 
 /// Samples per pixel vs image error and time on the quickstart's loaded frame (coarse mesh,

@@ -112,8 +112,13 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     if (render_stage) {
         renderer = std::make_unique<render::Renderer>(camera_params(spec), *optics);
         // The path integrator's auto exposure: its own undeformed apex (render/renderer.hpp).
-        if (spec.render.integrator == "path")
-            renderer->set_exposure_reference(undeformed_sensor_frame(model));
+        // The fast integrator uses the same, and its light cache (once per sensor).
+        if (spec.render.integrator != "direct") {
+            const render::SensorFrame rest = undeformed_sensor_frame(model);
+            renderer->set_exposure_reference(rest);
+            if (spec.render.integrator == "fast")
+                renderer->set_light_cache(rest, light_cache_settings(spec));
+        }
     }
     // The camera sensor turns the PNG's pixels into a recording; the EXR stays noise-free.
     std::optional<render::SensorModel> sensor;
@@ -127,8 +132,8 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     request.coating = render_stage;
     request.markers = render_stage || spec.outputs.markers;
     const render::RenderSettings settings = render_settings(spec);
-    // Only the path integrator refracts at the inner surface.
-    request.inner_surface = render_stage && settings.integrator == render::Integrator::path;
+    // Only the path and fast integrators refract at the inner surface.
+    request.inner_surface = render_stage && settings.integrator != render::Integrator::direct;
     render::SensorFrame sensor_frame;
     // The frames form one trial: each starts from the stick/slip state the previous one left.
     mechanics::FrameResult previous;

@@ -156,8 +156,17 @@ render::RenderSettings render_settings(const Spec& spec) {
     s.seed = spec.seed;
     s.marker_ids = spec.outputs.marker_ids;
     s.variance = spec.outputs.variance;
-    s.integrator =
-        spec.render.integrator == "path" ? render::Integrator::path : render::Integrator::direct;
+    s.integrator = spec.render.integrator == "path"   ? render::Integrator::path
+                   : spec.render.integrator == "fast" ? render::Integrator::fast
+                                                      : render::Integrator::direct;
+    return s;
+}
+
+render::LightCacheSettings light_cache_settings(const Spec& spec) {
+    render::LightCacheSettings s;
+    s.paths_per_vertex = spec.render.fast.paths_per_vertex;
+    s.direct_samples = spec.render.fast.direct_samples;
+    s.smoothing_mm = spec.render.fast.smoothing_mm;
     return s;
 }
 

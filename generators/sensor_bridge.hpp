@@ -18,6 +18,8 @@ mechanics::ContactLoad contact_load(const FramePlan& f);
 render::OpticsParams optics_params(const Spec& spec);
 /// samples per pixel, seed, extra channels and integrator of the spec.
 render::RenderSettings render_settings(const Spec& spec);
+/// The fast integrator's light cache settings (render.fast.*).
+render::LightCacheSettings light_cache_settings(const Spec& spec);
 /// The camera sensor model's parameters of render.sensor (used only when it is enabled).
 render::SensorParams sensor_params(const Spec& spec);
 

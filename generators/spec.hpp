@@ -94,7 +94,13 @@ struct Spec {
         int samples_per_pixel = 4;
         double exposure = 1.0;
         bool spectral = true; ///< hero-wavelength spectral mode; false: RGB approximation
-        std::string integrator = "direct"; ///< direct | path
+        std::string integrator = "direct"; ///< direct | path | fast
+        /// The fast integrator's light cache (render::LightCacheSettings).
+        struct Fast {
+            int paths_per_vertex = 256;
+            int direct_samples = 16;
+            double smoothing_mm = 0.75;
+        } fast;
         /// The camera sensor model (render/sensor_model.hpp); the PNG only, the EXR stays the
         /// noise-free render.
         struct Sensor {

@@ -451,13 +451,30 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                           "per wavelength, the spectra of sensor.optics.spectra_dir); false: "
                           "the RGB approximation with the sensor.optics RGB values.",
                           CHROMASIM_FIELD(render.spectral)));
-    out.push_back(choice("render.integrator", "direct", {"direct", "path"},
+    out.push_back(choice("render.integrator", "direct", {"direct", "path", "fast"},
                          "Light transport. direct: LED light straight to the coating and the "
-                         "markers, one bounce, no refraction (fast). path: unbiased path "
-                         "tracing with refraction and Fresnel at the inner surface, diffuse "
-                         "interreflection and area LEDs (the reference; docs/VALIDATION.md has "
-                         "the difference and the cost).",
+                         "markers, one bounce, no refraction (cheapest, an approximation). "
+                         "path: unbiased path tracing with refraction and Fresnel at the inner "
+                         "surface, diffuse interreflection and area LEDs (the reference). "
+                         "fast: the path integrator's light with the smooth indirect light and "
+                         "the LEDs' unshadowed light cached once per sensor on the coating "
+                         "(render.fast.*); marker transmittance and coloured shadows traced "
+                         "per frame. docs/VALIDATION.md has each one's error and cost.",
                          CHROMASIM_FIELD(render.integrator)));
+    out.push_back(integer("render.fast.paths_per_vertex", 256, closed(1, 65536), "",
+                          "Fast integrator: paths traced per coating vertex (at the coating "
+                          "and above the outer markers) for the cached indirect light, once "
+                          "per sensor; its noise is a fixed pattern across frames.",
+                          CHROMASIM_FIELD(render.fast.paths_per_vertex)));
+    out.push_back(number("render.fast.smoothing_mm", 0.75, closed(0, 10), "mm",
+                         "Fast integrator: standard deviation of the Gaussian (local linear "
+                         "regression) that smooths the cached indirect light over the "
+                         "coating; 0: none.",
+                         CHROMASIM_FIELD(render.fast.smoothing_mm)));
+    out.push_back(integer("render.fast.direct_samples", 16, closed(1, 4096), "",
+                          "Fast integrator: LED points per LED per coating vertex for the "
+                          "cached unshadowed LED light.",
+                          CHROMASIM_FIELD(render.fast.direct_samples)));
     add_render_sensor(out);
     out.push_back(boolean("outputs.images", true,
                           "Write a PNG per frame (8-bit sRGB); with outputs.exr false too, the "

@@ -321,6 +321,8 @@ RayHit EmbreeScene::Impl::to_hit(const RTCRayHit& query) const {
     hit.prim_id = query.hit.primID;
     hit.normal = Vec3(query.hit.Ng_x, query.hit.Ng_y, query.hit.Ng_z).normalized();
     hit.shading_normal = hit.normal;
+    hit.u = query.hit.u;
+    hit.v = query.hit.v;
     if (hit.kind == SurfaceKind::inner_surface) {
         const MeshSlot& slot = slots[geometry_id(SurfaceKind::inner_surface)];
         const auto f = slot.F.row(hit.prim_id);

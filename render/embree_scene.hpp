@@ -29,6 +29,9 @@ struct RayHit {
     /// Unit shading normal on the same side as `normal`: on the inner surface the vertex
     /// normals (area-weighted) interpolated at the hit, elsewhere `normal`.
     Vec3 shading_normal{0.0, 0.0, 0.0};
+    /// Barycentric coordinates of the hit in triangle `prim_id`: the point is
+    /// (1 - u - v) p0 + u p1 + v p2 (the fast integrator's light cache interpolates with them).
+    double u = 0.0, v = 0.0;
     bool hit() const { return kind != SurfaceKind::none; }
 };
 

@@ -80,6 +80,40 @@ public:
     LanesN<N> radiance(const EmbreeScene& scene, const Vec3& origin_mm, const Vec3& direction,
                        const LaneOptics<N>& lanes, PixelRng& rng) const;
 
+    /// The light arriving at `p_mm` (a diffuse point inside the layers, unit `normal` facing
+    /// the side the light comes from) other than straight from an LED, in one estimate: a
+    /// cosine-distributed direction, then the path as `radiance` follows it, with the LED
+    /// light that reaches p through a Chain weighted by multiple importance sampling against
+    /// led_flux_sample (power heuristic; `nee_per_bsdf`: led_flux_sample's samples per LED
+    /// over this function's samples), and left out without an inner surface (straight light
+    /// is led_flux_sample's alone). The mean over many calls is the irradiance at p over pi
+    /// that led_flux_sample (with the reciprocal ratio) does not estimate, per lane.
+    template <int N>
+    LanesN<N> indirect(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& normal,
+                       const LaneOptics<N>& lanes, PixelRng& rng, double nee_per_bsdf) const;
+
+    /// One estimate of the vector irradiance at `p_mm` straight from LED `k` (point (u1, u2)
+    /// on it; u_choice picks among the sphere model's reflections), per unit of the LED's
+    /// emission (LaneOptics::led), nothing but the cavity in the way: through both Chains when
+    /// the scene has an inner surface, in a straight line when not; connections arriving
+    /// behind the unit `normal` are left out. Through the inner surface each connection is
+    /// weighted by MIS against indirect()'s cosine samples (`bsdf_per_nee`: their count over
+    /// this function's per LED; 0: weight 1). Its mean over uniform (u1, u2, u_choice),
+    /// dotted with a normal near `normal`, is that share of the irradiance (1/mm^2).
+    Vec3 led_flux_sample(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& normal, int k,
+                         double u1, double u2, double u_choice, double bsdf_per_nee) const;
+
+    /// The same for a point LED at the centre of LED `k`, deterministic: every connection of
+    /// both Chains (each of the sphere model's reflections), fresnel / J times the direction.
+    Vec3 led_flux_point(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& normal,
+                        int k) const;
+
+    /// The sphere model's refraction from `p_mm` towards `led_point_mm` through the sphere of
+    /// radius `radius_mm` about the origin: the unit direction leaving p.
+    Vec3 refracted_direction(const Vec3& p_mm, const Vec3& led_point_mm, double radius_mm) const;
+    /// Radius of the inner surface below p (the sphere model's), or nullopt without one.
+    std::optional<double> radius_below(const EmbreeScene& scene, const Vec3& p_mm) const;
+
     /// A path from `p_mm` (inside the clear layers) to `led_point_mm` (in the cavity) through
     /// the inner surface with the events of `chain`, or nullopt if the Newton solve fails
     /// (total internal reflection, a miss, no convergence). The start is the connection of the
@@ -120,8 +154,19 @@ private:
     template <int N>
     LanesN<N> next_event(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& normal,
                          const LaneOptics<N>& lanes, PixelRng& rng) const;
-    /// Radius of the inner surface below p (the sphere model's), or nullopt without one.
-    std::optional<double> radius_below(const EmbreeScene& scene, const Vec3& p_mm) const;
+    /// The path of `radiance`; with `start_normal`, the path of `indirect` from a diffuse
+    /// vertex at `origin`.
+    template <int N>
+    LanesN<N> trace(const EmbreeScene& scene, const Vec3& origin, const Vec3& direction,
+                    const LaneOptics<N>& lanes, PixelRng& rng, const Vec3* start_normal,
+                    double start_nee_per_bsdf) const;
+    /// Calls visit(connection, cos_p) for each Chain that connects p to l with nothing in the
+    /// way in the cavity.
+    /// `chains`: a mask of the Chain values to try.
+    template <class Visit>
+    void for_each_connection(const EmbreeScene& scene, const Vec3& p, const Vec3& n, const Vec3& l,
+                             double u_choice, double radius_mm, Visit&& visit,
+                             int chains = 3) const;
 
     const ShadingModel& m_shading;
     bool m_next_event;

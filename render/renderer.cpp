@@ -42,6 +42,7 @@
 #include "render/renderer.hpp"
 
 #include "render/embree_scene.hpp"
+#include "render/fast_integrator.hpp"
 #include "render/fisheye_camera.hpp"
 #include "render/path_integrator.hpp"
 #include "render/sampling.hpp"
@@ -114,6 +115,8 @@ struct Renderer::Impl {
     FisheyeCamera camera;
     detail::ShadingModel shading;
     detail::PathIntegrator path{shading};
+    detail::FastIntegrator fast{shading, path};
+    SurfaceMesh coating; ///< the current frame's, for a light cache built after set_frame
     detail::EmbreeScene scene;
     double scale; ///< image value per unit radiance (analytic: the direct model's apex)
     /// The path integrator's scale once set_exposure_reference measured its apex.
@@ -136,7 +139,7 @@ struct Renderer::Impl {
     detail::Rgb render_pixel(int x, int y, const RenderSettings& settings,
                              detail::Rgb* sum2 = nullptr) const {
         const double scale =
-            settings.integrator == Integrator::path && path_scale ? *path_scale : this->scale;
+            settings.integrator != Integrator::direct && path_scale ? *path_scale : this->scale;
         const auto [nx, ny] = detail::strata_grid(settings.samples_per_pixel);
         const std::uint64_t index = std::uint64_t(y) * std::uint64_t(camera.width_px()) + x;
         detail::PixelRng rng(settings.seed, index);
@@ -171,6 +174,18 @@ struct Renderer::Impl {
                            Integrator integrator, double u_lambda, detail::PixelRng& rng) const {
         const bool path_traced = integrator == Integrator::path;
         const std::optional<SensorSpectra>& spectra = shading.optics().spectra;
+        if (integrator == Integrator::fast) {
+            if (!spectra)
+                return detail::Rgb(fast.radiance<detail::kRgbLanes>(
+                                           in, origin, direction, shading.rgb_lanes(), nullptr, rng)
+                                       .head<3>());
+            detail::Lanes lambda_nm, pdf_per_nm;
+            wavelengths->sample<detail::kSpectralLanes>(u_lambda, lambda_nm, pdf_per_nm);
+            const auto lanes = detail::spectral_lanes(*spectra, lambda_nm, led_scale);
+            return camera_rgb<detail::kSpectralLanes>(
+                spectra->camera, lambda_nm, pdf_per_nm,
+                fast.radiance(in, origin, direction, lanes, &lambda_nm, rng));
+        }
         if (!spectra)
             return path_traced
                        ? detail::Rgb(path.radiance(in, origin, direction, shading.rgb_lanes(), rng)
@@ -243,9 +258,26 @@ void Renderer::set_exposure_reference(const SensorFrame& undeformed) {
     m_impl->path_scale = m.shading.optics().exposure * detail::kApexImageValue / reference;
 }
 
+double Renderer::set_light_cache(const SensorFrame& undeformed,
+                                 const LightCacheSettings& settings) {
+    detail::validate_marker_layout(undeformed);
+    const std::optional<SensorSpectra>& spectra = m_impl->shading.optics().spectra;
+    m_impl->fast.build_cache(undeformed, settings, spectra ? &*spectra : nullptr,
+                             m_impl->led_scale);
+    if (m_impl->scene.has_frame()) {
+        SensorFrame current;
+        current.coating = m_impl->coating;
+        m_impl->fast.set_frame(current, m_impl->scene);
+    }
+    return m_impl->fast.cache().build_s;
+}
+
 void Renderer::set_frame(const SensorFrame& frame) {
     detail::validate_marker_layout(frame);
+    if (m_impl->fast.has_cache()) m_impl->fast.check_topology(frame); // before any change
     m_impl->scene.set_frame(frame);
+    m_impl->coating = frame.coating;
+    if (m_impl->fast.has_cache()) m_impl->fast.set_frame(frame, m_impl->scene);
     m_impl->triangles_per_marker = frame.triangles_per_marker;
 }
 
@@ -257,6 +289,9 @@ Image Renderer::render(const RenderSettings& settings) const {
     }
     if (!m_impl->scene.has_frame()) {
         throw std::logic_error("Renderer::render called before set_frame");
+    }
+    if (settings.integrator == Integrator::fast && !m_impl->fast.has_cache()) {
+        throw std::logic_error("Renderer::render: Integrator::fast needs set_light_cache first");
     }
     Image image;
     image.width = m_impl->camera.width_px();

@@ -28,6 +28,12 @@ public:
     /// blocks). Without it, path images use the direct model's analytic scale.
     void set_exposure_reference(const SensorFrame& undeformed);
 
+    /// The fast integrator's light cache (render/fast_integrator.hpp), built on `undeformed`
+    /// (the sensor at rest with its markers and inner surface): once per sensor, before
+    /// rendering with Integrator::fast. Frames must then have the same coating topology.
+    /// Returns the build's wall time in seconds.
+    double set_light_cache(const SensorFrame& undeformed, const LightCacheSettings& settings);
+
     /// Renders the current frame. Linear RGB, auto-exposed so that the undeformed apex of a
     /// white coating maps to about 0.8 (times OpticsParams::exposure).
     Image render(const RenderSettings& settings) const;

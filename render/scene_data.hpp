@@ -125,6 +125,18 @@ enum class Integrator {
     /// Unbiased spectral path tracing: refraction and Fresnel at the inner surface, diffuse
     /// interreflection, area LEDs with next-event estimation through the interface and MIS.
     path,
+    /// The path integrator's light transport with the smooth light cached per sensor on the
+    /// coating (render/fast_integrator.hpp): needs Renderer::set_light_cache.
+    fast,
+};
+
+/// Work of the fast integrator's per-sensor light cache (render/fast_integrator.hpp).
+struct LightCacheSettings {
+    int paths_per_vertex = 256; ///< indirect light: paths per coating vertex (and level)
+    int direct_samples = 16;    ///< unshadowed LED light: points per LED per coating vertex
+    /// Indirect light: standard deviation of the Gaussian that smooths it over the coating,
+    /// mm (0: none).
+    double smoothing_mm = 0.75;
 };
 
 struct RenderSettings {

@@ -1,10 +1,10 @@
 // chromasim: the command line. Parses arguments and calls the libraries; nothing else.
 #include "generators/bench.hpp"
 #include "generators/generate.hpp"
+#include "generators/image_io.hpp"
 #include "generators/scene_export.hpp"
 #include "generators/spec.hpp"
 #include "generators/verify.hpp"
-#include "generators/image_io.hpp"
 #include "generators/verify_render.hpp"
 
 #include <CLI/CLI.hpp>
@@ -138,13 +138,31 @@ int main(int argc, char** argv) {
     bench_render->add_option("--modes", render_bench.modes, "spectral and/or rgb")
         ->delimiter(',')
         ->check(CLI::IsMember({"spectral", "rgb"}));
-    bench_render->add_option("--integrators", render_bench.integrators, "direct and/or path")
+    bench_render->add_option("--integrators", render_bench.integrators, "direct, path, fast")
         ->delimiter(',')
-        ->check(CLI::IsMember({"direct", "path"}));
+        ->check(CLI::IsMember({"direct", "path", "fast"}));
     bench_render
         ->add_option("--reference-integrator", render_bench.reference_integrator,
                      "integrator of the error reference")
-        ->check(CLI::IsMember({"direct", "path"}));
+        ->check(CLI::IsMember({"direct", "path", "fast"}));
+    bench_render
+        ->add_option("--cache-paths", render_bench.light_cache.paths_per_vertex,
+                     "fast integrator: light-cache paths per coating vertex")
+        ->check(CLI::Range(1, 65536));
+    bench_render
+        ->add_option("--cache-direct", render_bench.light_cache.direct_samples,
+                     "fast integrator: light-cache LED points per LED per vertex")
+        ->check(CLI::Range(1, 4096));
+    bench_render
+        ->add_option("--cache-smoothing", render_bench.light_cache.smoothing_mm,
+                     "fast integrator: light-cache smoothing, mm")
+        ->check(CLI::Range(0.0, 10.0));
+    bench_render
+        ->add_option("--reference-in", render_bench.reference_in,
+                     "read the reference from this EXR (written by --reference-out)")
+        ->check(CLI::ExistingFile);
+    bench_render->add_option("--reference-out", render_bench.reference_out,
+                             "write the rendered reference (with variance) to this EXR");
 
     auto* verify = app.add_subcommand("verify", "validation against analytic references");
     verify->require_subcommand(1);

@@ -162,7 +162,7 @@ TEST_CASE("an unknown key is named with its position and the allowed keys", "[ge
     CHECK(error_of("render:\n  widht_px: 300\n") ==
           "bad.yaml:2:3: render.widht_px: unknown key 'widht_px' (did you mean 'width_px'?); "
           "allowed keys in 'render': width_px, height_px, samples_per_pixel, exposure, spectral, "
-          "integrator, sensor");
+          "integrator, fast, sensor");
     CHECK(error_of("name: x\nfrobnicate: 1\n") ==
           "bad.yaml:2:1: frobnicate: unknown key 'frobnicate'; allowed keys at the top level: "
           "name, seed, sensor, object, protocol, render, outputs");
@@ -207,7 +207,7 @@ TEST_CASE("a value of the wrong type is rejected", "[generators][spec]") {
         CHECK(error_of("render: 5\n") ==
               "bad.yaml:1:9: render: value '5' is a single value, not a mapping; allowed: a "
               "mapping with keys in 'render': width_px, height_px, samples_per_pixel, exposure, "
-              "spectral, integrator, sensor");
+              "spectral, integrator, fast, sensor");
     }
     SECTION("anything but true or false for a bool") {
         CHECK(error_of("outputs:\n  images: yes\n") ==

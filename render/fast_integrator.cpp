@@ -1,0 +1,529 @@
+#include "render/fast_integrator.hpp"
+
+#include "render/spectrum.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Geometry>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <limits>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+
+namespace chromasim::render::detail {
+
+namespace {
+
+constexpr double kInvPi = 1.0 / std::numbers::pi;
+/// Most LEDs a sample's lookup holds (the spec allows 64).
+constexpr int kMaxLeds = 64;
+/// A coating hit this close behind an outer marker's face lies below that marker (the faces
+/// sit 1 % of the layer, 5 um, off the coating).
+constexpr double kUnderMarker_mm = 0.05;
+
+/// Transmittance of a slab of optical thickness tau (per lane) for light arriving with a
+/// Lambertian (cosine) distribution: 2 E_3(tau) = 2 int_0^1 mu exp(-tau / mu) dmu, by 8-point
+/// Gauss-Legendre quadrature in mu (error below 1e-4 for the thicknesses of the markers).
+template <int N> LanesN<N> diffuse_transmittance(const LanesN<N>& tau) {
+    static constexpr double x[8] = {0.0198550717512319, 0.1016667612931866, 0.2372337950418355,
+                                    0.4082826787521751, 0.5917173212478249, 0.7627662049581645,
+                                    0.8983332387068134, 0.9801449282487681};
+    static constexpr double w[8] = {0.0506142681451881, 0.1111905172266872, 0.1568533229389436,
+                                    0.1813418916891810, 0.1813418916891810, 0.1568533229389436,
+                                    0.1111905172266872, 0.0506142681451881};
+    LanesN<N> sum = LanesN<N>::Zero();
+    for (int i = 0; i < 8; ++i)
+        sum += (2.0 * w[i] * x[i]) * (-tau / x[i]).exp();
+    return sum;
+}
+
+Vec3 facing(const Vec3& normal, const Vec3& direction) {
+    return normal.dot(direction) > 0.0 ? Vec3(-normal) : normal;
+}
+
+/// Area-weighted vertex normals of the coating, turned to face the dome centre.
+std::vector<Vec3> coating_normals(const SurfaceMesh& mesh) {
+    std::vector<Vec3> n(std::size_t(mesh.V.rows()), Vec3::Zero());
+    for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
+        const Vec3 a = mesh.V.row(mesh.F(f, 0)).cast<double>().transpose();
+        const Vec3 b = mesh.V.row(mesh.F(f, 1)).cast<double>().transpose();
+        const Vec3 c = mesh.V.row(mesh.F(f, 2)).cast<double>().transpose();
+        const Vec3 area = (b - a).cross(c - a); // twice the area, along the normal
+        for (int k = 0; k < 3; ++k)
+            n[mesh.F(f, k)] += area;
+    }
+    for (std::size_t v = 0; v < n.size(); ++v) {
+        const Vec3 p = mesh.V.row(Eigen::Index(v)).cast<double>().transpose();
+        if (n[v].norm() > 0.0) n[v].normalize();
+        if (n[v].dot(p) > 0.0) n[v] = -n[v];
+    }
+    return n;
+}
+
+} // namespace
+
+template <int N> struct FastIntegrator::Lookup {
+    std::array<double, kMaxLeds> direct; ///< G_k
+    LanesN<N> indirect;       ///< E_ind / pi per unit LED emission at the coating, at the lanes
+    LanesN<N> indirect_above; ///< the same above the outer marker layer
+    double radius_mm = 0.0;   ///< the sphere model's inner radius below (0: none)
+};
+
+FastIntegrator::FastIntegrator(const ShadingModel& shading, const PathIntegrator& path)
+    : m_shading(shading), m_path(path) {
+    if (path.led_count() > kMaxLeds) {
+        throw std::invalid_argument("FastIntegrator: " + std::to_string(path.led_count()) +
+                                    " LEDs; allowed: at most " + std::to_string(kMaxLeds));
+    }
+}
+
+void FastIntegrator::build_cache(const SensorFrame& rest,
+                                 const render::LightCacheSettings& settings,
+                                 const SensorSpectra* spectra, double led_scale) {
+    if (settings.paths_per_vertex < 1 || settings.direct_samples < 1) {
+        throw std::invalid_argument(
+            "LightCacheSettings: paths_per_vertex = " + std::to_string(settings.paths_per_vertex) +
+            ", direct_samples = " + std::to_string(settings.direct_samples) +
+            "; allowed: integers >= 1");
+    }
+    const auto start = std::chrono::steady_clock::now();
+    EmbreeScene full;
+    full.set_frame(rest);
+    SensorFrame bare_frame;
+    bare_frame.coating = rest.coating;
+    bare_frame.inner_surface = rest.inner_surface;
+    EmbreeScene bare;
+    bare.set_frame(bare_frame);
+
+    auto cache = std::make_shared<LightCache>();
+    const int nv = int(rest.coating.V.rows());
+    const int leds = m_path.led_count();
+    cache->vertices = nv;
+    cache->leds = leds;
+    cache->lanes = spectra ? kCacheLambdas : kRgbLanes;
+    cache->direct.assign(std::size_t(nv) * leds * 3, 0.0f);
+    cache->point_rest.assign(std::size_t(nv) * leds * 3, 0.0f);
+    cache->indirect.assign(std::size_t(nv) * cache->lanes, 0.0f);
+    cache->coating_triangles.assign(rest.coating.F.data(),
+                                    rest.coating.F.data() + rest.coating.F.size());
+    const std::vector<Vec3> normals = coating_normals(rest.coating);
+
+    // Lanes per unit LED emission: the indirect term scales with each sample's LED lanes.
+    LaneOptics<kSpectralLanes> spectral_optics{};
+    LaneOptics<kRgbLanes> rgb_optics = m_shading.rgb_lanes();
+    rgb_optics.led = RgbLanes::Ones();
+    if (spectra) {
+        Lanes lambda;
+        for (int j = 0; j < kCacheLambdas; ++j)
+            lambda[j] = kCacheLambdaMin_nm + kCacheLambdaStep_nm * j;
+        spectral_optics = spectral_lanes(*spectra, lambda, led_scale);
+        spectral_optics.led = Lanes::Ones();
+    }
+    const auto [gx, gy] = strata_grid(settings.direct_samples);
+    // The direct and indirect estimates share the LED light through the inner surface by MIS.
+    const double bsdf_per_nee = double(settings.paths_per_vertex) / settings.direct_samples;
+    // The outer markers' inner face above each vertex they cover (its distance along the
+    // normal, 0 where none covers it).
+    std::vector<double> above_mm(std::size_t(nv), 0.0);
+    tbb::parallel_for(0, nv, [&](int v) {
+        const Vec3 n = normals[std::size_t(v)];
+        const Vec3 p = rest.coating.V.row(v).cast<double>().transpose() + kHitGap_mm * n;
+        for (double t = 0.0; t < 2.0;) {
+            const RayHit hit = full.closest_hit(p, n, t, 2.0);
+            if (!hit.hit() || hit.kind != SurfaceKind::outer_marker) break;
+            t = hit.t_mm + kHitGap_mm;
+            if (hit.normal.dot(n) > 0.0) { // leaving the marker: its inner face
+                above_mm[std::size_t(v)] = hit.t_mm + kHitGap_mm;
+                break;
+            }
+        }
+    });
+    // Vertices no marker covers: the median height of the covered ones.
+    std::vector<double> heights;
+    for (double h : above_mm)
+        if (h > 0.0) heights.push_back(h);
+    std::sort(heights.begin(), heights.end());
+    const double typical_above_mm = heights.empty() ? 0.0 : heights[heights.size() / 2];
+    const int lanes = cache->lanes;
+    cache->indirect_above.assign(cache->indirect.size(), 0.0f);
+    tbb::parallel_for(0, nv, [&](int v) {
+        PixelRng rng(0x11C4CE, std::uint64_t(v));
+        const Vec3 n = normals[std::size_t(v)];
+        // A hair off the coating, on the cavity side (below an outer marker's face).
+        const Vec3 p = rest.coating.V.row(v).cast<double>().transpose() + kHitGap_mm * n;
+        for (int k = 0; k < leds; ++k) {
+            Vec3 flux = Vec3::Zero();
+            for (int sy = 0; sy < gy; ++sy)
+                for (int sx = 0; sx < gx; ++sx) {
+                    const double u1 = (sx + rng.uniform()) / gx, u2 = (sy + rng.uniform()) / gy;
+                    flux +=
+                        m_path.led_flux_sample(bare, p, n, k, u1, u2, rng.uniform(), bsdf_per_nee);
+                }
+            for (int a = 0; a < 3; ++a)
+                cache->direct[(std::size_t(v) * leds + k) * 3 + a] =
+                    float(flux[a] / settings.direct_samples);
+            const Vec3 point = m_path.led_flux_point(bare, p, n, k);
+            for (int a = 0; a < 3; ++a)
+                cache->point_rest[(std::size_t(v) * leds + k) * 3 + a] = float(point[a]);
+        }
+        // The indirect light at the coating and above the outer marker layer; a covered
+        // vertex's coating value is its unfiltered one (inside() filters per sample).
+        auto mean_indirect = [&](const Vec3& at, float* out) {
+            if (spectra) {
+                Lanes sum = Lanes::Zero();
+                for (int i = 0; i < settings.paths_per_vertex; ++i)
+                    sum += m_path.indirect(full, at, n, spectral_optics, rng, 1.0 / bsdf_per_nee);
+                for (int j = 0; j < kCacheLambdas; ++j)
+                    out[j] = float(sum[j] / settings.paths_per_vertex);
+            } else {
+                RgbLanes sum = RgbLanes::Zero();
+                for (int i = 0; i < settings.paths_per_vertex; ++i)
+                    sum += m_path.indirect(full, at, n, rgb_optics, rng, 1.0 / bsdf_per_nee);
+                for (int j = 0; j < kRgbLanes; ++j)
+                    out[j] = float(sum[j] / settings.paths_per_vertex);
+            }
+        };
+        float* coating = cache->indirect.data() + std::size_t(v) * lanes;
+        float* above = cache->indirect_above.data() + std::size_t(v) * lanes;
+        const double h = above_mm[std::size_t(v)];
+        mean_indirect(p + (h > 0.0 ? h : typical_above_mm) * n, above);
+        if (h > 0.0 || typical_above_mm == 0.0)
+            std::copy(above, above + lanes, coating);
+        else
+            mean_indirect(p, coating);
+    });
+    // Smoothing: the indirect light is smooth over millimetres, the estimate of each vertex
+    // heavy-tailed (rare long paths that reach an LED). A Gaussian of settings.smoothing_mm
+    // (3D distance at rest, cut at 3 sigma), weighted by the vertices' tributary areas,
+    // preserves the field's integral and takes the per-vertex noise down.
+    if (settings.smoothing_mm > 0.0) {
+        std::vector<double> area(std::size_t(nv), 0.0);
+        for (Eigen::Index f = 0; f < rest.coating.F.rows(); ++f) {
+            const Vec3 a = rest.coating.V.row(rest.coating.F(f, 0)).cast<double>().transpose();
+            const Vec3 b = rest.coating.V.row(rest.coating.F(f, 1)).cast<double>().transpose();
+            const Vec3 c = rest.coating.V.row(rest.coating.F(f, 2)).cast<double>().transpose();
+            const double third = (b - a).cross(c - a).norm() / 6.0;
+            for (int k = 0; k < 3; ++k)
+                area[rest.coating.F(f, k)] += third;
+        }
+        const double sigma = settings.smoothing_mm, cutoff2 = 9.0 * sigma * sigma;
+        for (std::vector<float>* field : {&cache->indirect, &cache->indirect_above}) {
+            std::vector<float> smooth(field->size(), 0.0f);
+            tbb::parallel_for(0, nv, [&](int v) {
+                const Vec3 pv = rest.coating.V.row(v).cast<double>().transpose();
+                // Local linear regression (a + b . (x - x_v), weighted): unbiased for a
+                // field that varies linearly, such as the fall-off towards the rim.
+                Eigen::Matrix4d M = Eigen::Matrix4d::Zero();
+                Eigen::Matrix<double, 4, kCacheLambdas> rhs =
+                    Eigen::Matrix<double, 4, kCacheLambdas>::Zero();
+                double weight = 0.0;
+                for (int w = 0; w < nv; ++w) {
+                    // Covered and uncovered vertices hold different coating values.
+                    if (field == &cache->indirect &&
+                        (above_mm[std::size_t(w)] > 0.0) != (above_mm[std::size_t(v)] > 0.0))
+                        continue;
+                    const Vec3 dx = rest.coating.V.row(w).cast<double>().transpose() - pv;
+                    const double d2 = dx.squaredNorm();
+                    if (d2 > cutoff2) continue;
+                    const double k = area[std::size_t(w)] * std::exp(-0.5 * d2 / (sigma * sigma));
+                    const Eigen::Vector4d basis(1.0, dx.x(), dx.y(), dx.z());
+                    M += k * basis * basis.transpose();
+                    weight += k;
+                    for (int j = 0; j < lanes; ++j)
+                        rhs.col(j) += (k * (*field)[std::size_t(w) * lanes + j]) * basis;
+                }
+                // A little ridge on the slope: the points lie near a surface, so the slope
+                // along its normal is undetermined.
+                const double ridge = 1e-2 * weight * sigma * sigma;
+                for (int a = 1; a < 4; ++a)
+                    M(a, a) += ridge;
+                const Eigen::Matrix<double, 4, kCacheLambdas> coef = M.ldlt().solve(rhs);
+                for (int j = 0; j < lanes; ++j)
+                    smooth[std::size_t(v) * lanes + j] = float(std::max(0.0, coef(0, j)));
+            });
+            field->swap(smooth);
+        }
+    }
+    // A covered vertex's coating value: its light above the marker times the ratio coating /
+    // above of its uncovered neighbours (the grazing light their neighbouring markers filter),
+    // so that uncovered coating interpolates uncovered values (a covered hit uses its own
+    // marker's filter on indirect_above instead).
+    std::vector<std::vector<int>> ring{std::size_t(nv)};
+    for (Eigen::Index f = 0; f < rest.coating.F.rows(); ++f)
+        for (int a = 0; a < 3; ++a) {
+            const int i = int(rest.coating.F(f, a)), j = int(rest.coating.F(f, (a + 1) % 3));
+            ring[std::size_t(i)].push_back(j);
+            ring[std::size_t(j)].push_back(i);
+        }
+    for (int v = 0; v < nv; ++v) {
+        if (!(above_mm[std::size_t(v)] > 0.0)) continue;
+        for (int j = 0; j < lanes; ++j) {
+            double ratio = 0.0;
+            int count = 0;
+            for (int w : ring[std::size_t(v)]) {
+                const float up = cache->indirect_above[std::size_t(w) * lanes + j];
+                if (above_mm[std::size_t(w)] > 0.0 || !(up > 0.0f)) continue;
+                ratio += cache->indirect[std::size_t(w) * lanes + j] / up;
+                ++count;
+            }
+            cache->indirect[std::size_t(v) * lanes + j] =
+                cache->indirect_above[std::size_t(v) * lanes + j] *
+                float(count > 0 ? ratio / count : 1.0);
+        }
+    }
+    cache->build_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    m_cache = std::move(cache);
+    m_triangles.clear(); // set_frame brings the frame's data up to date
+    m_direct.clear();
+}
+
+void FastIntegrator::check_topology(const SensorFrame& frame) const {
+    if (!m_cache) throw std::logic_error("FastIntegrator: no light cache built");
+    const LightCache& c = *m_cache;
+    const auto& F = frame.coating.F;
+    if (frame.coating.V.rows() != c.vertices ||
+        std::size_t(F.size()) != c.coating_triangles.size() ||
+        !std::equal(F.data(), F.data() + F.size(), c.coating_triangles.begin())) {
+        throw std::invalid_argument(
+            "FastIntegrator: the frame's coating has " + std::to_string(frame.coating.V.rows()) +
+            " vertices and " + std::to_string(F.rows()) + " triangles, the light cache's " +
+            std::to_string(c.vertices) + " and " + std::to_string(c.coating_triangles.size() / 3) +
+            " (other triangles); allowed: the coating of the sensor the cache was built for");
+    }
+}
+
+void FastIntegrator::set_frame(const SensorFrame& frame, const EmbreeScene& scene) {
+    check_topology(frame);
+    const LightCache& c = *m_cache;
+    m_triangles = c.coating_triangles;
+    m_direct.assign(c.direct.size(), 0.0f);
+    m_radius.assign(scene.has_interface() ? std::size_t(c.vertices) : 0, 0.0f);
+    const std::vector<Vec3> normals = coating_normals(frame.coating);
+    tbb::parallel_for(0, c.vertices, [&](int v) {
+        const Vec3 n = normals[std::size_t(v)];
+        const Vec3 p = frame.coating.V.row(v).cast<double>().transpose() + kHitGap_mm * n;
+        for (int k = 0; k < c.leds; ++k) {
+            // The point LED's light through this frame's inner surface, scaled by the area
+            // LED's to the point LED's at rest; the rest value where this frame's solve fails.
+            const std::size_t i = 3 * (std::size_t(v) * c.leds + k);
+            const Eigen::Vector3f area(c.direct.data() + i), rest(c.point_rest.data() + i);
+            const Vec3 now = m_path.led_flux_point(scene, p, n, k);
+            const Eigen::Vector3f flux =
+                rest.norm() > 0.0f && now.norm() > 0.0
+                    ? Eigen::Vector3f(now.cast<float>() * (area.norm() / rest.norm()))
+                    : area;
+            for (int a = 0; a < 3; ++a)
+                m_direct[i + std::size_t(a)] = flux[a];
+        }
+        if (!m_radius.empty()) {
+            const auto radius = m_path.radius_below(scene, p);
+            m_radius[std::size_t(v)] = radius ? float(*radius) : 0.0f;
+        }
+    });
+}
+
+template <int N>
+FastIntegrator::Lookup<N> FastIntegrator::lookup(std::uint32_t prim, double u, double v,
+                                                 const Vec3& normal,
+                                                 const LanesN<N>* lambda_nm) const {
+    const LightCache& c = *m_cache;
+    const std::uint32_t* f = m_triangles.data() + 3 * std::size_t(prim);
+    const double w[3] = {1.0 - u - v, u, v};
+    Lookup<N> at;
+    for (int k = 0; k < c.leds; ++k) {
+        double g = 0.0; // the vector irradiance interpolated, on the triangle's normal
+        for (int i = 0; i < 3; ++i) {
+            const float* flux = m_direct.data() + (std::size_t(f[i]) * c.leds + k) * 3;
+            g += w[i] * (normal.x() * flux[0] + normal.y() * flux[1] + normal.z() * flux[2]);
+        }
+        at.direct[std::size_t(k)] = std::max(0.0, g);
+    }
+    if (!m_radius.empty())
+        for (int i = 0; i < 3; ++i)
+            at.radius_mm += w[i] * m_radius[f[i]];
+    at.indirect = spectral_at(c.indirect, f, w, lambda_nm);
+    at.indirect_above = spectral_at(c.indirect_above, f, w, lambda_nm);
+    return at;
+}
+
+template <int N>
+LanesN<N> FastIntegrator::spectral_at(const std::vector<float>& values, const std::uint32_t* f,
+                                      const double* w, const LanesN<N>* lambda_nm) const {
+    // The cached lanes at the hit, then at the sample's wavelengths.
+    const int lanes = m_cache->lanes;
+    std::array<double, kCacheLambdas> cached{};
+    for (int j = 0; j < lanes; ++j) {
+        double value = 0.0;
+        for (int i = 0; i < 3; ++i)
+            value += w[i] * values[std::size_t(f[i]) * lanes + j];
+        cached[std::size_t(j)] = std::max(0.0, value);
+    }
+    LanesN<N> out;
+    if (!lambda_nm) {
+        for (int j = 0; j < N; ++j)
+            out[j] = j < lanes ? cached[std::size_t(j)] : 0.0;
+        return out;
+    }
+    for (int j = 0; j < N; ++j) {
+        const double x = std::clamp(((*lambda_nm)[j] - kCacheLambdaMin_nm) / kCacheLambdaStep_nm,
+                                    0.0, double(kCacheLambdas - 1));
+        const int i0 = std::min(int(x), kCacheLambdas - 2);
+        const double t = x - i0;
+        out[j] = (1.0 - t) * cached[std::size_t(i0)] + t * cached[std::size_t(i0) + 1];
+    }
+    return out;
+}
+
+template <int N>
+LanesN<N> FastIntegrator::shade(const EmbreeScene& scene, const Vec3& p, const Lookup<N>& at,
+                                const LanesN<N>& indirect, const LaneOptics<N>& lanes,
+                                PixelRng& rng) const {
+    // E / pi per unit LED emission: the cached indirect term, plus the direct term with the
+    // markers' shadows, sum_k G_k T_k, estimated by one LED k drawn with probability
+    // G_k / sum G (one shadow ray; exact where the LEDs' shadows agree).
+    double total = 0.0;
+    for (int k = 0; k < m_cache->leds; ++k)
+        total += at.direct[std::size_t(k)];
+    const double u = rng.uniform() * total, u1 = rng.uniform(), u2 = rng.uniform();
+    if (!(total > 0.0)) return indirect;
+    int k = 0;
+    for (double acc = at.direct[0]; acc <= u && k + 1 < m_cache->leds;)
+        acc += at.direct[std::size_t(++k)];
+    const Vec3 l = m_path.led_point(k, u1, u2);
+    LanesN<N> T = LanesN<N>::Ones();
+    if (!scene.has_interface()) {
+        T = m_shading.transmittance(scene, l, p, lanes);
+    } else if (at.radius_mm > 0.0) {
+        // Where the sphere model's refraction towards l leaves the layers.
+        const Vec3 w = m_path.refracted_direction(p, l, at.radius_mm);
+        const double b = p.dot(w), c = p.squaredNorm() - at.radius_mm * at.radius_mm;
+        const double disc = b * b - c;
+        const double t = disc >= 0.0 ? -b - std::sqrt(disc) : -1.0;
+        if (t > 0.0) T = m_shading.transmittance(scene, p + t * w, p, lanes, kHitGap_mm);
+    }
+    return (total * kInvPi) * T + indirect;
+}
+
+template <int N>
+LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, const Vec3& d,
+                                 double tnear, const LaneOptics<N>& lanes,
+                                 const LanesN<N>* lambda_nm, PixelRng& rng) const {
+    constexpr double inf = std::numeric_limits<double>::infinity();
+    const OpticsParams& optics = m_shading.optics();
+    LanesN<N> beta = LanesN<N>::Ones();
+    MarkerPath path(0.0);
+    // Outer markers entered on the way: the light they scatter back, shaded once the coating
+    // behind them (and its cache) is known.
+    struct Scatter {
+        LanesN<N> weight;
+        Vec3 p;
+    };
+    std::array<Scatter, 4> scatters;
+    int pending = 0;
+    // The last outer marker left: where, and the chord through it.
+    double outer_exit_mm = -inf, outer_chord_mm = 0.0;
+    for (int i = 0; i < kMaxHits; ++i) {
+        const RayHit hit = scene.closest_hit(origin, d, tnear, inf);
+        if (!hit.hit()) break;
+        tnear = hit.t_mm + kHitGap_mm;
+        if (!(hit.normal.squaredNorm() > 0.5)) continue; // a zero-area triangle
+        const Vec3 p = origin + hit.t_mm * d;
+        const double cos_g = hit.normal.dot(d);
+        if (hit.kind == SurfaceKind::coating) {
+            const Lookup<N> at =
+                lookup<N>(hit.prim_id, hit.u, hit.v, facing(hit.normal, d), lambda_nm);
+            // Below an outer marker the indirect light comes through it: the light above the
+            // marker layer times the diffuse transmittance over the marker's thickness along
+            // the normal.
+            const double open = path.open_path(true, hit.t_mm);
+            const double chord = open > 0.0                                   ? open
+                                 : hit.t_mm - outer_exit_mm < kUnderMarker_mm ? outer_chord_mm
+                                                                              : 0.0;
+            const LanesN<N> indirect =
+                chord > 0.0 ? LanesN<N>((1.0 - optics.outer_marker_scatter_fraction) *
+                                        diffuse_transmittance<N>(lanes.outer_absorption_per_mm *
+                                                                 (chord * std::abs(cos_g))) *
+                                        at.indirect_above)
+                            : at.indirect;
+            LanesN<N> L =
+                beta * lanes.coating_albedo * lanes.led * shade(scene, p, at, indirect, lanes, rng);
+            for (int s = 0; s < pending; ++s)
+                L += scatters[std::size_t(s)].weight * lanes.led *
+                     shade(scene, scatters[std::size_t(s)].p, at, at.indirect_above, lanes, rng);
+            return L;
+        }
+        if (hit.kind != SurfaceKind::inner_marker && hit.kind != SurfaceKind::outer_marker)
+            break; // the inner surface again: the ray left the layers
+        if (cos_g == 0.0) continue;
+        const bool outer = hit.kind == SurfaceKind::outer_marker;
+        const double inside = path.cross(outer, hit.t_mm, cos_g < 0.0);
+        if (inside >= 0.0) {
+            beta *= m_shading.marker_absorption(lanes, outer, inside);
+            if (outer) outer_exit_mm = hit.t_mm, outer_chord_mm = inside;
+        } else if (outer) {
+            const double s = optics.outer_marker_scatter_fraction;
+            if (s > 0.0 && pending < int(scatters.size()))
+                scatters[std::size_t(pending++)] = {beta * s * lanes.outer_albedo, p};
+            beta *= 1.0 - s;
+        }
+    }
+    return LanesN<N>::Zero();
+}
+
+template <int N>
+LanesN<N> FastIntegrator::radiance(const EmbreeScene& scene, const Vec3& origin,
+                                   const Vec3& direction, const LaneOptics<N>& lanes,
+                                   const LanesN<N>* lambda_nm, PixelRng& rng) const {
+    if (!m_cache || m_triangles.empty())
+        throw std::logic_error("FastIntegrator::radiance called before build_cache/set_frame");
+    constexpr double inf = std::numeric_limits<double>::infinity();
+    const double eta = m_shading.optics().refractive_index;
+    const LanesN<N> led_radiance = lanes.led / m_path.led_area_mm2();
+    // What a ray in the cavity from o along d brings back, with `weight`: an LED, the black
+    // frame, or the dome wall, entered with (1 - F); `reflect` also follows the reflection F
+    // (the camera ray), else it is left out.
+    auto in_cavity = [&](auto&& self, const Vec3& o, const Vec3& d, double tnear,
+                         bool reflect) -> LanesN<N> {
+        const RayHit hit = scene.closest_hit(o, d, tnear, inf);
+        const double tfar = hit.hit() ? hit.t_mm : inf;
+        if (m_shading.crosses_frame(o, d, tnear, tfar)) return LanesN<N>::Zero();
+        if (const auto led = m_path.led_hit(o, d, tnear, tfar))
+            return led->second ? led_radiance : LanesN<N>::Zero();
+        if (!hit.hit()) return LanesN<N>::Zero();
+        if (hit.kind != SurfaceKind::inner_surface) // no inner surface: straight into the layers
+            return inside(scene, o, d, tnear, lanes, lambda_nm, rng);
+        const double cos_g = hit.normal.dot(d);
+        if (!(cos_g < 0.0)) return LanesN<N>::Zero(); // the back of the surface: not from air
+        const Vec3 p = o + hit.t_mm * d;
+        const Vec3 n = facing(hit.shading_normal, d);
+        const double cos_i = -d.dot(n);
+        const double F = fresnel_dielectric(cos_i, 1.0 / eta);
+        LanesN<N> L = LanesN<N>::Zero();
+        Vec3 refracted;
+        if (refract(d, n, 1.0 / eta, refracted) && refracted.dot(hit.normal) < 0.0)
+            L += (1.0 - F) * inside(scene, p, refracted, kHitGap_mm, lanes, lambda_nm, rng);
+        const Vec3 reflected = (d + 2.0 * cos_i * n).normalized();
+        if (reflect && F > 0.0 && reflected.dot(hit.normal) > 0.0)
+            L += F * self(self, p, reflected, kHitGap_mm, false);
+        return L;
+    };
+    return in_cavity(in_cavity, origin, direction, 0.0, true);
+}
+
+template LanesN<kRgbLanes> FastIntegrator::radiance(const EmbreeScene&, const Vec3&, const Vec3&,
+                                                    const LaneOptics<kRgbLanes>&,
+                                                    const LanesN<kRgbLanes>*, PixelRng&) const;
+template LanesN<kSpectralLanes> FastIntegrator::radiance(const EmbreeScene&, const Vec3&,
+                                                         const Vec3&,
+                                                         const LaneOptics<kSpectralLanes>&,
+                                                         const LanesN<kSpectralLanes>*,
+                                                         PixelRng&) const;
+
+} // namespace chromasim::render::detail

@@ -1,0 +1,137 @@
+#pragma once
+/// The fast integrator: the path integrator's light transport with the light that barely
+/// changes between frames computed once per sensor (the light cache) and rays spent only on
+/// what moves.
+///
+/// Split. The radiance a camera ray brings back from the coating point x (or from an outer
+/// marker it enters) is albedo / pi times the irradiance there, and that irradiance is
+///   - direct: the LEDs' light straight through the inner surface (the path integrator's
+///     Chains), sum over LEDs k of G_k(x) T_k(x), G_k the LED's unshadowed irradiance and
+///     T_k the markers' transmittance on the way (their coloured shadows), plus
+///   - indirect: everything else (diffuse interreflection in the dome, light through the
+///     markers and back, Fresnel and total reflections), smooth over the coating and barely
+///     changed by a deformation.
+///
+/// Light cache (once per sensor, on the undeformed dome), at every coating vertex:
+///   - the vector irradiance of each LED, V_k (G_k on a surface of normal n is V_k . n), by
+///     next-event estimation through the Chains on the bare dome (coating and inner surface,
+///     `direct_samples` points per LED), and the same for a point LED at the LED's centre
+///     (PathIntegrator::led_flux_point, deterministic);
+///   - the indirect irradiance / pi by path tracing on the dome with its markers
+///     (PathIntegrator::indirect, `paths_per_vertex` paths) at two levels: at the coating, and
+///     above the outer marker layer (where the markers' inner faces are). A vertex an outer
+///     marker covers gets its above value at both levels (times the uncovered neighbours'
+///     coating / above ratio at the coating level), so that uncovered coating interpolates
+///     uncovered values. Each level is then smoothed by local linear regression with a
+///     Gaussian of `smoothing_mm` (single paths that reach an LED after several reflections
+///     make each vertex's estimate heavy-tailed);
+///   - all per unit of LED emission; spectral: the indirect term at 16 fixed wavelengths, 400
+///     to 700 nm every 20 nm, interpolated linearly at a sample's wavelengths (a product of
+///     smooth albedo and transmittance spectra; the LED spectrum multiplies it per sample).
+///
+/// Per frame (set_frame): the cache moves with the coating's vertices (the same material
+/// points). V_k is the point LED's vector irradiance through this frame's inner surface times
+/// |V_k| / |point V_k| at rest (the deformation changes the refraction a lot near the rim: a
+/// straight-line correction left 5 % RMS in G_k there), one Newton solve per LED, Chain and
+/// vertex; the radius of the inner surface below each vertex (one ray). The indirect light is
+/// used as cached.
+///
+/// Per camera sample: the camera ray meets the inner surface and splits deterministically:
+/// (1 - F) refracts into the layers, F reflects into the cavity and is followed to the LED it
+/// may hit or the dome wall it meets (which it enters with (1 - F') and is shaded like a
+/// refracted ray; the further reflection F F' is left out). In the layers the ray crosses the
+/// markers (Beer-Lambert; an outer marker scatters the share `outer_marker_scatter_fraction`
+/// of what enters it, shaded with the light above the marker layer) to the coating, where the
+/// cache is interpolated with the hit's barycentric coordinates and G_k taken on the hit
+/// triangle's normal. Below an outer marker the indirect term is the light above it times
+/// (1 - scatter fraction) times the marker's diffuse transmittance 2 E_3(a t), t its thickness
+/// along the normal. T_k: one shadow ray to a random point on one LED drawn with probability
+/// G_k / sum G, along the sphere model's refraction through the inner surface below the point
+/// (PathIntegrator::refracted_direction).
+///
+/// What it leaves out or approximates, each part of its measured error against the path
+/// integrator (docs/VALIDATION.md): the indirect light's change with the deformation and with
+/// the markers' motion; the finite LED's change under deformation beyond the point LED's; the
+/// shadow of the LED seen by reflection in the cavity wall (taken as the refracted one's); the
+/// cache's resolution (the coating mesh's vertices, about 1.2 mm apart on the coarse mesh,
+/// against 1 mm markers) and smoothing; F F' and higher cavity reflections of camera rays.
+#include "render/path_integrator.hpp"
+
+#include <memory>
+#include <vector>
+
+namespace chromasim::render::detail {
+
+/// Wavelengths of the spectral indirect term, nm.
+inline constexpr int kCacheLambdas = 16;
+inline constexpr double kCacheLambdaMin_nm = 400.0;
+inline constexpr double kCacheLambdaStep_nm = 20.0;
+
+/// The per-sensor light cache on the coating vertices (plain data, structure of arrays).
+struct LightCache {
+    int vertices = 0;
+    int leds = 0;
+    int lanes = 0;             ///< kCacheLambdas (spectral) or kRgbLanes
+    std::vector<float> direct; ///< G_k per unit LED emission, [vertex * leds + k], 1/mm^2
+    /// E_ind / pi per unit LED emission at the coating, [vertex * lanes + j] (under an outer
+    /// marker: above it, unfiltered).
+    std::vector<float> indirect;
+    /// The same above the outer marker layer (where its markers' inner faces are).
+    std::vector<float> indirect_above;
+    /// The same for a point LED at each LED's centre, at rest (led_flux_point): a frame's G_k
+    /// is its point-LED flux through the deformed inner surface times |direct| / |point_rest|.
+    std::vector<float> point_rest;
+    std::vector<std::uint32_t> coating_triangles; ///< the coating's triangles (3 per), for checks
+    double build_s = 0.0;                         ///< wall time of the build
+};
+
+class FastIntegrator {
+public:
+    FastIntegrator(const ShadingModel& shading, const PathIntegrator& path);
+
+    /// Builds the cache on `undeformed` (coating, inner surface and markers at rest).
+    /// `spectral`: 16 fixed wavelengths from `spectra` (nullptr: the RGB lanes). Deterministic
+    /// (a stream per vertex).
+    void build_cache(const SensorFrame& undeformed, const render::LightCacheSettings& settings,
+                     const SensorSpectra* spectra, double led_scale);
+    bool has_cache() const { return m_cache != nullptr; }
+    const LightCache& cache() const { return *m_cache; }
+
+    /// The frame's G_k from the cache and the deformed coating, and the inner surface's
+    /// radius below each coating vertex (`scene`: the frame, loaded). Throws
+    /// std::invalid_argument when the coating's topology differs from the cache's.
+    void set_frame(const SensorFrame& frame, const EmbreeScene& scene);
+    /// Throws std::invalid_argument unless the frame's coating has the cache's topology.
+    void check_topology(const SensorFrame& frame) const;
+
+    /// Radiance along the camera ray, per lane, in the path integrator's units. `lambda_nm`:
+    /// the lanes' wavelengths (spectral), nullptr in RGB mode.
+    template <int N>
+    LanesN<N> radiance(const EmbreeScene& scene, const Vec3& origin_mm, const Vec3& direction,
+                       const LaneOptics<N>& lanes, const LanesN<N>* lambda_nm, PixelRng& rng) const;
+
+private:
+    template <int N> struct Lookup;
+    template <int N>
+    Lookup<N> lookup(std::uint32_t prim, double u, double v, const Vec3& normal,
+                     const LanesN<N>* lambda_nm) const;
+    template <int N>
+    LanesN<N> shade(const EmbreeScene& scene, const Vec3& p, const Lookup<N>& at,
+                    const LanesN<N>& indirect, const LaneOptics<N>& lanes, PixelRng& rng) const;
+    template <int N>
+    LanesN<N> spectral_at(const std::vector<float>& values, const std::uint32_t* triangle,
+                          const double* weights, const LanesN<N>* lambda_nm) const;
+    template <int N>
+    LanesN<N> inside(const EmbreeScene& scene, const Vec3& origin, const Vec3& direction,
+                     double tnear_mm, const LaneOptics<N>& lanes, const LanesN<N>* lambda_nm,
+                     PixelRng& rng) const;
+
+    const ShadingModel& m_shading;
+    const PathIntegrator& m_path;
+    std::shared_ptr<const LightCache> m_cache;
+    std::vector<float> m_direct;            ///< the frame's G_k, [vertex * leds + k]
+    std::vector<std::uint32_t> m_triangles; ///< the frame's coating triangles
+    std::vector<float> m_radius; ///< the sphere model's inner radius below each vertex, mm
+};
+
+} // namespace chromasim::render::detail
