@@ -48,8 +48,13 @@ SchemaEntry make_entry(std::string key, ValueType type, SpecValue def, std::stri
     e.unit = std::move(unit);
     e.range = range;
     e.doc = std::move(doc);
-    e.set = [access](Spec& s, const SpecValue& v) { assign(access(s), v); };
-    e.get = [access](const Spec& s) { return to_value(access(s)); };
+    if constexpr (std::is_invocable_v<Access, Spec&, std::size_t>) {
+        e.set = [access](Spec& s, std::size_t i, const SpecValue& v) { assign(access(s, i), v); };
+        e.get = [access](const Spec& s, std::size_t i) { return to_value(access(s, i)); };
+    } else {
+        e.set = [access](Spec& s, std::size_t, const SpecValue& v) { assign(access(s), v); };
+        e.get = [access](const Spec& s, std::size_t) { return to_value(access(s)); };
+    }
     return e;
 }
 
@@ -101,6 +106,13 @@ SchemaEntry rgb(std::string key, Rgb def, Range range, std::string unit, std::st
 }
 
 template <class Access>
+SchemaEntry factor(std::string key, Factor def, Range range, std::string unit, std::string doc,
+                   Access access) {
+    return make_entry(std::move(key), ValueType::Factor, std::move(def), std::move(unit), range,
+                      std::move(doc), access);
+}
+
+template <class Access>
 SchemaEntry vec3(std::string key, Rgb def, Range range, std::string unit, std::string doc,
                  Access access) {
     return make_entry(std::move(key), ValueType::Vec3, def, std::move(unit), range, std::move(doc),
@@ -112,6 +124,8 @@ SchemaEntry vec3(std::string key, Rgb def, Range range, std::string unit, std::s
 // The accessor of one Spec field, for both Spec& and const Spec& (see make_entry).
 // clang-format off
 #define CHROMASIM_FIELD(member) [](auto& s) -> auto& { return s.member; }
+// The accessor of a field of item i of a list of the Spec.
+#define CHROMASIM_ITEM(list, member) [](auto& s, std::size_t i) -> auto& { return s.list[i].member; }
 // clang-format on
 
 /// "inner_marker_layer" -> "inner marker layer".
@@ -307,70 +321,156 @@ void add_sensor_optics(std::vector<SchemaEntry>& out) {
                        CHROMASIM_FIELD(sensor.spectra_dir)));
 }
 
-void add_object_and_protocol(std::vector<SchemaEntry>& out) {
-    out.push_back(choice("object.shape", "flat", {"flat", "sphere", "mesh"},
-                         "Shape of the rigid object: a plane, a sphere of radius "
-                         "object.radius_mm centred on the dome axis, or the triangle mesh of "
-                         "object.mesh_file (its underside touches).",
-                         CHROMASIM_FIELD(object.shape)));
-    out.push_back(text("object.mesh_file", "",
+void add_objects(std::vector<SchemaEntry>& out) {
+    out.push_back(text("objects[].name", "flat",
+                       "Name of the object, written in labels.csv; unique in the list.",
+                       CHROMASIM_ITEM(objects, name)));
+    out.push_back(choice("objects[].shape", "flat", {"flat", "sphere", "mesh"},
+                         "Shape of the rigid object: a plane, a sphere of radius radius_mm "
+                         "centred on the dome axis, or the triangle mesh of mesh_file (its "
+                         "underside touches).",
+                         CHROMASIM_ITEM(objects, shape)));
+    out.push_back(number("objects[].radius_mm", 45, left_open(0, 1e4), "mm",
+                         "Sphere radius (seed 000's curved object: 45 mm); unused for a flat.",
+                         CHROMASIM_ITEM(objects, radius_mm)));
+    out.push_back(text("objects[].mesh_file", "",
                        "glTF 2.0 file (.gltf or .glb, metres) of a mesh object; a relative path "
                        "starts at the spec file's folder (assets/objects/ has a 45 mm sphere cap "
                        "and a 40 mm plate).",
-                       CHROMASIM_FIELD(object.mesh_file)));
-    out.push_back(number(
-        "object.offset_x_mm", 0, closed(-20, 20), "mm",
-        "Mesh: x of its frame's origin; sphere: x of its axis; flat: no effect (sensor frame).",
-        CHROMASIM_FIELD(object.offset_x_mm)));
-    out.push_back(number(
-        "object.offset_y_mm", 0, closed(-20, 20), "mm",
-        "Mesh: y of its frame's origin; sphere: y of its axis; flat: no effect (sensor frame).",
-        CHROMASIM_FIELD(object.offset_y_mm)));
-    out.push_back(number("object.roll_deg", 0, closed(-180, 180), "deg",
+                       CHROMASIM_ITEM(objects, mesh_file)));
+    out.push_back(
+        number("objects[].offset_x_mm", 0, closed(-20, 20), "mm",
+               "Mesh: x of its frame's origin; sphere: x of its axis; flat: no effect (the left "
+               "finger's frame; the right finger sees it mirrored, fingers section).",
+               CHROMASIM_ITEM(objects, offset_x_mm)));
+    out.push_back(number("objects[].offset_y_mm", 0, closed(-20, 20), "mm",
+                         "Mesh: y of its frame's origin; sphere: y of its axis; flat: no effect.",
+                         CHROMASIM_ITEM(objects, offset_y_mm)));
+    out.push_back(number("objects[].roll_deg", 0, closed(-180, 180), "deg",
                          "Mesh or flat (tilts it): rotation about the sensor's x axis, applied "
                          "first; a sphere is unchanged.",
-                         CHROMASIM_FIELD(object.roll_deg)));
+                         CHROMASIM_ITEM(objects, roll_deg)));
     out.push_back(
-        number("object.pitch_deg", 0, closed(-180, 180), "deg",
+        number("objects[].pitch_deg", 0, closed(-180, 180), "deg",
                "Mesh or flat (tilts it): rotation about the sensor's y axis, applied second.",
-               CHROMASIM_FIELD(object.pitch_deg)));
+               CHROMASIM_ITEM(objects, pitch_deg)));
     out.push_back(number(
-        "object.yaw_deg", 0, closed(-180, 180), "deg",
+        "objects[].yaw_deg", 0, closed(-180, 180), "deg",
         "Mesh: rotation about the sensor's z axis, applied last (a flat or sphere is unchanged).",
-        CHROMASIM_FIELD(object.yaw_deg)));
-    out.push_back(number("object.radius_mm", 45, left_open(0, 1e4), "mm",
-                         "Sphere radius (seed 000's curved object: 45 mm); unused for a flat.",
-                         CHROMASIM_FIELD(object.radius_mm)));
-    out.push_back(number("object.mu", 0.8, closed(0, 10), "",
-                         "Coulomb friction coefficient between coating and object (seed 001: "
-                         "1.1, 0.8, 0.5).",
-                         CHROMASIM_FIELD(object.mu)));
-    out.push_back(number("protocol.press.normal_force_N", 1.5, left_open(0, 50), "N",
-                         "Normal (grip) force reached at the end of the press.",
-                         CHROMASIM_FIELD(press.normal_force_N)));
-    out.push_back(integer("protocol.press.frames", 2, closed(1, 10000), "",
-                          "Frames of the linear normal-force ramp (the last one at full force).",
-                          CHROMASIM_FIELD(press.frames)));
-    out.push_back(choice("protocol.pull.control", "force", {"force", "displacement"},
-                         "force: the object is pulled with a force ramping to "
-                         "tangential_force_N (it slides once that exceeds mu f_n); displacement: "
-                         "the object travels sideways to displacement_mm (seed 001's sliding "
-                         "plate) and the force is found.",
-                         CHROMASIM_FIELD(pull.control)));
-    out.push_back(number("protocol.pull.tangential_force_N", 0.5, closed(0, 50), "N",
-                         "Tangential load reached at the end of a force-controlled pull.",
-                         CHROMASIM_FIELD(pull.tangential_force_N)));
-    out.push_back(number("protocol.pull.displacement_mm", 1.0, closed(0, 50), "mm",
-                         "Object travel reached at the end of a displacement-controlled pull.",
-                         CHROMASIM_FIELD(pull.displacement_mm)));
-    out.push_back(number("protocol.pull.direction_deg", 0, closed(-360, 360), "deg",
-                         "Direction of the pull in the x-y plane, from +x.",
-                         CHROMASIM_FIELD(pull.direction_deg)));
-    out.push_back(integer("protocol.pull.frames", 3, closed(0, 100000), "",
-                          "Frames of the linear tangential ramp after the press (0: no pull).",
-                          CHROMASIM_FIELD(pull.frames)));
+        CHROMASIM_ITEM(objects, yaw_deg)));
+    out.push_back(text("friction[].name", "medium",
+                       "Name of the friction condition (e.g. dry, water, soap), written in "
+                       "labels.csv; unique in the list.",
+                       CHROMASIM_ITEM(friction, name)));
+    out.push_back(factor("friction[].mu", Factor{{0.8}}, closed(0, 10), "",
+                         "Coulomb friction coefficient between coating and object: a value, a "
+                         "list (one drawn per trial) or {min, max} (uniform per trial). Seed "
+                         "001: 1.1, 0.8, 0.5 [G].",
+                         CHROMASIM_ITEM(friction, mu)));
 }
 
+void add_fingers(std::vector<SchemaEntry>& out) {
+    out.push_back(integer("fingers.count", 2, closed(1, 2), "",
+                          "Fingertips: 1 (left only) or 2 (left and right squeeze the object "
+                          "from opposite sides; each has the full grip force and carries half "
+                          "the load; the right one sees the object rotated 180 deg about its "
+                          "z axis: load direction + 180 deg, offsets negated, yaw + 180 deg).",
+                          CHROMASIM_FIELD(fingers.count)));
+    out.push_back(number("fingers.mu_jitter", 0, closed(0, 0.5), "",
+                         "Per-finger difference in friction: each finger's mu is the trial's "
+                         "mu times (1 + u), u uniform in [-mu_jitter, mu_jitter], drawn per "
+                         "trial and finger [G].",
+                         CHROMASIM_FIELD(fingers.mu_jitter)));
+    out.push_back(number("fingers.offset_jitter_mm", 0, closed(0, 5), "mm",
+                         "Per-finger difference in pose: the object's x and y offset in each "
+                         "finger's frame moves by a uniform draw in [-j, j] per trial and finger "
+                         "(no effect on a flat) [G].",
+                         CHROMASIM_FIELD(fingers.offset_jitter_mm)));
+}
+
+void add_protocol(std::vector<SchemaEntry>& out) {
+    out.push_back(choice("protocol.type", "grasp_load", {"grasp_load", "slide"},
+                         "grasp_load (seed 000): grasp to the grip force, hold, then a "
+                         "tangential load ramps at load_rate_N_per_s until target_load_N or "
+                         "slip; slide (seed 001): grasp, hold, then the object slides under "
+                         "displacement control from slide_start_mm to slide_end_mm.",
+                         CHROMASIM_FIELD(protocol.type)));
+    out.push_back(number("protocol.frame_rate_Hz", 100, left_open(0, 10000), "Hz",
+                         "Frames per second of the grasp, hold and load phases (seed 000: 100 "
+                         "Hz); the first frame is 1 / rate after first touch.",
+                         CHROMASIM_FIELD(protocol.frame_rate_Hz)));
+    out.push_back(factor("protocol.grip_N", Factor{{1.5}}, left_open(0, 50), "N",
+                         "Grip (normal) force on each finger: a value, a list or {min, max} "
+                         "(seed 000: 1.0 to 2.5 by 0.5).",
+                         CHROMASIM_FIELD(protocol.grip_N)));
+    out.push_back(number("protocol.grasp_s", 0.5, closed(0, 100), "s",
+                         "Duration of the linear grip-force ramp from first touch (0: no grasp "
+                         "frames; the first frame reaches its load from rest in "
+                         "sensor.contact_steps steps).",
+                         CHROMASIM_FIELD(protocol.grasp_s)));
+    out.push_back(number("protocol.hold_s", 2, closed(0, 100), "s",
+                         "Hold at the grip force before the load (seed 000: 2 s). Hold frames "
+                         "are not re-solved: the previous frame's result is reused.",
+                         CHROMASIM_FIELD(protocol.hold_s)));
+    out.push_back(factor("protocol.load_rate_N_per_s", Factor{{1.0}}, left_open(0, 1000), "N/s",
+                         "grasp_load: rate of the total tangential load, shared equally by the "
+                         "fingers (seed 000: 0.5 or 1.0).",
+                         CHROMASIM_FIELD(protocol.load_rate_N_per_s)));
+    out.push_back(factor("protocol.target_load_N", Factor{{2.5}}, left_open(0, 100), "N",
+                         "grasp_load: total tangential load at which the ramp (and the trial) "
+                         "ends, shared equally by the fingers (seed 000: uniform in [2, 3]).",
+                         CHROMASIM_FIELD(protocol.target_load_N)));
+    out.push_back(number("protocol.load_direction_deg", 0, closed(-360, 360), "deg",
+                         "Direction of the load (or slide) in the left finger's x-y plane, "
+                         "from +x; the right finger's is 180 deg away.",
+                         CHROMASIM_FIELD(protocol.load_direction_deg)));
+    out.push_back(integer("protocol.slip_frames", 3, closed(0, 100000), "",
+                          "grasp_load: frames kept from the first frame where a finger's "
+                          "load reaches mu f_n (it slips: Gamma = 0); then the trial ends. 0: "
+                          "it ends before that frame.",
+                          CHROMASIM_FIELD(protocol.slip_frames)));
+    out.push_back(number("protocol.slide.start_mm", 0.05, closed(0, 50), "mm",
+                         "slide: the object's travel at the first slide frame (seed 001: 0.05).",
+                         CHROMASIM_FIELD(protocol.slide_start_mm)));
+    out.push_back(number("protocol.slide.end_mm", 6, closed(0, 50), "mm",
+                         "slide: travel at the last slide frame (seed 001: 6).",
+                         CHROMASIM_FIELD(protocol.slide_end_mm)));
+    out.push_back(integer("protocol.slide.frames", 30, closed(1, 100000), "",
+                          "slide: frames evenly spaced in travel from start_mm to end_mm (seed "
+                          "001: 30).",
+                          CHROMASIM_FIELD(protocol.slide_frames)));
+    out.push_back(number("protocol.slide.speed_mm_per_s", 10, left_open(0, 1000), "mm/s",
+                         "slide: sliding speed, which sets the slide frames' times (seed 001: "
+                         "10).",
+                         CHROMASIM_FIELD(protocol.slide_speed_mm_per_s)));
+}
+
+void add_sampling_and_splits(std::vector<SchemaEntry>& out) {
+    out.push_back(choice("sampling.method", "full_grid", {"full_grid", "random", "latin_hypercube"},
+                         "full_grid: every combination of objects, friction conditions and the "
+                         "listed values of grip_N, load_rate_N_per_s and target_load_N, "
+                         "repetitions times (a {min, max} factor is drawn per trial); random: "
+                         "`trials` trials, each factor drawn independently (a list uniformly, "
+                         "a range uniformly); latin_hypercube: `trials` trials, each factor "
+                         "(objects and friction included) cut in `trials` equal strata, each "
+                         "stratum used by exactly one trial.",
+                         CHROMASIM_FIELD(sampling.method)));
+    out.push_back(integer("sampling.repetitions", 1, closed(1, 100000), "",
+                          "full_grid: trials per grid cell.",
+                          CHROMASIM_FIELD(sampling.repetitions)));
+    out.push_back(integer("sampling.trials", 1, closed(1, 1000000), "",
+                          "random and latin_hypercube: number of trials.",
+                          CHROMASIM_FIELD(sampling.trials)));
+    out.push_back(text("splits[].name", "all",
+                       "Name of the split (e.g. train, test); images go to images/<name>/. "
+                       "Unique in the list.",
+                       CHROMASIM_ITEM(splits, name)));
+    out.push_back(number("splits[].fraction", 1, left_open(0, 1), "",
+                         "Fraction of the trials in this split; the fractions sum to 1. Trials "
+                         "are assigned by a shuffle seeded by `seed`; counts are rounded (the "
+                         "cumulative sums, times the trial count, rounded).",
+                         CHROMASIM_ITEM(splits, fraction)));
+}
 /// render.sensor: the optional camera sensor model (render/sensor_model.hpp). The ranges are the
 /// ones render::SensorModel checks.
 void add_render_sensor(std::vector<SchemaEntry>& out) {
@@ -480,24 +580,94 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                           "Add EXR channels variance.R, variance.G, variance.B: each pixel's "
                           "variance of the mean over its samples. Needs outputs.exr.",
                           CHROMASIM_FIELD(outputs.variance)));
+    out.push_back(boolean("outputs.strain", false,
+                          "Write the surface strain eps_xx on a 101 x 76 grid (seed 001, eq. 3) "
+                          "per frame: strain/<split>/<trial>/<finger>.csv, one row per frame "
+                          "(docs/DATASET_FORMAT.md).",
+                          CHROMASIM_FIELD(outputs.strain)));
 }
 
 #undef CHROMASIM_FIELD
+#undef CHROMASIM_ITEM
+
+template <class Item>
+SchemaList make_list(std::string name, std::string doc, std::vector<Item> Spec::*member) {
+    SchemaList l;
+    l.name = std::move(name);
+    l.doc = std::move(doc);
+    l.size = [member](const Spec& s) { return (s.*member).size(); };
+    l.resize = [member](Spec& s, std::size_t n) { (s.*member).resize(n); };
+    return l;
+}
+
+std::vector<SchemaList> build_lists() {
+    return {make_list("objects",
+                      "The objects, a categorical factor of the sampling plan: every trial grasps "
+                      "one of them.",
+                      &Spec::objects),
+            make_list("friction",
+                      "The friction conditions, a categorical factor: every trial has one.",
+                      &Spec::friction),
+            make_list("splits", "The splits the trials are divided into.", &Spec::splits)};
+}
 
 std::vector<SchemaEntry> build_schema() {
     std::vector<SchemaEntry> out;
     add_general(out);
     add_sensor_mechanics(out);
     add_sensor_optics(out);
-    add_object_and_protocol(out);
+    add_objects(out);
+    add_fingers(out);
+    add_protocol(out);
+    add_sampling_and_splits(out);
     add_render_and_outputs(out);
     return out;
+}
+
+/// Names of the items of a list are unique (labels and folders are named by them).
+SchemaRule unique_name(const std::string& list) {
+    SchemaRule r;
+    r.key = list + "[].name";
+    r.holds = [list](const Spec& s, std::size_t i) {
+        const SchemaEntry* name = find_schema_entry(list + "[].name");
+        for (std::size_t j = 0; j < i; ++j)
+            if (name->get(s, j) == name->get(s, i)) return false;
+        return true;
+    };
+    r.problem = "is the name of an earlier item of " + list;
+    r.allowed = "a name used once in " + list;
+    return r;
+}
+
+SchemaRule split_sum() {
+    SchemaRule r;
+    r.key = "splits";
+    r.holds = [](const Spec& s, std::size_t) {
+        double sum = 0;
+        for (const Spec::Split& split : s.splits)
+            sum += split.fraction;
+        return std::abs(sum - 1.0) <= 1e-9;
+    };
+    r.problem = "has fractions whose sum is not 1";
+    r.allowed = "splits[].fraction summing to 1 (within 1e-9), e.g. train 0.8, test 0.2";
+    return r;
+}
+
+SchemaRule slide_travel() {
+    SchemaRule r;
+    r.key = "protocol.slide.end_mm";
+    r.holds = [](const Spec& s, std::size_t) {
+        return s.protocol.slide_end_mm >= s.protocol.slide_start_mm;
+    };
+    r.problem = "is below protocol.slide.start_mm";
+    r.allowed = "protocol.slide.end_mm >= protocol.slide.start_mm";
+    return r;
 }
 
 std::vector<SchemaRule> build_rules() {
     SchemaRule outputs;
     outputs.key = "outputs";
-    outputs.holds = [](const Spec& s) {
+    outputs.holds = [](const Spec& s, std::size_t) {
         return s.outputs.images || s.outputs.labels || s.outputs.markers || s.outputs.exr;
     };
     outputs.problem = "enables no output";
@@ -505,23 +675,24 @@ std::vector<SchemaRule> build_rules() {
         "at least one of outputs.images, outputs.labels, outputs.markers, outputs.exr is true";
     SchemaRule channels;
     channels.key = "outputs.exr";
-    channels.holds = [](const Spec& s) {
+    channels.holds = [](const Spec& s, std::size_t) {
         return s.outputs.exr || !(s.outputs.marker_ids || s.outputs.variance);
     };
     channels.problem =
         "is false while outputs.marker_ids or outputs.variance asks for EXR channels";
     channels.allowed = "outputs.exr: true, or outputs.marker_ids and outputs.variance false";
     SchemaRule mesh;
-    mesh.key = "object.mesh_file";
-    mesh.holds = [](const Spec& s) {
-        if (s.object.shape != "mesh") return true;
+    mesh.key = "objects[].mesh_file";
+    mesh.holds = [](const Spec& s, std::size_t i) {
+        const Spec::Object& o = s.objects[i];
+        if (o.shape != "mesh") return true;
         std::error_code ec;
-        return !s.object.mesh_file.empty() &&
-               std::filesystem::is_regular_file(resolve_spec_path(s, s.object.mesh_file), ec);
+        return !o.mesh_file.empty() &&
+               std::filesystem::is_regular_file(resolve_spec_path(s, o.mesh_file), ec);
     };
     SchemaRule spectra;
     spectra.key = "sensor.optics.spectra_dir";
-    spectra.holds = [](const Spec& s) {
+    spectra.holds = [](const Spec& s, std::size_t) {
         if (!s.render.spectral || !(s.outputs.images || s.outputs.exr)) return true;
         std::error_code ec;
         return std::filesystem::is_directory(spectra_directory(s), ec);
@@ -533,7 +704,7 @@ std::vector<SchemaRule> build_rules() {
     mesh.allowed = "a .gltf or .glb file; a relative path starts at the spec file's folder";
     SchemaRule camera;
     camera.key = "sensor.camera";
-    camera.holds = [](const Spec& s) {
+    camera.holds = [](const Spec& s, std::size_t) {
         if (s.sensor.camera_model != "kannala_brandt") return true;
         const auto& c = s.sensor;
         return render::kannala_brandt_min_slope(c.camera_k1, c.camera_k2, c.camera_k3, c.camera_k4,
@@ -546,21 +717,31 @@ std::vector<SchemaRule> build_rules() {
                      "polar angle t (rad) up to half_fov_deg, or a smaller half_fov_deg (the "
                      "field the calibration covers)";
     SchemaRule tilt;
-    tilt.key = "object.pitch_deg";
-    tilt.holds = [](const Spec& s) {
-        if (s.object.shape != "flat") return true;
+    tilt.key = "objects[].pitch_deg";
+    tilt.holds = [](const Spec& s, std::size_t i) {
+        const Spec::Object& o = s.objects[i];
+        if (o.shape != "flat") return true;
         // A plane tilted by t touches the dome at polar angle t: it must stay in the cap.
         const double deg = std::numbers::pi / 180;
-        const double cos_tilt =
-            std::cos(s.object.roll_deg * deg) * std::cos(s.object.pitch_deg * deg);
+        const double cos_tilt = std::cos(o.roll_deg * deg) * std::cos(o.pitch_deg * deg);
         return cos_tilt > std::cos((s.sensor.contact_candidate_angle_deg - 5) * deg);
     };
-    tilt.problem = "with object.roll_deg tilts the flat object to within 5 deg of "
+    tilt.problem = "with roll_deg tilts the flat object to within 5 deg of "
                    "sensor.contact_candidate_angle_deg or beyond (the contact would leave the "
                    "cap of nodes that may touch)";
     tilt.allowed = "a tilt acos(cos(roll) cos(pitch)) below sensor.contact_candidate_angle_deg "
                    "- 5 deg (30 deg by default)";
-    return {outputs, channels, mesh, camera, tilt, spectra};
+    return {outputs,
+            channels,
+            mesh,
+            camera,
+            tilt,
+            spectra,
+            unique_name("objects"),
+            unique_name("friction"),
+            unique_name("splits"),
+            split_sum(),
+            slide_travel()};
 }
 
 // ---- Converting scalar text -----------------------------------------------------------------
@@ -694,6 +875,8 @@ const char* type_name(ValueType type) {
         return "rgb";
     case ValueType::Vec3:
         return "vec3";
+    case ValueType::Factor:
+        return "factor";
     }
     return "?";
 }
@@ -715,6 +898,8 @@ std::string allowed_cell(const SchemaEntry& e) {
     case ValueType::Rgb:
     case ValueType::Vec3:
         return "3 numbers, each in " + range_text(e);
+    case ValueType::Factor:
+        return "number, list of numbers or {min, max}, each in " + range_text(e);
     }
     return "";
 }
@@ -744,6 +929,14 @@ Reading rules (an error names the file, line:column, key, value and what is allo
 - Quoted text (`"1.5"`) is a string: it is never taken as a number or a bool.
 - `rgb`: a list of exactly 3 numbers in red, green, blue order, e.g. `[0.85, 0.85, 0.85]`.
 - `vec3`: a list of exactly 3 numbers x, y, z, e.g. `[0.0, 0.0, -1.5]`.
+- `factor`: a factor of the sampling plan: one number (`1.5`), a non-empty list of numbers
+  (`[1.0, 1.5, 2.0]`) or a uniform range (`{min: 2, max: 3}`, both keys, min <= max); every
+  number in the allowed range. How trials draw from it: `sampling.method`.
+- Lists of mappings: `objects`, `friction` and `splits` are YAML lists whose items are
+  mappings with the keys written `objects[].KEY` below, e.g.
+  `objects: [{name: flat, shape: flat}, {name: curved, shape: sphere, radius_mm: 45}]`. A
+  list has at least one item; a list left out is the one-item list of the item defaults.
+  Errors name the item as `objects[1].radius_mm` (items count from 0).
 - Ranges: `[a, b]` includes both ends, `(a, b]` excludes `a`.
 - A key given twice in the same mapping is an error.
 - [G] marks an assumption: a default to override when better data exist.
@@ -771,6 +964,22 @@ bool Range::contains(double x) const {
 const std::vector<SchemaEntry>& spec_schema() {
     static const std::vector<SchemaEntry> schema = detail::build_schema();
     return schema;
+}
+
+std::string SchemaEntry::list() const {
+    const std::size_t brackets = key.find("[].");
+    return brackets == std::string::npos ? std::string() : key.substr(0, brackets);
+}
+
+const std::vector<SchemaList>& spec_lists() {
+    static const std::vector<SchemaList> lists = detail::build_lists();
+    return lists;
+}
+
+const SchemaList* find_schema_list(std::string_view name) {
+    for (const SchemaList& l : spec_lists())
+        if (l.name == name) return &l;
+    return nullptr;
 }
 
 const std::vector<SchemaRule>& spec_rules() {
@@ -802,7 +1011,9 @@ std::vector<std::string> schema_children(std::string_view section) {
     for (const SchemaEntry& e : spec_schema()) {
         if (e.key.compare(0, prefix.size(), prefix) != 0) continue;
         const std::string rest = e.key.substr(prefix.size());
-        const std::string name = rest.substr(0, rest.find('.'));
+        std::string name = rest.substr(0, rest.find('.'));
+        if (name.size() > 2 && name.compare(name.size() - 2, 2, "[]") == 0)
+            name.resize(name.size() - 2);
         if (std::find(names.begin(), names.end(), name) == names.end()) names.push_back(name);
     }
     return names;
@@ -813,6 +1024,7 @@ ScalarCheck check_scalar(const SchemaEntry& entry, std::string_view text, bool q
     case ValueType::Number:
     case ValueType::Rgb:
     case ValueType::Vec3:
+    case ValueType::Factor:
         return detail::check_number(entry, text, quoted);
     case ValueType::Integer:
         return detail::check_integer(entry, text, quoted);
@@ -846,6 +1058,9 @@ std::string describe_allowed(const SchemaEntry& entry) {
     case ValueType::Rgb:
     case ValueType::Vec3:
         return "list of 3 numbers, each in " + detail::range_text(entry) + unit;
+    case ValueType::Factor:
+        return "a number, a non-empty list of numbers, or {min, max} with min <= max, each in " +
+               detail::range_text(entry) + unit;
     }
     return "";
 }
@@ -874,6 +1089,15 @@ std::string value_to_yaml(const SpecValue& value, ValueType type) {
         return "[" + format_number(c[0]) + ", " + format_number(c[1]) + ", " + format_number(c[2]) +
                "]";
     }
+    case ValueType::Factor: {
+        const Factor& f = std::get<Factor>(value);
+        if (f.is_range)
+            return "{min: " + format_number(f.min) + ", max: " + format_number(f.max) + "}";
+        std::string out = "[";
+        for (std::size_t i = 0; i < f.values.size(); ++i)
+            out += (i ? ", " : "") + format_number(f.values[i]);
+        return out + "]";
+    }
     }
     return "";
 }
@@ -881,7 +1105,24 @@ std::string value_to_yaml(const SpecValue& value, ValueType type) {
 std::string resolved_spec_yaml(const Spec& spec) {
     std::string out = "# chromasim resolved spec: every key, defaults filled, schema order.\n";
     std::vector<std::string> open; // the sections the previous key was in
-    for (const SchemaEntry& e : spec_schema()) {
+    const auto& schema = spec_schema();
+    for (std::size_t k = 0; k < schema.size(); ++k) {
+        const SchemaEntry& e = schema[k];
+        if (const std::string list = e.list(); !list.empty()) {
+            // A list (its entries are contiguous): every item, its keys in schema order.
+            std::size_t end = k;
+            while (end < schema.size() && schema[end].list() == list)
+                ++end;
+            out += list + ":\n";
+            for (std::size_t i = 0; i < find_schema_list(list)->size(spec); ++i)
+                for (std::size_t j = k; j < end; ++j)
+                    out += std::string(j == k ? "  - " : "    ") +
+                           schema[j].key.substr(list.size() + 3) + ": " +
+                           value_to_yaml(schema[j].get(spec, i), schema[j].type) + "\n";
+            open.clear();
+            k = end - 1;
+            continue;
+        }
         std::vector<std::string> parts = detail::split_key(e.key);
         const std::string leaf = parts.back();
         parts.pop_back();
@@ -893,7 +1134,7 @@ std::string resolved_spec_yaml(const Spec& spec) {
             out += std::string(2 * i, ' ') + parts[i] + ":\n";
         }
         out += std::string(2 * parts.size(), ' ') + leaf + ": " +
-               value_to_yaml(e.get(spec), e.type) + "\n";
+               value_to_yaml(e.get(spec, 0), e.type) + "\n";
         open = std::move(parts);
     }
     return out;
@@ -901,8 +1142,10 @@ std::string resolved_spec_yaml(const Spec& spec) {
 
 Spec default_spec() {
     Spec spec;
+    for (const SchemaList& list : spec_lists())
+        list.resize(spec, 1);
     for (const SchemaEntry& e : spec_schema()) {
-        e.set(spec, e.default_value);
+        e.set(spec, 0, e.default_value);
     }
     return spec;
 }
@@ -952,6 +1195,9 @@ std::string schema_markdown() {
                detail::markdown_cell(detail::allowed_cell(e)) + " | " +
                detail::markdown_cell(e.doc) + " |\n";
     }
+    out += "\nLists of mappings:\n";
+    for (const SchemaList& l : spec_lists())
+        out += "- `" + l.name + "`: " + l.doc + "\n";
     out += "\nCross-key rules, checked once every key is valid:\n";
     for (const SchemaRule& r : spec_rules()) {
         out += "- `" + r.key + "`: " + r.allowed + ".\n";
