@@ -14,11 +14,11 @@ struct GenerateOptions {
     std::filesystem::path out_dir;
     bool overwrite = false; ///< replace an existing dataset from another spec
     bool quiet = false;     ///< no per-trial progress lines
+    /// On-disk cache of the mechanics precomputation (empty: off). See default_cache_dir().
+    std::filesystem::path cache_dir;
     /// Run only the first `max_trials` trials of the plan (0: all): a slice of a big spec.
     /// Trial k of the slice is trial k of the whole plan (same content, same split).
     int max_trials = 0;
-    /// On-disk cache of the mechanics precomputation (empty: off). See default_cache_dir().
-    std::filesystem::path cache_dir;
 };
 
 /// $CHROMASIM_CACHE_DIR, else $XDG_CACHE_HOME/chromasim, else $HOME/.cache/chromasim; empty

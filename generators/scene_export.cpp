@@ -269,7 +269,11 @@ SceneExportReport export_scene(const Spec& spec, const SceneSelection& which,
     check_index("--trial", which.trial, int(plan.trials.size()),
                 "spec '" + spec.name + "' plans trials:");
     const TrialPlan& trial = plan.trials[std::size_t(which.trial)];
-    check_index("--finger", which.finger, int(trial.fingers.size()), "the spec has fingers:");
+    if (which.finger < 0 || which.finger >= int(trial.fingers.size()))
+        throw std::out_of_range("--finger " + std::string(finger_name(which.finger)) +
+                                " is out of range: spec '" + spec.name + "' has " +
+                                std::to_string(trial.fingers.size()) +
+                                " fingertip(s) (fingers.count), so --finger must be left");
     report.trial = which.trial;
     report.finger = which.finger;
     report.frame = which.frame;

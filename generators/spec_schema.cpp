@@ -14,6 +14,9 @@ namespace chromasim::generators {
 namespace detail {
 namespace { // internal linkage: these names are common
 
+/// The longest trial a spec may plan, frames.
+constexpr double kMaxTrialFrames = 1e6;
+
 // ---- Storing values into fields and reading them back ---------------------------------------
 
 /// Stores a validated value; integers travel as int64_t and narrow to the field's type (the
@@ -653,6 +656,33 @@ SchemaRule split_sum() {
     return r;
 }
 
+/// The most frames a trial of `spec` can plan (the longest load ramp: the largest target at
+/// the smallest rate).
+double max_frames_per_trial(const Spec& s) {
+    const Spec::Protocol& p = s.protocol;
+    const auto lowest = [](const Factor& f) {
+        return f.is_range ? f.min : *std::min_element(f.values.begin(), f.values.end());
+    };
+    const auto highest = [](const Factor& f) {
+        return f.is_range ? f.max : *std::max_element(f.values.begin(), f.values.end());
+    };
+    const double phases =
+        std::round(p.grasp_s * p.frame_rate_Hz) + std::round(p.hold_s * p.frame_rate_Hz);
+    if (p.type == "slide") return phases + p.slide_frames;
+    return phases +
+           std::ceil(highest(p.target_load_N) / lowest(p.load_rate_N_per_s) * p.frame_rate_Hz);
+}
+
+SchemaRule trial_length() {
+    SchemaRule r;
+    r.key = "protocol.frame_rate_Hz";
+    r.holds = [](const Spec& s, std::size_t) { return max_frames_per_trial(s) <= kMaxTrialFrames; };
+    r.problem = "with the grasp, hold and load durations plans a trial longer than 1000000 frames";
+    r.allowed = "(grasp_s + hold_s + max target_load_N / min load_rate_N_per_s) * frame_rate_Hz "
+                "(slide: the slide frames instead of the load) up to 1000000 frames per trial";
+    return r;
+}
+
 SchemaRule slide_travel() {
     SchemaRule r;
     r.key = "protocol.slide.end_mm";
@@ -668,11 +698,13 @@ std::vector<SchemaRule> build_rules() {
     SchemaRule outputs;
     outputs.key = "outputs";
     outputs.holds = [](const Spec& s, std::size_t) {
-        return s.outputs.images || s.outputs.labels || s.outputs.markers || s.outputs.exr;
+        return s.outputs.images || s.outputs.labels || s.outputs.markers || s.outputs.exr ||
+               s.outputs.strain;
     };
     outputs.problem = "enables no output";
     outputs.allowed =
-        "at least one of outputs.images, outputs.labels, outputs.markers, outputs.exr is true";
+        "at least one of outputs.images, outputs.labels, outputs.markers, outputs.exr, "
+        "outputs.strain is true";
     SchemaRule channels;
     channels.key = "outputs.exr";
     channels.holds = [](const Spec& s, std::size_t) {
@@ -731,17 +763,13 @@ std::vector<SchemaRule> build_rules() {
                    "cap of nodes that may touch)";
     tilt.allowed = "a tilt acos(cos(roll) cos(pitch)) below sensor.contact_candidate_angle_deg "
                    "- 5 deg (30 deg by default)";
-    return {outputs,
-            channels,
-            mesh,
-            camera,
-            tilt,
-            spectra,
-            unique_name("objects"),
-            unique_name("friction"),
-            unique_name("splits"),
-            split_sum(),
-            slide_travel()};
+    std::vector<SchemaRule> rules{outputs, channels, mesh, camera, tilt, spectra};
+    for (const char* list : {"objects", "friction", "splits"})
+        rules.push_back(unique_name(list));
+    rules.push_back(split_sum());
+    rules.push_back(slide_travel());
+    rules.push_back(trial_length());
+    return rules;
 }
 
 // ---- Converting scalar text -----------------------------------------------------------------

@@ -93,6 +93,9 @@ YAML::Mark value_mark(const YAML::Node& key_node, const YAML::Node& value) {
 }
 
 std::string keys_allowed_in(const std::string& section) {
+    if (section.size() > 2 && section.compare(section.size() - 2, 2, "[]") == 0)
+        return "keys in an item of '" + section.substr(0, section.size() - 2) +
+               "': " + join(schema_children(section));
     return (section.empty() ? std::string("keys at the top level: ")
                             : "keys in '" + section + "': ") +
            join(schema_children(section));
@@ -153,10 +156,11 @@ SpecValue read_factor(const SpecReader& r, const SchemaEntry& entry, const std::
     bool has_min = false, has_max = false;
     for (const auto& pair : value) {
         const std::string name = pair.first.IsScalar() ? pair.first.Scalar() : "";
-        bool& seen = name == "min" ? has_min : has_max;
-        if ((name != "min" && name != "max") || seen)
+        if (name != "min" && name != "max")
             fail(r, pair.first.Mark(), key + "." + node_text(pair.first), node_text(pair.first),
-                 seen ? "is given twice" : "is not a key of a range", allowed);
+                 "is not a key of a range", allowed);
+        bool& seen = name == "min" ? has_min : has_max;
+        if (seen) fail(r, pair.first.Mark(), key + "." + name, name, "is given twice", allowed);
         seen = true;
         (name == "min" ? f.min : f.max) =
             std::get<double>(read_scalar(r, entry, key + "." + name, pair.first, pair.second));
