@@ -732,7 +732,7 @@ std::vector<SchemaRule> build_rules() {
     spectra.problem = "names no existing folder, and render.spectral is true";
     spectra.allowed = "a folder with the six spectrum CSVs (assets/spectra/README.md), or empty "
                       "for the shipped ones";
-    mesh.problem = "names no existing file, and object.shape is mesh";
+    mesh.problem = "names no existing file, and the object's shape is mesh";
     mesh.allowed = "a .gltf or .glb file; a relative path starts at the spec file's folder";
     SchemaRule camera;
     camera.key = "sensor.camera";
