@@ -1,6 +1,6 @@
 #pragma once
 /// The typed, validated contents of a dataset spec file (YAML). Every field has a schema
-/// entry (generators/spec_schema.cpp) with its type, default, unit, allowed range and doc
+/// entry (generators/spec_table.cpp) with its type, default, unit, allowed range and doc
 /// line; `chromasim schema` prints that table, docs/SPEC_REFERENCE.md holds a copy.
 #include <array>
 #include <cstdint>
