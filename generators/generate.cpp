@@ -219,8 +219,15 @@ std::filesystem::path default_cache_dir() {
 GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::ostream& log) {
     const auto t_start = Clock::now();
     GenerateReport report;
-    // 1. Output path first: nothing is computed for a dataset that exists or cannot be written.
-    const OutputState state = inspect_output(options.out_dir, spec, options.max_trials);
+    // 1. The plan (cheap, plain data), then the output path: nothing is computed for a
+    // dataset that exists or cannot be written. A slice as long as the plan is the whole.
+    Plan plan = make_plan(spec);
+    report.planned_trials = int(plan.trials.size());
+    const int slice = options.max_trials > 0 && options.max_trials < report.planned_trials
+                          ? options.max_trials
+                          : 0;
+    if (slice > 0) plan.trials.resize(std::size_t(slice));
+    const OutputState state = inspect_output(options.out_dir, spec, slice);
     if (state == OutputState::up_to_date && !options.overwrite) {
         report.up_to_date = true;
         log << "chromasim: " << options.out_dir.string()
@@ -234,11 +241,7 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     const bool render_stage = spec.outputs.images || spec.outputs.exr;
     std::optional<render::OpticsParams> optics;
     if (render_stage) optics = optics_params(spec);
-    Plan plan = make_plan(spec);
-    report.planned_trials = int(plan.trials.size());
-    if (options.max_trials > 0 && std::size_t(options.max_trials) < plan.trials.size())
-        plan.trials.resize(std::size_t(options.max_trials));
-    DatasetWriter writer(options.out_dir, spec, options.overwrite, options.max_trials);
+    DatasetWriter writer(options.out_dir, spec, options.overwrite, slice);
 
     // 2. Precompute what every trial shares: mesh, factorization, contact compliance, scene.
     auto t0 = Clock::now();

@@ -16,8 +16,9 @@ struct GenerateOptions {
     bool quiet = false;     ///< no per-trial progress lines
     /// On-disk cache of the mechanics precomputation (empty: off). See default_cache_dir().
     std::filesystem::path cache_dir;
-    /// Run only the first `max_trials` trials of the plan (0: all): a slice of a big spec.
-    /// Trial k of the slice is trial k of the whole plan (same content, same split).
+    /// Run only the first `max_trials` trials of the plan (0, or at least the plan's count:
+    /// all): a slice of a big spec. Trial k of the slice is trial k of the whole plan (same
+    /// content, same split).
     int max_trials = 0;
 };
 

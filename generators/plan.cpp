@@ -115,7 +115,7 @@ double grasp_and_hold(const Spec& spec, TrialPlan& trial) {
     const int hold = int(std::lround(spec.protocol.hold_s / dt));
     for (int k = 1; k <= grasp; ++k)
         trial.frames.push_back(pressed(trial, int(trial.frames.size()), k * dt, Phase::grasp,
-                                       trial.grip_N * k / grasp));
+                                       k == grasp ? trial.grip_N : trial.grip_N * k / grasp));
     for (int k = 1; k <= hold; ++k)
         trial.frames.push_back(
             pressed(trial, int(trial.frames.size()), (grasp + k) * dt, Phase::hold, trial.grip_N));
