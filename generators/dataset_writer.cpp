@@ -47,11 +47,19 @@ std::ofstream open_csv(const fs::path& p, const char* header) {
 
 } // namespace
 
-std::string stored_spec_text(const Spec& spec) {
-    return "# resolved by chromasim " CHROMASIM_VERSION "\n" + spec.resolved_yaml;
+std::string stored_spec_text(const Spec& spec, int max_trials) {
+    std::string text = "# resolved by chromasim " CHROMASIM_VERSION "\n" + spec.resolved_yaml;
+    if (max_trials > 0)
+        text += "# slice: the first " + std::to_string(max_trials) +
+                " trials of the plan (generate --max-trials)\n";
+    return text;
 }
 
-OutputState inspect_output(const fs::path& out_dir, const Spec& spec) {
+const char* finger_name(int finger) {
+    return finger == 0 ? "left" : "right";
+}
+
+OutputState inspect_output(const fs::path& out_dir, const Spec& spec, int max_trials) {
     std::error_code ec;
     if (!fs::exists(out_dir, ec)) return OutputState::absent;
     if (!fs::is_directory(out_dir, ec))
@@ -60,14 +68,14 @@ OutputState inspect_output(const fs::path& out_dir, const Spec& spec) {
     if (fs::is_empty(out_dir, ec)) return OutputState::absent;
     const fs::path stored = out_dir / "spec.resolved.yaml";
     if (fs::exists(out_dir / "manifest.yaml") && fs::exists(stored) &&
-        read_file(stored) == stored_spec_text(spec))
+        read_file(stored) == stored_spec_text(spec, max_trials))
         return OutputState::up_to_date;
     return OutputState::other_content;
 }
 
-DatasetWriter::DatasetWriter(fs::path out_dir, const Spec& spec, bool overwrite)
-    : m_out(std::move(out_dir)), m_spec(spec), m_overwrite(overwrite) {
-    if (!m_overwrite && inspect_output(m_out, spec) == OutputState::other_content)
+DatasetWriter::DatasetWriter(fs::path out_dir, const Spec& spec, bool overwrite, int max_trials)
+    : m_out(std::move(out_dir)), m_spec(spec), m_overwrite(overwrite), m_max_trials(max_trials) {
+    if (!m_overwrite && inspect_output(m_out, spec, max_trials) == OutputState::other_content)
         throw SpecError(m_out.string() + ": output folder already holds other content (a " +
                         "dataset from another spec or version, or other files); allowed: a new " +
                         "path, or --overwrite to replace it once the new dataset is complete");
@@ -85,19 +93,46 @@ DatasetWriter::DatasetWriter(fs::path out_dir, const Spec& spec, bool overwrite)
     }
 }
 
+/// The labels.csv header: the frame's columns, then each finger's, prefixed by its name.
+std::string labels_header(int fingers) {
+    std::string h = "split,trial,frame,time_s,phase,object,friction,grip_N,load_N,travel_mm";
+    for (int f = 0; f < fingers; ++f)
+        for (const char* column : {"image",
+                                   "exr",
+                                   "mu",
+                                   "normal_force_N",
+                                   "requested_tangential_force_N",
+                                   "tangential_force_N",
+                                   "tangential_force_x_N",
+                                   "tangential_force_y_N",
+                                   "frictional_strength_N",
+                                   "gamma",
+                                   "stick_ratio",
+                                   "sliding",
+                                   "indentation_mm",
+                                   "object_travel_x_mm",
+                                   "object_travel_y_mm",
+                                   "contact_area_mm2",
+                                   "stick_area_mm2",
+                                   "contact_nodes",
+                                   "solver_iterations",
+                                   "solver_residual_mm",
+                                   "solver_residual_N",
+                                   "converged",
+                                   "status",
+                                   "reused"})
+            h += std::string(",") + finger_name(f) + "_" + column;
+    return h;
+}
+
 void DatasetWriter::open_outputs() {
     if (m_spec.outputs.images || m_spec.outputs.exr) fs::create_directories(m_staging / "images");
     if (m_spec.outputs.labels)
-        m_labels = open_csv(m_staging / "labels.csv",
-                            "frame,phase,image,exr,normal_force_N,tangential_force_N,"
-                            "tangential_force_x_N,tangential_force_y_N,"
-                            "requested_tangential_force_N,mu,gamma,sliding,indentation_mm,"
-                            "object_travel_x_mm,object_travel_y_mm,"
-                            "contact_area_mm2,stick_area_mm2,contact_nodes,solver_iterations,"
-                            "solver_residual_mm,solver_residual_N,converged,status");
+        m_labels = open_csv(m_staging / "labels.csv", labels_header(m_spec.fingers.count).c_str());
     if (m_spec.outputs.markers)
         m_markers = open_csv(m_staging / "markers.csv",
-                             "frame,layer,marker,x0_mm,y0_mm,z0_mm,ux_mm,uy_mm,uz_mm");
+                             "split,trial,frame,finger,layer,marker,x0_mm,y0_mm,z0_mm,ux_mm,"
+                             "uy_mm,uz_mm");
 }
 
 DatasetWriter::~DatasetWriter() {
@@ -107,32 +142,78 @@ DatasetWriter::~DatasetWriter() {
     }
 }
 
-fs::path DatasetWriter::image_path(int frame, std::string* relative, const char* extension) {
+namespace {
+std::string trial_folder(const std::string& split, int trial) {
     char name[32];
-    std::snprintf(name, sizeof name, "frame_%06d.%s", frame, extension);
-    if (relative) *relative = std::string("images/") + name;
+    std::snprintf(name, sizeof name, "trial_%06d", trial);
+    return split + "/" + name;
+}
+} // namespace
+
+fs::path DatasetWriter::image_path(const std::string& split, int trial, const std::string& finger,
+                                   int frame, std::string* relative, const char* extension) {
+    char name[64];
+    std::snprintf(name, sizeof name, "%s_%06d.%s", finger.c_str(), frame, extension);
+    const std::string folder = "images/" + trial_folder(split, trial);
+    fs::create_directories(m_staging / folder);
+    if (relative) *relative = folder + "/" + name;
     ++m_images;
-    return m_staging / "images" / name;
+    return m_staging / folder / name;
 }
 
-void DatasetWriter::write_label(const LabelRow& r) {
+void DatasetWriter::write_labels(const FrameLabels& f) {
     if (!m_labels.is_open()) return;
-    const double ft = std::hypot(r.tangential_x_N, r.tangential_y_N);
-    m_labels << r.frame << ',' << r.phase << ',' << r.image << ',' << r.exr << ','
-             << r.normal_force_N << ',' << ft << ',' << r.tangential_x_N << ',' << r.tangential_y_N
-             << ',' << r.requested_tangential_N << ',' << r.mu << ',' << r.gamma << ','
-             << int(r.sliding) << ',' << r.indentation_mm << ',' << r.object_travel_x_mm << ','
-             << r.object_travel_y_mm << ',' << r.contact_area_mm2 << ',' << r.stick_area_mm2 << ','
-             << r.contact_nodes << ',' << r.solver_iterations << ',' << r.solver_residual_mm << ','
-             << r.solver_residual_N << ',' << int(r.converged) << ',' << r.status << '\n';
+    m_labels << f.split << ',' << f.trial << ',' << f.frame << ',' << f.time_s << ',' << f.phase
+             << ',' << f.object << ',' << f.friction << ',' << f.grip_N << ',' << f.load_N << ','
+             << f.travel_mm;
+    for (const LabelRow& r : f.fingers) {
+        const double ft = std::hypot(r.tangential_x_N, r.tangential_y_N);
+        const double stick_ratio =
+            r.contact_area_mm2 > 0 ? r.stick_area_mm2 / r.contact_area_mm2 : 0.0;
+        m_labels << ',' << r.image << ',' << r.exr << ',' << r.mu << ',' << r.normal_force_N << ','
+                 << r.requested_tangential_N << ',' << ft << ',' << r.tangential_x_N << ','
+                 << r.tangential_y_N << ',' << r.mu * r.normal_force_N << ',' << r.gamma << ','
+                 << stick_ratio << ',' << int(r.sliding) << ',' << r.indentation_mm << ','
+                 << r.object_travel_x_mm << ',' << r.object_travel_y_mm << ',' << r.contact_area_mm2
+                 << ',' << r.stick_area_mm2 << ',' << r.contact_nodes << ',' << r.solver_iterations
+                 << ',' << r.solver_residual_mm << ',' << r.solver_residual_N << ','
+                 << int(r.converged) << ',' << r.status << ',' << int(r.reused);
+    }
+    m_labels << '\n';
     ++m_label_rows;
 }
 
-void DatasetWriter::write_marker(int frame, const char* layer, int marker, const double x0[3],
-                                 const double u[3]) {
+void DatasetWriter::write_marker(const FrameLabels& f, const std::string& finger, const char* layer,
+                                 int marker, const double x0[3], const double u[3]) {
     if (!m_markers.is_open()) return;
-    m_markers << frame << ',' << layer << ',' << marker << ',' << x0[0] << ',' << x0[1] << ','
-              << x0[2] << ',' << u[0] << ',' << u[1] << ',' << u[2] << '\n';
+    m_markers << f.split << ',' << f.trial << ',' << f.frame << ',' << finger << ',' << layer << ','
+              << marker << ',' << x0[0] << ',' << x0[1] << ',' << x0[2] << ',' << u[0] << ','
+              << u[1] << ',' << u[2] << '\n';
+}
+
+void DatasetWriter::write_strain(const FrameLabels& f, const std::string& finger,
+                                 const std::vector<double>& eps_xx) {
+    const std::string relative = "strain/" + trial_folder(f.split, f.trial) + "/" + finger + ".csv";
+    auto it = m_strain.find(relative);
+    if (it == m_strain.end()) {
+        fs::create_directories((m_staging / relative).parent_path());
+        std::string header = "frame";
+        for (std::size_t i = 0; i < eps_xx.size(); ++i)
+            header += ",e" + std::to_string(i);
+        it = m_strain.emplace(relative, open_csv(m_staging / relative, header.c_str())).first;
+    }
+    it->second << f.frame;
+    for (const double e : eps_xx)
+        it->second << ',' << e;
+    it->second << '\n';
+}
+
+void DatasetWriter::end_trial() {
+    for (auto& [relative, file] : m_strain) {
+        file.close();
+        if (!file) throw std::runtime_error("write error in " + (m_staging / relative).string());
+    }
+    m_strain.clear();
 }
 
 void DatasetWriter::commit(const std::string& manifest_extra) {
@@ -141,7 +222,9 @@ void DatasetWriter::commit(const std::string& manifest_extra) {
             f->close();
             if (!*f) throw std::runtime_error("write error in " + m_staging.string());
         }
-    std::ofstream(m_staging / "spec.resolved.yaml", std::ios::binary) << stored_spec_text(m_spec);
+    end_trial();
+    std::ofstream(m_staging / "spec.resolved.yaml", std::ios::binary)
+        << stored_spec_text(m_spec, m_max_trials);
     std::ofstream manifest(m_staging / "manifest.yaml");
     manifest << "# chromasim dataset manifest (docs/DATASET_FORMAT.md)\n"
              << "name: " << quoted(m_spec.name) << "\nchromasim_version: " CHROMASIM_VERSION "\n"

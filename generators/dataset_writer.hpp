@@ -7,7 +7,9 @@
 
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <string>
+#include <vector>
 
 namespace chromasim::generators {
 
@@ -18,12 +20,19 @@ enum class OutputState {
     other_content, ///< anything else
 };
 
-/// Inspects `out_dir`. Throws SpecError if it exists but is not a folder.
-OutputState inspect_output(const std::filesystem::path& out_dir, const Spec& spec);
+/// Inspects `out_dir`. `max_trials` is the slice the dataset holds (0: every trial): a dataset
+/// of another slice is other content. Throws SpecError if it exists but is not a folder.
+OutputState inspect_output(const std::filesystem::path& out_dir, const Spec& spec,
+                           int max_trials = 0);
 
-/// The resolved spec as stored in a dataset (first line names the chromasim version).
-std::string stored_spec_text(const Spec& spec);
+/// The resolved spec as stored in a dataset (first line names the chromasim version; a last
+/// comment line names the slice when `max_trials` > 0).
+std::string stored_spec_text(const Spec& spec, int max_trials = 0);
 
+/// "left" (finger 0) or "right" (finger 1).
+const char* finger_name(int finger);
+
+/// One fingertip's labels in one frame.
 struct LabelRow {
     int frame = 0;
     std::string phase, image, exr;
@@ -34,26 +43,46 @@ struct LabelRow {
     double solver_residual_mm = 0, solver_residual_N = 0;
     double object_travel_x_mm = 0, object_travel_y_mm = 0;
     std::string status;
+    bool reused = false; ///< the previous frame's result, not solved again (same load)
+};
+
+/// One labels.csv row: a frame of a trial, with every fingertip's labels.
+struct FrameLabels {
+    std::string split;
+    int trial = 0, frame = 0;
+    double time_s = 0;
+    std::string phase, object, friction;
+    double grip_N = 0, load_N = 0, travel_mm = 0;
+    std::vector<LabelRow> fingers; ///< left, then right
 };
 
 class DatasetWriter {
 public:
-    /// Creates the staging folder. `overwrite` allows replacing `out_dir` at commit.
-    /// Throws SpecError if `out_dir` holds other content and `overwrite` is false.
-    DatasetWriter(std::filesystem::path out_dir, const Spec& spec, bool overwrite);
+    /// Creates the staging folder. `overwrite` allows replacing `out_dir` at commit;
+    /// `max_trials` is the slice written (0: every trial). Throws SpecError if `out_dir` holds
+    /// other content and `overwrite` is false.
+    DatasetWriter(std::filesystem::path out_dir, const Spec& spec, bool overwrite,
+                  int max_trials = 0);
     /// Removes the staging folder unless commit() succeeded.
     ~DatasetWriter();
     DatasetWriter(const DatasetWriter&) = delete;
     DatasetWriter& operator=(const DatasetWriter&) = delete;
 
-    /// Path (inside staging) for a frame's image file of `extension` (png, exr); `relative`
-    /// gets the path stored in labels.
-    std::filesystem::path image_path(int frame, std::string* relative = nullptr,
+    /// Path (inside staging) of a fingertip's image of a frame,
+    /// images/<split>/trial_NNNNNN/<finger>_NNNNNN.<extension> (png, exr), its folder made;
+    /// `relative` gets the path stored in labels.
+    std::filesystem::path image_path(const std::string& split, int trial, const std::string& finger,
+                                     int frame, std::string* relative = nullptr,
                                      const char* extension = "png");
-    void write_label(const LabelRow& row);
+    void write_labels(const FrameLabels& row);
     /// One row per marker: centre displacement of marker `m` of layer `layer`.
-    void write_marker(int frame, const char* layer, int marker, const double x0_mm[3],
-                      const double u_mm[3]);
+    void write_marker(const FrameLabels& frame, const std::string& finger, const char* layer,
+                      int marker, const double x0_mm[3], const double u_mm[3]);
+    /// A frame's eps_xx grid (row-major) as a row of strain/<split>/trial_NNNNNN/<finger>.csv.
+    void write_strain(const FrameLabels& frame, const std::string& finger,
+                      const std::vector<double>& eps_xx);
+    /// Closes the trial's strain files.
+    void end_trial();
     /// Closes the files, writes the manifest and moves the dataset into place.
     void commit(const std::string& manifest_extra);
 
@@ -65,6 +94,8 @@ private:
     const Spec& m_spec;
     bool m_overwrite = false, m_committed = false;
     std::ofstream m_labels, m_markers;
+    std::map<std::string, std::ofstream> m_strain; ///< the current trial's, by relative path
+    int m_max_trials = 0;
     int m_images = 0, m_label_rows = 0;
 };
 

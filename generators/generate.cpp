@@ -22,8 +22,8 @@ namespace {
 using Clock = std::chrono::steady_clock;
 using mechanics::seconds_since;
 
-void write_markers(DatasetWriter& writer, int frame, const mechanics::DomeModel& model,
-                   const mechanics::FrameResult& r) {
+void write_markers(DatasetWriter& writer, const FrameLabels& frame, const std::string& finger,
+                   const mechanics::DomeModel& model, const mechanics::FrameResult& r) {
     const mechanics::MarkerDiscs& discs = model.markers();
     for (int layer = 0; layer < 2; ++layer)
         for (int m = 0; m < discs.markers_per_layer; ++m) {
@@ -33,21 +33,146 @@ void write_markers(DatasetWriter& writer, int frame, const mechanics::DomeModel&
                 x0[k] = discs.points(row, k);
                 u[k] = r.marker_points_mm(row, k) - x0[k];
             }
-            writer.write_marker(frame, layer == 0 ? "inner" : "outer", m, x0, u);
+            writer.write_marker(frame, finger, layer == 0 ? "inner" : "outer", m, x0, u);
         }
+}
+
+/// What every trial shares: the spec, the models and the writer.
+struct Stages {
+    const Spec& spec;
+    const mechanics::DomeModel& model;
+    render::Renderer* renderer; ///< null when no images are asked for
+    const render::SensorModel* sensor;
+    render::RenderSettings settings;
+    mechanics::FrameRequest request;
+    DatasetWriter& writer;
+    GenerateReport& report;
+    std::ostream& log;
+    bool quiet;
+};
+
+/// One fingertip through a trial: the state its frames carry from one to the next.
+struct FingerRun {
+    mechanics::ObjectShape object;
+    mechanics::FrameResult result;    ///< the last frame's
+    const FingerLoad* load = nullptr; ///< the last frame's load (null before the first)
+    render::Image image;              ///< rendered from `result` (valid when `rendered`)
+    bool rendered = false;
+    render::SensorFrame sensor_frame;
+};
+
+/// The noise index of a recorded image: distinct per trial, finger and frame.
+std::uint64_t noise_index(int trial, int finger, int frame) {
+    return (std::uint64_t(trial) << 32) | (std::uint64_t(finger) << 31) | std::uint64_t(frame);
+}
+
+/// Renders (or reuses) and writes finger `f`'s images of a frame; fills the image paths.
+void write_images(Stages& s, const FrameLabels& labels, int f, FingerRun& run, bool reused,
+                  LabelRow& row) {
+    auto t0 = Clock::now();
+    if (!reused || !run.rendered) { // an unmoved scene renders to the same image
+        fill_sensor_frame(s.model, run.result, run.sensor_frame);
+        s.renderer->set_frame(run.sensor_frame);
+        run.image = s.renderer->render(s.settings);
+        run.rendered = true;
+        ++s.report.renders;
+    }
+    std::optional<render::Image> recorded;
+    if (s.sensor)
+        recorded = s.sensor->capture(run.image, noise_index(labels.trial, f, labels.frame));
+    s.report.render_s += seconds_since(t0);
+    t0 = Clock::now();
+    const std::string finger = finger_name(f);
+    if (s.spec.outputs.images)
+        write_png(s.writer.image_path(labels.split, labels.trial, finger, labels.frame, &row.image),
+                  recorded ? *recorded : run.image);
+    if (s.spec.outputs.exr)
+        write_exr(
+            s.writer.image_path(labels.split, labels.trial, finger, labels.frame, &row.exr, "exr"),
+            run.image);
+    s.report.write_s += seconds_since(t0);
+    ++s.report.images;
+}
+
+/// One fingertip's frame: solve (or reuse), images, markers, strain.
+LabelRow run_finger(Stages& s, const FramePlan& frame, const FrameLabels& labels, int f,
+                    FingerRun& run) {
+    const FingerLoad& load = frame.fingers[std::size_t(f)];
+    const bool reused = run.load && load == *run.load;
+    auto t0 = Clock::now();
+    if (reused) {
+        ++s.report.reused_solves;
+    } else {
+        run.result = s.model.solve(contact_load(load), s.request, run.object,
+                                   run.load ? &run.result : nullptr);
+        ++s.report.solves;
+    }
+    run.load = &load;
+    s.report.mechanics_s += seconds_since(t0);
+    LabelRow row = label_row(frame, load, run.result);
+    row.reused = reused;
+    if (s.renderer) write_images(s, labels, f, run, reused, row);
+    t0 = Clock::now();
+    if (s.spec.outputs.markers)
+        write_markers(s.writer, labels, finger_name(f), s.model, run.result);
+    if (s.spec.outputs.strain)
+        s.writer.write_strain(labels, finger_name(f), run.result.strain.eps_xx);
+    s.report.write_s += seconds_since(t0);
+    if (!row.converged) {
+        ++s.report.flagged_frames;
+        s.log << "chromasim: warning: trial " << labels.trial << " frame " << labels.frame << " "
+              << finger_name(f) << " flagged: " << row.status << '\n';
+    }
+    return row;
+}
+
+void run_trial(Stages& s, const TrialPlan& trial) {
+    const Spec::Object& object = s.spec.objects[std::size_t(trial.object)];
+    std::vector<FingerRun> runs(trial.fingers.size());
+    for (std::size_t f = 0; f < runs.size(); ++f)
+        runs[f].object = object_shape(s.spec, posed_object(object, trial.fingers[f]));
+    for (const FramePlan& frame : trial.frames) {
+        FrameLabels labels{trial.split,
+                           trial.id,
+                           frame.index,
+                           frame.time_s,
+                           phase_name(frame.phase),
+                           object.name,
+                           s.spec.friction[std::size_t(trial.friction)].name,
+                           trial.grip_N,
+                           frame.load_N,
+                           frame.travel_mm,
+                           {}};
+        for (std::size_t f = 0; f < runs.size(); ++f)
+            labels.fingers.push_back(run_finger(s, frame, labels, int(f), runs[f]));
+        const auto t0 = Clock::now();
+        s.writer.write_labels(labels);
+        s.report.write_s += seconds_since(t0);
+    }
+    s.writer.end_trial();
+    s.report.frames += int(trial.frames.size());
+    ++s.report.trials;
+    if (!s.quiet)
+        s.log << "  trial " << trial.id + 1 << "/" << s.report.planned_trials << " (" << trial.split
+              << ", " << object.name << ", mu " << trial.mu << ", grip " << trial.grip_N
+              << " N): " << trial.frames.size() << " frames"
+              << (trial.first_slip_frame >= 0
+                      ? ", slips at frame " + std::to_string(trial.first_slip_frame)
+                      : std::string())
+              << '\n';
 }
 
 } // namespace
 
-LabelRow label_row(const FramePlan& f, const mechanics::FrameResult& r) {
+LabelRow label_row(const FramePlan& f, const FingerLoad& load, const mechanics::FrameResult& r) {
     LabelRow row;
     row.frame = f.index;
-    row.phase = f.phase;
+    row.phase = phase_name(f.phase);
     row.normal_force_N = r.contact.normal_force_N;
     row.tangential_x_N = r.contact.tangential_force_N.x();
     row.tangential_y_N = r.contact.tangential_force_N.y();
-    row.requested_tangential_N = f.tangential_force_N.norm();
-    row.mu = f.mu;
+    row.requested_tangential_N = load.tangential_force_N.norm();
+    row.mu = load.mu;
     row.gamma = r.contact.gamma;
     row.sliding = r.contact.sliding;
     row.indentation_mm = r.contact.indentation_mm;
@@ -62,6 +187,14 @@ LabelRow label_row(const FramePlan& f, const mechanics::FrameResult& r) {
     row.converged = r.contact.converged && !r.at_candidate_edge;
     row.status = r.at_candidate_edge ? "contact_at_candidate_edge" : r.contact.status;
     return row;
+}
+
+Spec::Object posed_object(const Spec::Object& object, const FingerSetup& finger) {
+    Spec::Object posed = object;
+    posed.offset_x_mm = finger.offset_mm.x();
+    posed.offset_y_mm = finger.offset_mm.y();
+    posed.yaw_deg = finger.yaw_deg;
+    return posed;
 }
 
 void log_dome_model(const Spec& spec, const mechanics::DomeModel& model, double precompute_s,
@@ -86,24 +219,31 @@ std::filesystem::path default_cache_dir() {
 GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::ostream& log) {
     const auto t_start = Clock::now();
     GenerateReport report;
-    // 1. Output path first: nothing is computed for a dataset that exists or cannot be written.
-    const OutputState state = inspect_output(options.out_dir, spec);
+    // 1. The plan (cheap, plain data), then the output path: nothing is computed for a
+    // dataset that exists or cannot be written. A slice as long as the plan is the whole.
+    Plan plan = make_plan(spec);
+    report.planned_trials = int(plan.trials.size());
+    const int slice = options.max_trials > 0 && options.max_trials < report.planned_trials
+                          ? options.max_trials
+                          : 0;
+    if (slice > 0) plan.trials.resize(std::size_t(slice));
+    const OutputState state = inspect_output(options.out_dir, spec, slice);
     if (state == OutputState::up_to_date && !options.overwrite) {
         report.up_to_date = true;
         log << "chromasim: " << options.out_dir.string()
             << " already holds this dataset (same resolved spec); nothing to do.\n";
         return report;
     }
-    // A mesh object's file and the spectra are read before any work: a bad file stops here,
+    // Every object's file and the spectra are read before any work: a bad file stops here,
     // nothing written.
-    const mechanics::ObjectShape object = object_shape(spec);
+    for (const Spec::Object& object : spec.objects)
+        object_shape(spec, object);
     const bool render_stage = spec.outputs.images || spec.outputs.exr;
     std::optional<render::OpticsParams> optics;
     if (render_stage) optics = optics_params(spec);
-    DatasetWriter writer(options.out_dir, spec, options.overwrite);
-    const Plan plan = make_plan(spec);
+    DatasetWriter writer(options.out_dir, spec, options.overwrite, slice);
 
-    // 2. Precompute what every frame shares: mesh, factorization, contact compliance, scene.
+    // 2. Precompute what every trial shares: mesh, factorization, contact compliance, scene.
     auto t0 = Clock::now();
     mechanics::DomeModelOptions model_options = dome_options(spec);
     model_options.cache_dir = options.cache_dir;
@@ -127,59 +267,42 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     report.precompute_s = seconds_since(t0);
     log_dome_model(spec, model, report.precompute_s, options.cache_dir, log);
 
-    // 3. Frames: mechanics, then (only if images are asked for) render, then writers.
-    mechanics::FrameRequest request;
-    request.coating = render_stage;
-    request.markers = render_stage || spec.outputs.markers;
-    const render::RenderSettings settings = render_settings(spec);
+    // 3. Trials, one after the other; in each, frames: mechanics, render (only if images are
+    // asked for), writers.
+    Stages stages{spec,
+                  model,
+                  renderer.get(),
+                  sensor ? &*sensor : nullptr,
+                  render_settings(spec),
+                  {},
+                  writer,
+                  report,
+                  log,
+                  options.quiet};
+    stages.request.coating = render_stage;
+    stages.request.markers = render_stage || spec.outputs.markers;
     // Only the path and fast integrators refract at the inner surface.
-    request.inner_surface = render_stage && settings.integrator != render::Integrator::direct;
-    render::SensorFrame sensor_frame;
-    // The frames form one trial: each starts from the stick/slip state the previous one left.
-    mechanics::FrameResult previous;
-    for (const FramePlan& f : plan.frames) {
-        t0 = Clock::now();
-        mechanics::FrameResult r =
-            model.solve(contact_load(f), request, object, f.index > 0 ? &previous : nullptr);
-        report.mechanics_s += seconds_since(t0);
-        LabelRow row = label_row(f, r);
-        if (renderer) {
-            t0 = Clock::now();
-            fill_sensor_frame(model, r, sensor_frame);
-            renderer->set_frame(sensor_frame);
-            const render::Image image = renderer->render(settings);
-            std::optional<render::Image> recorded;
-            if (sensor) recorded = sensor->capture(image, std::uint64_t(f.index));
-            report.render_s += seconds_since(t0);
-            t0 = Clock::now();
-            if (spec.outputs.images)
-                write_png(writer.image_path(f.index, &row.image), recorded ? *recorded : image);
-            if (spec.outputs.exr) write_exr(writer.image_path(f.index, &row.exr, "exr"), image);
-            report.write_s += seconds_since(t0);
-            ++report.images;
-        }
-        t0 = Clock::now();
-        writer.write_label(row);
-        if (spec.outputs.markers) write_markers(writer, f.index, model, r);
-        report.write_s += seconds_since(t0);
-        if (!row.converged) {
-            ++report.flagged_frames;
-            log << "chromasim: warning: frame " << f.index << " flagged: " << row.status << '\n';
-        }
-        previous = std::move(r);
-        if (!options.quiet)
-            log << "  frame " << f.index + 1 << "/" << plan.frames.size() << " " << f.phase
-                << "  Fn " << row.normal_force_N << " N  Ft "
-                << std::hypot(row.tangential_x_N, row.tangential_y_N) << " N  Gamma " << row.gamma
-                << '\n';
-    }
-    report.frames = int(plan.frames.size());
+    stages.request.inner_surface =
+        render_stage && stages.settings.integrator != render::Integrator::direct;
+    stages.request.strain = spec.outputs.strain;
+    for (const TrialPlan& trial : plan.trials)
+        run_trial(stages, trial);
+
     report.total_s = seconds_since(t_start);
     const auto& st = model.stats();
+    const mechanics::StrainGridSpec& grid = model.options().strain_grid;
     std::ostringstream extra;
-    extra << "frames: " << report.frames << "\nflagged_frames: " << report.flagged_frames
+    extra << "trials: " << report.trials << "\nplanned_trials: " << report.planned_trials
+          << "\nfingers: " << spec.fingers.count << "\nframes: " << report.frames
+          << "\nsolves: " << report.solves << "\nreused_solves: " << report.reused_solves
+          << "\nrenders: " << report.renders << "\nflagged_frames: " << report.flagged_frames
           << "\nmesh: {level: " << spec.sensor.mesh_level << ", nodes: " << st.nodes
-          << ", tets: " << st.tets << "}\nwall_time_s: " << report.total_s << '\n';
+          << ", tets: " << st.tets << "}\n";
+    if (spec.outputs.strain)
+        extra << "strain_grid: {nx: " << grid.nx << ", ny: " << grid.ny
+              << ", half_width_x_mm: " << grid.half_width_x_mm
+              << ", half_width_y_mm: " << grid.half_width_y_mm << "}\n";
+    extra << "wall_time_s: " << report.total_s << '\n';
     writer.commit(extra.str());
     return report;
 }

@@ -13,9 +13,13 @@ namespace chromasim::generators {
 struct GenerateOptions {
     std::filesystem::path out_dir;
     bool overwrite = false; ///< replace an existing dataset from another spec
-    bool quiet = false;     ///< no per-frame progress lines
+    bool quiet = false;     ///< no per-trial progress lines
     /// On-disk cache of the mechanics precomputation (empty: off). See default_cache_dir().
     std::filesystem::path cache_dir;
+    /// Run only the first `max_trials` trials of the plan (0, or at least the plan's count:
+    /// all): a slice of a big spec. Trial k of the slice is trial k of the whole plan (same
+    /// content, same split).
+    int max_trials = 0;
 };
 
 /// $CHROMASIM_CACHE_DIR, else $XDG_CACHE_HOME/chromasim, else $HOME/.cache/chromasim; empty
@@ -24,21 +28,35 @@ std::filesystem::path default_cache_dir();
 
 struct GenerateReport {
     bool up_to_date = false; ///< nothing done: the output already holds this dataset
-    int frames = 0, images = 0, flagged_frames = 0;
+    int trials = 0;          ///< trials run
+    int planned_trials = 0;  ///< trials in the whole plan
+    int frames = 0, images = 0;
+    int flagged_frames = 0; ///< finger-frames whose solver did not converge
+    /// Finger-frames solved, and those that reused the previous frame's result (same load).
+    int solves = 0, reused_solves = 0;
+    int renders = 0; ///< images rendered (a reused result of an unmoved scene reuses its image)
     double precompute_s = 0, mechanics_s = 0, render_s = 0, write_s = 0, total_s = 0;
 };
 
-/// The labels.csv row of a solved frame (image paths left empty).
-LabelRow label_row(const FramePlan& f, const mechanics::FrameResult& r);
+/// One fingertip's labels of a solved frame: `load` is the finger's load in frame `f` (image
+/// paths left empty).
+LabelRow label_row(const FramePlan& f, const FingerLoad& load, const mechanics::FrameResult& r);
+
+/// `object` as finger `finger` of `trial` sees it: its offset and yaw (mirror, jitter).
+Spec::Object posed_object(const Spec::Object& object, const FingerSetup& finger);
 
 /// Logs the dome mesh's size, the precompute time and the cache state of `model` (one line,
 /// plus a line with the cache note if there is one).
 void log_dome_model(const Spec& spec, const mechanics::DomeModel& model, double precompute_s,
                     const std::filesystem::path& cache_dir, std::ostream& log);
 
-/// Runs a validated spec. Checks the output path before any work; writes atomically
-/// (dataset_writer.hpp). Frames whose solver did not converge are written with
-/// converged = 0 and a status, counted in `flagged_frames`, and reported on `log`.
+/// Runs a validated spec: every trial of make_plan (or the first options.max_trials), each
+/// finger's frames in order from the state its previous frame left. A finger whose load equals
+/// its previous frame's (the hold) is not solved again: the result is reused, and so is the
+/// image rendered from it. Checks the output path and reads every object's file before any
+/// work; writes atomically (dataset_writer.hpp). Frames whose solver did not converge are
+/// written with converged = 0 and a status, counted in `flagged_frames`, and reported on
+/// `log`.
 GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::ostream& log);
 
 } // namespace chromasim::generators

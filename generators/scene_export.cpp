@@ -169,10 +169,14 @@ std::string hex(std::uint64_t x) {
     return text;
 }
 
-GltfExtras frame_extras(const Spec& spec, const LabelRow& row, int frames) {
+GltfExtras frame_extras(const Spec& spec, const SceneExportReport& report) {
+    const LabelRow& row = report.labels;
+    const int frames = report.frames;
     return {{"chromasim_version", std::string(CHROMASIM_VERSION)},
             {"spec_name", spec.name},
             {"spec_hash", hex(mechanics::fnv1a64(stored_spec_text(spec)))},
+            {"trial", double(report.trial)},
+            {"finger", std::string(finger_name(report.finger))},
             {"frame", double(row.frame)},
             {"frames", double(frames)},
             {"phase", row.phase},
@@ -244,22 +248,43 @@ GltfScene make_gltf_scene(const render::SensorFrame& frame, const render::Camera
     return scene;
 }
 
-SceneExportReport export_scene(const Spec& spec, int frame, const std::filesystem::path& out,
-                               const SceneExportOptions& options, std::ostream& log) {
+namespace {
+/// Throws std::out_of_range naming `option`, its value and the allowed range [0, count - 1].
+void check_index(const char* option, int value, int count, const std::string& what) {
+    if (value >= 0 && value < count) return;
+    throw std::out_of_range(std::string(option) + " " + std::to_string(value) +
+                            " is out of range: " + what + " " + std::to_string(count) + ", so " +
+                            option + " must be in [0, " + std::to_string(count - 1) + "]");
+}
+} // namespace
+
+SceneExportReport export_scene(const Spec& spec, const SceneSelection& which,
+                               const std::filesystem::path& out, const SceneExportOptions& options,
+                               std::ostream& log) {
     const auto t_start = Clock::now();
     SceneExportReport report;
-    // 1. Validate, then work: the frame index and the output path; the object's mesh file,
-    // the camera and the optics are read before the mechanics start.
+    // 1. Validate, then work: the trial, finger and frame and the output path; the object's
+    // mesh file, the camera and the optics are read before the mechanics start.
     const Plan plan = make_plan(spec);
-    report.frame = frame;
-    report.frames = int(plan.frames.size());
-    if (frame < 0 || frame >= report.frames)
-        throw std::out_of_range("--frame " + std::to_string(frame) + " is out of range: spec '" +
-                                spec.name + "' plans " + std::to_string(report.frames) +
-                                " frame(s), so --frame must be in [0, " +
-                                std::to_string(report.frames - 1) + "]");
+    check_index("--trial", which.trial, int(plan.trials.size()),
+                "spec '" + spec.name + "' plans trials:");
+    const TrialPlan& trial = plan.trials[std::size_t(which.trial)];
+    if (which.finger < 0 || which.finger >= int(trial.fingers.size()))
+        throw std::out_of_range("--finger " + std::string(finger_name(which.finger)) +
+                                " is out of range: spec '" + spec.name + "' has " +
+                                std::to_string(trial.fingers.size()) +
+                                " fingertip(s) (fingers.count), so --finger must be left");
+    report.trial = which.trial;
+    report.finger = which.finger;
+    report.frame = which.frame;
+    report.frames = int(trial.frames.size());
+    check_index("--frame", which.frame, report.frames,
+                "trial " + std::to_string(which.trial) + " of spec '" + spec.name +
+                    "' plans frames:");
     check_gltf_output_path(out);
-    const mechanics::ObjectShape object = object_shape(spec);
+    const mechanics::ObjectShape object =
+        object_shape(spec, posed_object(spec.objects[std::size_t(trial.object)],
+                                        trial.fingers[std::size_t(which.finger)]));
     const render::CameraParams camera = camera_params(spec);
     const render::OpticsParams optics = optics_params(spec);
 
@@ -270,27 +295,33 @@ SceneExportReport export_scene(const Spec& spec, int frame, const std::filesyste
     const mechanics::DomeModel model(model_options);
     log_dome_model(spec, model, mechanics::seconds_since(t0), options.cache_dir, log);
 
-    // 3. Frames 0 to `frame`, one trial: each starts from the state the previous one left.
-    // Only the exported frame needs the surfaces.
+    // 3. The finger's frames 0 to `frame`, each from the state the previous one left, as
+    // generate solves them. Only the exported frame needs the surfaces.
     mechanics::FrameResult r;
-    for (int k = 0; k <= frame; ++k) {
+    const auto load = [&](int k) -> const FingerLoad& {
+        return trial.frames[std::size_t(k)].fingers[std::size_t(which.finger)];
+    };
+    for (int k = 0; k <= which.frame; ++k) {
+        // As generate: a frame with its predecessor's load is not solved again (the exported
+        // frame always is, for its surfaces).
+        if (k > 0 && k < which.frame && load(k) == load(k - 1)) continue;
         mechanics::FrameRequest request;
-        request.coating = request.markers = request.inner_surface = k == frame;
-        mechanics::FrameResult next = model.solve(contact_load(plan.frames[std::size_t(k)]),
-                                                  request, object, k > 0 ? &r : nullptr);
+        request.coating = request.markers = request.inner_surface = k == which.frame;
+        mechanics::FrameResult next =
+            model.solve(contact_load(load(k)), request, object, k > 0 ? &r : nullptr);
         r = std::move(next);
     }
-    report.labels = label_row(plan.frames[std::size_t(frame)], r);
+    report.labels = label_row(trial.frames[std::size_t(which.frame)], load(which.frame), r);
     if (!report.labels.converged)
-        log << "chromasim: warning: frame " << frame << " flagged: " << report.labels.status
+        log << "chromasim: warning: frame " << which.frame << " flagged: " << report.labels.status
             << " (exported all the same; the scene extras say so)\n";
 
     // 4. The scene, written atomically.
     render::SensorFrame sensor;
     fill_sensor_frame(model, r, sensor);
-    const SceneInfo info{spec.name + " frame " + std::to_string(frame),
-                         spec.sensor.marker_thickness_mm,
-                         frame_extras(spec, report.labels, report.frames)};
+    const SceneInfo info{spec.name + " trial " + std::to_string(which.trial) + " " +
+                             finger_name(which.finger) + " frame " + std::to_string(which.frame),
+                         spec.sensor.marker_thickness_mm, frame_extras(spec, report)};
     write_gltf_scene(out, make_gltf_scene(sensor, camera, optics, info));
     report.total_s = mechanics::seconds_since(t_start);
     return report;

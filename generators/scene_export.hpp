@@ -41,21 +41,29 @@ struct SceneExportOptions {
     std::filesystem::path cache_dir;
 };
 
+/// Which frame to export: trial, fingertip (0 left, 1 right) and frame within the trial.
+struct SceneSelection {
+    int trial = 0, finger = 0, frame = 0;
+};
+
 /// What export_scene did.
 struct SceneExportReport {
+    int trial = 0, finger = 0;
     int frame = 0;   ///< the exported frame
-    int frames = 0;  ///< frames in the spec's plan
+    int frames = 0;  ///< frames in the trial
     LabelRow labels; ///< the exported frame's labels.csv row (forces, Gamma, convergence)
     double total_s = 0.0;
 };
 
-/// Writes frame `frame` of a validated spec to `out` (.gltf or .glb, written atomically).
-/// Checks first, before any work: `frame` within the plan (std::out_of_range naming --frame,
-/// the value and the allowed range) and the output path (std::runtime_error naming it and
-/// what is allowed). Then solves frames 0 to `frame` in order, each from the previous one
-/// (their stick/slip history), as generate does, and exports the last. A frame whose solver
-/// did not converge is exported all the same and reported on `log` and in the scene extras.
-SceneExportReport export_scene(const Spec& spec, int frame, const std::filesystem::path& out,
-                               const SceneExportOptions& options, std::ostream& log);
+/// Writes one fingertip's frame of a trial of a validated spec to `out` (.gltf or .glb,
+/// written atomically). Checks first, before any work: the trial, finger and frame within the
+/// plan (std::out_of_range naming --trial, --finger or --frame, the value and the allowed
+/// range) and the output path (std::runtime_error naming it and what is allowed). Then solves
+/// the finger's frames 0 to `frame` in order, each from the previous one (their stick/slip
+/// history), as generate does, and exports the last. A frame whose solver did not converge
+/// is exported all the same and reported on `log` and in the scene extras.
+SceneExportReport export_scene(const Spec& spec, const SceneSelection& which,
+                               const std::filesystem::path& out, const SceneExportOptions& options,
+                               std::ostream& log);
 
 } // namespace chromasim::generators

@@ -68,21 +68,21 @@ mechanics::DomeModelOptions dome_options(const Spec& spec) {
 /// Side of the plate that stands for a tilted flat, mm: wider than the dome (26.4 mm).
 constexpr double kTiltedPlate_mm = 80.0;
 
-mechanics::ObjectShape object_shape(const Spec& spec) {
+mechanics::ObjectShape object_shape(const Spec& spec, const Spec::Object& object) {
     mechanics::ObjectShape o;
-    o.kind = spec.object.shape == "sphere" ? mechanics::ObjectShape::Kind::sphere
-                                           : mechanics::ObjectShape::Kind::flat;
-    o.radius_mm = spec.object.radius_mm;
+    o.kind = object.shape == "sphere" ? mechanics::ObjectShape::Kind::sphere
+                                      : mechanics::ObjectShape::Kind::flat;
+    o.radius_mm = object.radius_mm;
     mechanics::Pose pose;
-    pose.rotation = mechanics::rotation_from_roll_pitch_yaw_deg(
-        spec.object.roll_deg, spec.object.pitch_deg, spec.object.yaw_deg);
-    pose.translation_mm = {spec.object.offset_x_mm, spec.object.offset_y_mm, 0.0};
-    if (spec.object.shape == "mesh") {
+    pose.rotation = mechanics::rotation_from_roll_pitch_yaw_deg(object.roll_deg, object.pitch_deg,
+                                                                object.yaw_deg);
+    pose.translation_mm = {object.offset_x_mm, object.offset_y_mm, 0.0};
+    if (object.shape == "mesh") {
         o.kind = mechanics::ObjectShape::Kind::mesh;
         o.mesh = std::make_shared<mechanics::MeshHeightField>(
-            load_gltf_surface(resolve_spec_path(spec, spec.object.mesh_file)), pose);
-    } else if (spec.object.shape == "sphere") {
-        o.offset_mm = {spec.object.offset_x_mm, spec.object.offset_y_mm};
+            load_gltf_surface(resolve_spec_path(spec, object.mesh_file)), pose);
+    } else if (object.shape == "sphere") {
+        o.offset_mm = {object.offset_x_mm, object.offset_y_mm};
     } else if (pose.rotation(2, 2) < 1.0 - 1e-15) {
         // A tilted flat: a posed plate much wider than the contact cap (a plane's offset and
         // yaw change nothing, so an untilted flat stays the exact analytic plane).
@@ -93,7 +93,7 @@ mechanics::ObjectShape object_shape(const Spec& spec) {
     return o;
 }
 
-mechanics::ContactLoad contact_load(const FramePlan& f) {
+mechanics::ContactLoad contact_load(const FingerLoad& f) {
     mechanics::ContactLoad load{f.normal_force_N, f.tangential_force_N, f.mu};
     if (f.displacement_control) {
         load.tangential = mechanics::TangentialControl::displacement;

@@ -10,11 +10,13 @@
 namespace chromasim::generators {
 
 mechanics::DomeModelOptions dome_options(const Spec& spec);
-mechanics::ObjectShape object_shape(const Spec& spec);
+/// The mechanics' shape of `object` (one of spec.objects, posed as a finger sees it); `spec`
+/// resolves its mesh file's path.
+mechanics::ObjectShape object_shape(const Spec& spec, const Spec::Object& object);
 render::CameraParams camera_params(const Spec& spec);
-/// The load of a planned frame: its grip force, mu and pull (a force, or the object's travel
-/// under displacement control).
-mechanics::ContactLoad contact_load(const FramePlan& f);
+/// The load of one fingertip in a planned frame: its grip force, mu and pull (a force, or the
+/// object's travel under displacement control).
+mechanics::ContactLoad contact_load(const FingerLoad& f);
 render::OpticsParams optics_params(const Spec& spec);
 /// samples per pixel, seed, extra channels and integrator of the spec.
 render::RenderSettings render_settings(const Spec& spec);

@@ -1,12 +1,13 @@
 #pragma once
 /// The typed, validated contents of a dataset spec file (YAML). Every field has a schema
-/// entry (generators/spec_schema.cpp) with its type, default, unit, allowed range and doc
+/// entry (generators/spec_table.cpp) with its type, default, unit, allowed range and doc
 /// line; `chromasim schema` prints that table, docs/SPEC_REFERENCE.md holds a copy.
 #include <array>
 #include <cstdint>
 #include <filesystem>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace chromasim::generators {
 
@@ -20,6 +21,14 @@ public:
 };
 
 using Rgb = std::array<double, 3>;
+
+/// A factor of the sampling plan: a list of values, or a uniform range [min, max].
+struct Factor {
+    std::vector<double> values; ///< the listed values (empty for a range)
+    bool is_range = false;
+    double min = 0.0, max = 0.0; ///< the range (is_range only)
+    bool operator==(const Factor&) const = default;
+};
 
 struct LayerMaterial {
     double E_MPa = 1.0; ///< Young's modulus, MPa (= N/mm^2)
@@ -66,27 +75,64 @@ struct Spec {
         std::string spectra_dir; ///< spectrum CSVs (empty: the shipped assets/spectra)
     } sensor;
 
+    /// One rigid object of the `objects` list (a categorical factor of the sampling plan).
     struct Object {
+        std::string name = "flat";  ///< label written in labels.csv; unique in the list
         std::string shape = "flat"; ///< flat (rigid plane) | sphere | mesh
         double radius_mm = 45.0;    ///< sphere radius
-        double mu = 0.8;            ///< Coulomb friction coefficient
         std::string mesh_file;      ///< glTF file of a mesh object (relative: to the spec file)
         double offset_x_mm = 0, offset_y_mm = 0;         ///< mesh object's origin in x-y
         double roll_deg = 0, pitch_deg = 0, yaw_deg = 0; ///< its rotation (x, then y, then z)
-    } object;
+    };
+    std::vector<Object> objects{Object{}};
 
-    struct Press {
-        double normal_force_N = 1.5; ///< grip force reached at the end of the press
-        int frames = 2; ///< frames of the linear normal-force ramp (last one at full force)
-    } press;
+    /// One friction condition of the `friction` list (a categorical factor): a name and the
+    /// Coulomb coefficient, a fixed value, a list or a range (drawn per trial).
+    struct Friction {
+        std::string name = "medium";
+        Factor mu{std::vector<double>{0.8}};
+    };
+    std::vector<Friction> friction{Friction{}};
 
-    struct Pull {
-        std::string control = "force";   ///< force | displacement
-        double tangential_force_N = 0.5; ///< tangential load reached at the end of the pull
-        double displacement_mm = 1.0;    ///< object travel at the end of a displacement pull
-        double direction_deg = 0.0;      ///< direction of the pull in the x-y plane, from +x
-        int frames = 3;                  ///< frames of the linear tangential ramp (0: no pull)
-    } pull;
+    /// The fingertips: `count` 1 (left only) or 2 (left and right, facing each other).
+    struct Fingers {
+        int count = 2;
+        double mu_jitter = 0.0;        ///< per-finger relative mu jitter, uniform in [-j, j]
+        double offset_jitter_mm = 0.0; ///< per-finger object offset jitter, x and y in [-j, j]
+    } fingers;
+
+    /// The load protocol of one trial (plan.hpp has the timeline).
+    struct Protocol {
+        std::string type = "grasp_load"; ///< grasp_load (seed 000) | slide (seed 001)
+        double frame_rate_Hz = 100.0;
+        Factor grip_N{std::vector<double>{1.5}}; ///< grip (normal) force per finger
+        double grasp_s = 0.5;                    ///< grip force ramp from first touch
+        double hold_s = 2.0;                     ///< hold at the grip force before the load
+        Factor load_rate_N_per_s{
+            std::vector<double>{1.0}}; ///< total tangential load rate (grasp_load)
+        Factor target_load_N{
+            std::vector<double>{2.5}};      ///< total tangential load at the end (grasp_load)
+        double load_direction_deg = 0.0;    ///< in the left finger's x-y plane, from +x
+        int slip_frames = 3;                ///< frames kept once a finger slips (grasp_load)
+        double slide_start_mm = 0.05;       ///< first frame's object travel (slide)
+        double slide_end_mm = 6.0;          ///< last frame's object travel (slide)
+        int slide_frames = 30;              ///< frames from start to end (slide)
+        double slide_speed_mm_per_s = 10.0; ///< sets the slide frames' time stamps (slide)
+    } protocol;
+
+    /// How trials are drawn from the factors (objects, friction, grip, rate, target load).
+    struct Sampling {
+        std::string method = "full_grid"; ///< full_grid | random | latin_hypercube
+        int repetitions = 1;              ///< full_grid: every grid cell this many times
+        int trials = 1;                   ///< random, latin_hypercube: number of trials
+    } sampling;
+
+    /// One split of the `splits` list: a fraction of the trials, assigned by a seeded shuffle.
+    struct Split {
+        std::string name = "all";
+        double fraction = 1.0;
+    };
+    std::vector<Split> splits{Split{}};
 
     struct Render {
         int width_px = 256;
@@ -123,6 +169,7 @@ struct Spec {
         bool exr = false;        ///< linear float OpenEXR per frame
         bool marker_ids = false; ///< EXR channels inner_marker_id, outer_marker_id
         bool variance = false;   ///< EXR channels variance.R/G/B
+        bool strain = false;     ///< strain/<split>/<trial>/<finger>.csv (eps_xx grids)
     } outputs;
 
     /// The resolved spec (every key, defaults filled) as YAML, in schema order. Written next to

@@ -1,584 +1,14 @@
 #include "generators/spec_schema.hpp"
-
-#include "render/fisheye_camera.hpp"
-#include "render/sensor_model.hpp"
+#include "generators/spec_table.hpp"
 
 #include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
-#include <numbers>
-#include <type_traits>
 
 namespace chromasim::generators {
 namespace detail {
 namespace { // internal linkage: these names are common
-
-// ---- Storing values into fields and reading them back ---------------------------------------
-
-/// Stores a validated value; integers travel as int64_t and narrow to the field's type (the
-/// schema range guarantees they fit).
-template <class T> void assign(T& field, const SpecValue& v) {
-    if constexpr (std::is_integral_v<T> && !std::is_same_v<T, bool>) {
-        field = static_cast<T>(std::get<std::int64_t>(v));
-    } else {
-        field = std::get<T>(v);
-    }
-}
-
-template <class T> SpecValue to_value(const T& x) {
-    if constexpr (std::is_integral_v<T> && !std::is_same_v<T, bool>) {
-        return static_cast<std::int64_t>(x);
-    } else {
-        return x;
-    }
-}
-
-// ---- Building entries -----------------------------------------------------------------------
-
-/// `access` is a generic lambda `(auto& spec) -> auto&` naming the field, so one expression
-/// serves both the setter (Spec&) and the getter (const Spec&).
-template <class Access>
-SchemaEntry make_entry(std::string key, ValueType type, SpecValue def, std::string unit,
-                       Range range, std::string doc, Access access) {
-    SchemaEntry e;
-    e.key = std::move(key);
-    e.type = type;
-    e.default_value = std::move(def);
-    e.unit = std::move(unit);
-    e.range = range;
-    e.doc = std::move(doc);
-    e.set = [access](Spec& s, const SpecValue& v) { assign(access(s), v); };
-    e.get = [access](const Spec& s) { return to_value(access(s)); };
-    return e;
-}
-
-Range closed(double lo, double hi) {
-    return {lo, hi, true, true};
-}
-Range left_open(double lo, double hi) {
-    return {lo, hi, false, true};
-}
-
-template <class Access>
-SchemaEntry number(std::string key, double def, Range range, std::string unit, std::string doc,
-                   Access access) {
-    return make_entry(std::move(key), ValueType::Number, def, std::move(unit), range,
-                      std::move(doc), access);
-}
-
-template <class Access>
-SchemaEntry integer(std::string key, std::int64_t def, Range range, std::string unit,
-                    std::string doc, Access access) {
-    return make_entry(std::move(key), ValueType::Integer, def, std::move(unit), range,
-                      std::move(doc), access);
-}
-
-template <class Access> SchemaEntry boolean(std::string key, bool def, std::string doc, Access a) {
-    return make_entry(std::move(key), ValueType::Bool, def, "", Range{}, std::move(doc), a);
-}
-
-template <class Access>
-SchemaEntry choice(std::string key, std::string def, std::vector<std::string> choices,
-                   std::string doc, Access access) {
-    SchemaEntry e = make_entry(std::move(key), ValueType::Enum, std::move(def), "", Range{},
-                               std::move(doc), access);
-    e.choices = std::move(choices);
-    return e;
-}
-
-template <class Access>
-SchemaEntry text(std::string key, std::string def, std::string doc, Access access) {
-    return make_entry(std::move(key), ValueType::String, std::move(def), "", Range{},
-                      std::move(doc), access);
-}
-
-template <class Access>
-SchemaEntry rgb(std::string key, Rgb def, Range range, std::string unit, std::string doc,
-                Access access) {
-    return make_entry(std::move(key), ValueType::Rgb, def, std::move(unit), range, std::move(doc),
-                      access);
-}
-
-template <class Access>
-SchemaEntry vec3(std::string key, Rgb def, Range range, std::string unit, std::string doc,
-                 Access access) {
-    return make_entry(std::move(key), ValueType::Vec3, def, std::move(unit), range, std::move(doc),
-                      access);
-}
-
-// ---- The table ------------------------------------------------------------------------------
-
-// The accessor of one Spec field, for both Spec& and const Spec& (see make_entry).
-// clang-format off
-#define CHROMASIM_FIELD(member) [](auto& s) -> auto& { return s.member; }
-// clang-format on
-
-/// "inner_marker_layer" -> "inner marker layer".
-std::string words(std::string key) {
-    std::replace(key.begin(), key.end(), '_', ' ');
-    return key;
-}
-
-/// The E and nu entries of one layer; `what` describes the material for the doc line.
-template <class Access>
-void add_layer(std::vector<SchemaEntry>& out, const std::string& layer, double E_MPa,
-               const std::string& what, Access layer_access) {
-    const std::string key = "sensor.materials." + layer;
-    out.push_back(number(
-        key + ".E_MPa", E_MPa, left_open(0, 1000), "MPa",
-        "Young's modulus of the " + what + " [G].", [layer_access](auto& s) -> auto& {
-            return layer_access(s).E_MPa;
-        }));
-    out.push_back(number(
-        key + ".nu", 0.45, closed(0, 0.4999), "",
-        "Poisson's ratio of the " + words(layer) + " (nearly incompressible: 0.45 to 0.49) [G].",
-        [layer_access](auto& s) -> auto& { return layer_access(s).nu; }));
-}
-
-void add_general(std::vector<SchemaEntry>& out) {
-    out.push_back(text("name", "unnamed", "Dataset name.", CHROMASIM_FIELD(name)));
-    out.push_back(integer("seed", 1, closed(0, 2147483647), "",
-                          "Seed of every random draw made for the dataset.",
-                          CHROMASIM_FIELD(seed)));
-}
-
-void add_sensor_mechanics(std::vector<SchemaEntry>& out) {
-    out.push_back(choice("sensor.mesh_level", "coarse",
-                         {"coarse", "medium", "fine", "refined", "reference"},
-                         "TetGen mesh level of the dome: uniform coarse (1.2 mm, the fastest), "
-                         "medium (0.8 mm), fine (0.5 mm), or refined where contact happens: "
-                         "refined (0.5 mm within 40 deg of the apex, 1.2 mm far), reference "
-                         "(0.3 mm, 0.8 mm far).",
-                         CHROMASIM_FIELD(sensor.mesh_level)));
-    add_layer(out, "inner_marker_layer", 0.8,
-              "inner marker layer (printed flexible clear resin, Agilus30-like: 0.6 to 1.0 MPa)",
-              CHROMASIM_FIELD(sensor.inner_marker_layer));
-    add_layer(out, "clear_layer", 0.3,
-              "clear layer between the marker arrays (SortaClear 12A: 0.2 to 0.4 MPa)",
-              CHROMASIM_FIELD(sensor.clear_layer));
-    add_layer(out, "outer_marker_layer", 0.8,
-              "outer marker layer (printed flexible clear resin, Agilus30-like: 0.6 to 1.0 MPa)",
-              CHROMASIM_FIELD(sensor.outer_marker_layer));
-    add_layer(out, "coating", 1.0, "white diffusing coating (pigmented silicone: about 1 MPa)",
-              CHROMASIM_FIELD(sensor.coating));
-    add_layer(out, "fill", 0.05,
-              "soft fill inside the dome (clear silicone gel, used only when sensor.interior "
-              "is soft_fill: about 0.02 to 0.1 MPa)",
-              CHROMASIM_FIELD(sensor.fill));
-    out.push_back(choice("sensor.volumetric", "nodal_average", {"nodal_average", "element"},
-                         "How the volumetric strain energy is integrated: nodal_average (average "
-                         "nodal pressure, no locking of nearly incompressible layers) or element "
-                         "(standard linear tets: too stiff as nu approaches 0.5; faster).",
-                         CHROMASIM_FIELD(sensor.volumetric)));
-    out.push_back(choice("sensor.interior", "hollow", {"hollow", "rigid_core", "soft_fill"},
-                         "Inside the inner layer: hollow (air; camera and LEDs sit there), a "
-                         "rigid core bonded to the inner surface (a stiffer fingertip), or "
-                         "soft_fill (a meshed gel of sensor.materials.fill bonded to the inner "
-                         "layer, clamped on the base plane; mechanics only, the renderer still "
-                         "sees a hollow dome).",
-                         CHROMASIM_FIELD(sensor.interior)));
-    out.push_back(choice("sensor.material_model", "linear", {"linear", "neo_hookean"},
-                         "Constitutive model of the layers: linear (small strain; a frame is a "
-                         "small contact solve, milliseconds) or neo_hookean (compressible, large "
-                         "deformation; about 0.06 to 0.25 s per trial frame on the coarse mesh).",
-                         CHROMASIM_FIELD(sensor.material_model)));
-    out.push_back(integer("sensor.contact_steps", 4, closed(1, 1000), "",
-                          "Steps of the first frame's load path from rest: the grip force ramps "
-                          "up in this many steps with friction on, then the tangential load.",
-                          CHROMASIM_FIELD(sensor.contact_steps)));
-    out.push_back(number("sensor.contact_candidate_angle_deg", 35, closed(5, 80), "deg",
-                         "Polar angle of the outer-surface cap whose nodes may touch the object.",
-                         CHROMASIM_FIELD(sensor.contact_candidate_angle_deg)));
-}
-
-/// The sensor.camera keys after half_fov_deg: projection model, OpenCV intrinsics, pose.
-void add_camera_model(std::vector<SchemaEntry>& out) {
-    out.push_back(choice("sensor.camera.model", "equidistant", {"equidistant", "kannala_brandt"},
-                         "Projection: equidistant (r = theta / half_fov_deg * min(width, height) "
-                         "/ 2 px, the lens at the dome centre) or kannala_brandt (OpenCV's "
-                         "cv::fisheye model, a user's calibration: fx_px ... k4; rays beyond "
-                         "half_fov_deg stay black).",
-                         CHROMASIM_FIELD(sensor.camera_model)));
-    const std::string derived = " (OpenCV convention: pixel centres at integers); 0: derived "
-                                "from the image size and half_fov_deg, as the equidistant camera.";
-    out.push_back(number("sensor.camera.fx_px", 0, closed(0, 1e4), "px",
-                         "Kannala-Brandt focal length along x, K(0, 0)" + derived,
-                         CHROMASIM_FIELD(sensor.camera_fx_px)));
-    out.push_back(number("sensor.camera.fy_px", 0, closed(0, 1e4), "px",
-                         "Kannala-Brandt focal length along y, K(1, 1)" + derived,
-                         CHROMASIM_FIELD(sensor.camera_fy_px)));
-    out.push_back(number("sensor.camera.cx_px", 0, closed(-1e4, 1e4), "px",
-                         "Kannala-Brandt principal point x, K(0, 2)" + derived,
-                         CHROMASIM_FIELD(sensor.camera_cx_px)));
-    out.push_back(number("sensor.camera.cy_px", 0, closed(-1e4, 1e4), "px",
-                         "Kannala-Brandt principal point y, K(1, 2)" + derived,
-                         CHROMASIM_FIELD(sensor.camera_cy_px)));
-    const auto k = [&out](const std::string& name, int index, auto access) {
-        out.push_back(number("sensor.camera." + name, 0, closed(-100, 100), "",
-                             "Kannala-Brandt distortion D[" + std::to_string(index) +
-                                 "]: theta_d = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 "
-                                 "+ k4 theta^8), theta in rad.",
-                             access));
-    };
-    k("k1", 0, CHROMASIM_FIELD(sensor.camera_k1));
-    k("k2", 1, CHROMASIM_FIELD(sensor.camera_k2));
-    k("k3", 2, CHROMASIM_FIELD(sensor.camera_k3));
-    k("k4", 3, CHROMASIM_FIELD(sensor.camera_k4));
-    out.push_back(vec3("sensor.camera.position_mm", {0.0, 0.0, 0.0}, closed(-10, 10), "mm",
-                       "Camera position in the dome frame (origin: the dome centre; the inner "
-                       "surface has radius 10.5 mm), both models.",
-                       CHROMASIM_FIELD(sensor.camera_position_mm)));
-    out.push_back(number("sensor.camera.roll_deg", 0, closed(-180, 180), "deg",
-                         "Camera rotation about the dome's x axis (applied first; 0, 0, 0: "
-                         "looking along +z, image x along +x).",
-                         CHROMASIM_FIELD(sensor.camera_roll_deg)));
-    out.push_back(number("sensor.camera.pitch_deg", 0, closed(-180, 180), "deg",
-                         "Camera rotation about the dome's y axis (applied second).",
-                         CHROMASIM_FIELD(sensor.camera_pitch_deg)));
-    out.push_back(number("sensor.camera.yaw_deg", 0, closed(-180, 180), "deg",
-                         "Camera rotation about the dome's z axis (applied last).",
-                         CHROMASIM_FIELD(sensor.camera_yaw_deg)));
-}
-
-void add_sensor_optics(std::vector<SchemaEntry>& out) {
-    out.push_back(number("sensor.camera.half_fov_deg", 84, left_open(10, 100), "deg",
-                         "Half field of view: the polar angle at the image-circle edge "
-                         "(equidistant) or of the imaged field (kannala_brandt).",
-                         CHROMASIM_FIELD(sensor.camera_half_fov_deg)));
-    add_camera_model(out);
-    out.push_back(integer("sensor.led.count", 6, closed(1, 64), "",
-                          "Number of LEDs on the ring (6 on the real board).",
-                          CHROMASIM_FIELD(sensor.led_count)));
-    out.push_back(number("sensor.led.ring_radius_mm", 10, closed(0, 13), "mm",
-                         "Radius of the LED ring around the lens (board: 17 to 23 mm across).",
-                         CHROMASIM_FIELD(sensor.led_ring_radius_mm)));
-    out.push_back(number("sensor.led.z_mm", -1, closed(-10, 10), "mm",
-                         "Height of the LED ring; the dome rim plane is z = 0 [G].",
-                         CHROMASIM_FIELD(sensor.led_z_mm)));
-    out.push_back(number("sensor.led.width_mm", 3.5, closed(0.01, 10), "mm",
-                         "Side of each LED's emitting rectangle along the ring (SMD 3528 package "
-                         "[K]); render.integrator path only.",
-                         CHROMASIM_FIELD(sensor.led_width_mm)));
-    out.push_back(number("sensor.led.height_mm", 2.8, closed(0.01, 10), "mm",
-                         "Side of each LED's emitting rectangle across the ring (radial) [K]; "
-                         "render.integrator path only.",
-                         CHROMASIM_FIELD(sensor.led_height_mm)));
-    out.push_back(rgb("sensor.led.rgb", {1.0, 1.0, 1.0}, closed(0, 100), "",
-                      "Relative emission of each LED, linear RGB (white) [G]; spectral mode: "
-                      "their mean scales the LED spectrum.",
-                      CHROMASIM_FIELD(sensor.led_rgb)));
-    out.push_back(number("sensor.optics.marker_thickness_mm", 0.5, left_open(0, 0.5), "mm",
-                         "Thickness of the marker discs [K]: closed volumes deformed with the "
-                         "mesh, at most 98 % of their layer's 0.5 mm; light is absorbed over "
-                         "its path inside.",
-                         CHROMASIM_FIELD(sensor.marker_thickness_mm)));
-    out.push_back(number("sensor.optics.refractive_index", 1.4, closed(1, 2), "",
-                         "Refractive index of the clear layers, index-matched among themselves "
-                         "[G] (silicones and clear resins: 1.40 to 1.47); the path integrator "
-                         "refracts at the hollow dome's inner surface (air inside); 1: no "
-                         "refraction.",
-                         CHROMASIM_FIELD(sensor.refractive_index)));
-    out.push_back(rgb("sensor.optics.coating_albedo", {0.85, 0.85, 0.85}, closed(0, 1), "",
-                      "Diffuse albedo of the white coating, linear RGB [G] (RGB mode only: "
-                      "render.spectral false).",
-                      CHROMASIM_FIELD(sensor.coating_albedo)));
-    out.push_back(rgb("sensor.optics.inner_marker_absorption_per_mm", {0.2, 3.0, 0.3},
-                      closed(0, 100), "1/mm",
-                      "Absorption coefficient of the inner markers (magenta filter), RGB [G] "
-                      "(RGB mode only).",
-                      CHROMASIM_FIELD(sensor.inner_marker_absorption_per_mm)));
-    out.push_back(rgb("sensor.optics.outer_marker_absorption_per_mm", {3.0, 0.3, 0.2},
-                      closed(0, 100), "1/mm",
-                      "Absorption coefficient of the outer markers (cyan), RGB [G] (RGB mode "
-                      "only).",
-                      CHROMASIM_FIELD(sensor.outer_marker_absorption_per_mm)));
-    out.push_back(rgb("sensor.optics.outer_marker_albedo", {0.10, 0.70, 0.75}, closed(0, 1), "",
-                      "Albedo of the outer markers (cyan), linear RGB [G] (RGB mode only).",
-                      CHROMASIM_FIELD(sensor.outer_marker_albedo)));
-    out.push_back(number("sensor.optics.outer_marker_scatter_fraction", 0.5, closed(0, 1), "",
-                         "Fraction of the light at an outer marker that it scatters back; the "
-                         "rest is filtered through it [G].",
-                         CHROMASIM_FIELD(sensor.outer_marker_scatter_fraction)));
-    out.push_back(text("sensor.optics.spectra_dir", "",
-                       "Folder of the six spectrum CSVs of render.spectral (file names and "
-                       "formats: assets/spectra/README.md); empty: the shipped assets/spectra; a "
-                       "relative path starts at the spec file's folder.",
-                       CHROMASIM_FIELD(sensor.spectra_dir)));
-}
-
-void add_object_and_protocol(std::vector<SchemaEntry>& out) {
-    out.push_back(choice("object.shape", "flat", {"flat", "sphere", "mesh"},
-                         "Shape of the rigid object: a plane, a sphere of radius "
-                         "object.radius_mm centred on the dome axis, or the triangle mesh of "
-                         "object.mesh_file (its underside touches).",
-                         CHROMASIM_FIELD(object.shape)));
-    out.push_back(text("object.mesh_file", "",
-                       "glTF 2.0 file (.gltf or .glb, metres) of a mesh object; a relative path "
-                       "starts at the spec file's folder (assets/objects/ has a 45 mm sphere cap "
-                       "and a 40 mm plate).",
-                       CHROMASIM_FIELD(object.mesh_file)));
-    out.push_back(number(
-        "object.offset_x_mm", 0, closed(-20, 20), "mm",
-        "Mesh: x of its frame's origin; sphere: x of its axis; flat: no effect (sensor frame).",
-        CHROMASIM_FIELD(object.offset_x_mm)));
-    out.push_back(number(
-        "object.offset_y_mm", 0, closed(-20, 20), "mm",
-        "Mesh: y of its frame's origin; sphere: y of its axis; flat: no effect (sensor frame).",
-        CHROMASIM_FIELD(object.offset_y_mm)));
-    out.push_back(number("object.roll_deg", 0, closed(-180, 180), "deg",
-                         "Mesh or flat (tilts it): rotation about the sensor's x axis, applied "
-                         "first; a sphere is unchanged.",
-                         CHROMASIM_FIELD(object.roll_deg)));
-    out.push_back(
-        number("object.pitch_deg", 0, closed(-180, 180), "deg",
-               "Mesh or flat (tilts it): rotation about the sensor's y axis, applied second.",
-               CHROMASIM_FIELD(object.pitch_deg)));
-    out.push_back(number(
-        "object.yaw_deg", 0, closed(-180, 180), "deg",
-        "Mesh: rotation about the sensor's z axis, applied last (a flat or sphere is unchanged).",
-        CHROMASIM_FIELD(object.yaw_deg)));
-    out.push_back(number("object.radius_mm", 45, left_open(0, 1e4), "mm",
-                         "Sphere radius (seed 000's curved object: 45 mm); unused for a flat.",
-                         CHROMASIM_FIELD(object.radius_mm)));
-    out.push_back(number("object.mu", 0.8, closed(0, 10), "",
-                         "Coulomb friction coefficient between coating and object (seed 001: "
-                         "1.1, 0.8, 0.5).",
-                         CHROMASIM_FIELD(object.mu)));
-    out.push_back(number("protocol.press.normal_force_N", 1.5, left_open(0, 50), "N",
-                         "Normal (grip) force reached at the end of the press.",
-                         CHROMASIM_FIELD(press.normal_force_N)));
-    out.push_back(integer("protocol.press.frames", 2, closed(1, 10000), "",
-                          "Frames of the linear normal-force ramp (the last one at full force).",
-                          CHROMASIM_FIELD(press.frames)));
-    out.push_back(choice("protocol.pull.control", "force", {"force", "displacement"},
-                         "force: the object is pulled with a force ramping to "
-                         "tangential_force_N (it slides once that exceeds mu f_n); displacement: "
-                         "the object travels sideways to displacement_mm (seed 001's sliding "
-                         "plate) and the force is found.",
-                         CHROMASIM_FIELD(pull.control)));
-    out.push_back(number("protocol.pull.tangential_force_N", 0.5, closed(0, 50), "N",
-                         "Tangential load reached at the end of a force-controlled pull.",
-                         CHROMASIM_FIELD(pull.tangential_force_N)));
-    out.push_back(number("protocol.pull.displacement_mm", 1.0, closed(0, 50), "mm",
-                         "Object travel reached at the end of a displacement-controlled pull.",
-                         CHROMASIM_FIELD(pull.displacement_mm)));
-    out.push_back(number("protocol.pull.direction_deg", 0, closed(-360, 360), "deg",
-                         "Direction of the pull in the x-y plane, from +x.",
-                         CHROMASIM_FIELD(pull.direction_deg)));
-    out.push_back(integer("protocol.pull.frames", 3, closed(0, 100000), "",
-                          "Frames of the linear tangential ramp after the press (0: no pull).",
-                          CHROMASIM_FIELD(pull.frames)));
-}
-
-/// render.sensor: the optional camera sensor model (render/sensor_model.hpp). The ranges are the
-/// ones render::SensorModel checks.
-void add_render_sensor(std::vector<SchemaEntry>& out) {
-    const std::string defaults =
-        " [G]: a typical value for the Sony IMX392 of the Basler dart daA1920-160uc (datasheet "
-        "class, SENSOR.md 1); replace it with your camera's measurement.";
-    out.push_back(boolean("render.sensor.enabled", false,
-                          "Pass the PNG through the camera sensor model: exposure gain, "
-                          "vignetting, shot and read noise, full-well clipping, ADC "
-                          "quantization, then the sRGB encoding of every PNG. The EXR keeps "
-                          "the noise-free linear render. false: the PNG is the render itself.",
-                          CHROMASIM_FIELD(render.sensor.enabled)));
-    out.push_back(integer("render.sensor.seed", 1, closed(0, 2147483647), "",
-                          "Seed of the sensor noise, independent of the top-level seed; mixed "
-                          "with the frame index, so every frame has its own noise.",
-                          CHROMASIM_FIELD(render.sensor.seed)));
-    out.push_back(number("render.sensor.gain", 1, left_open(0, render::kSensorMaxGain), "",
-                         "Exposure multiplier on the linear render before photo-conversion "
-                         "(1.0 in the render = full well): more light, relatively less shot "
-                         "noise.",
-                         CHROMASIM_FIELD(render.sensor.gain)));
-    out.push_back(number("render.sensor.full_well_e", 10000,
-                         left_open(0, render::kSensorMaxFullWellE), "e-",
-                         "Full-well capacity: photo-electrons at linear value 1.0, where the "
-                         "pixel saturates; sets the shot noise (sqrt of the electron count)." +
-                             defaults,
-                         CHROMASIM_FIELD(render.sensor.full_well_e)));
-    out.push_back(number("render.sensor.read_noise_e", 2.3, closed(0, render::kSensorMaxReadNoiseE),
-                         "e-",
-                         "Read noise, standard deviation of a Gaussian in electrons." + defaults,
-                         CHROMASIM_FIELD(render.sensor.read_noise_e)));
-    out.push_back(integer("render.sensor.adc_bits", 12,
-                          closed(render::kSensorMinAdcBits, render::kSensorMaxAdcBits), "bit",
-                          "ADC bit depth: the full well maps to code 2^bits - 1." + defaults,
-                          CHROMASIM_FIELD(render.sensor.adc_bits)));
-    out.push_back(boolean("render.sensor.shot_noise", true,
-                          "Poisson photon (shot) noise: by inversion below a mean of 64 "
-                          "electrons, by its normal approximation above; false: no shot noise.",
-                          CHROMASIM_FIELD(render.sensor.shot_noise)));
-    out.push_back(choice("render.sensor.vignetting.model", "polynomial",
-                         {"none", "cos4", "polynomial"},
-                         "Relative illumination RI at the field angle theta of each pixel: none "
-                         "(1), cos4 (cos^4 theta, a rectilinear lens's natural vignetting: far "
-                         "too dark near 90 deg for a fisheye), polynomial (max(0, 1 + k1 t^2 + "
-                         "k2 t^4), t = theta / sensor.camera.half_fov_deg, the image radius over "
-                         "the image circle's for the equidistant lens).",
-                         CHROMASIM_FIELD(render.sensor.vignetting)));
-    out.push_back(
-        number("render.sensor.vignetting.k1", -0.3,
-               closed(-render::kSensorMaxVignettingCoeff, render::kSensorMaxVignettingCoeff), "",
-               "t^2 coefficient of the polynomial vignetting [G]: -0.3 gives 70 % "
-               "illumination at the edge of the field, an assumed mild fall-off (not from the "
-               "lens's datasheet); fit your own to a flat-field image.",
-               CHROMASIM_FIELD(render.sensor.vignetting_k1)));
-    out.push_back(
-        number("render.sensor.vignetting.k2", 0,
-               closed(-render::kSensorMaxVignettingCoeff, render::kSensorMaxVignettingCoeff), "",
-               "t^4 coefficient of the polynomial vignetting [G].",
-               CHROMASIM_FIELD(render.sensor.vignetting_k2)));
-}
-
-void add_render_and_outputs(std::vector<SchemaEntry>& out) {
-    out.push_back(integer("render.width_px", 256, closed(16, 4096), "px", "Image width.",
-                          CHROMASIM_FIELD(render.width_px)));
-    out.push_back(integer("render.height_px", 256, closed(16, 4096), "px", "Image height.",
-                          CHROMASIM_FIELD(render.height_px)));
-    out.push_back(integer("render.samples_per_pixel", 4, closed(1, 1024), "",
-                          "Samples per pixel (stratified positions and wavelengths). Direct "
-                          "integrator at 224 px: 4 spp gives 3.1 % RMS of the white level in "
-                          "0.34 s, 16 spp 1.2 % in 1.3 s (docs/VALIDATION.md); the path "
-                          "integrator needs thousands for 1 %.",
-                          CHROMASIM_FIELD(render.samples_per_pixel)));
-    out.push_back(number("render.exposure", 1, left_open(0, 100), "",
-                         "Linear scale applied to the rendered radiance before writing.",
-                         CHROMASIM_FIELD(render.exposure)));
-    out.push_back(boolean("render.spectral", true,
-                          "Spectral rendering (16 hero wavelengths per sample, colour mixing "
-                          "per wavelength, the spectra of sensor.optics.spectra_dir); false: "
-                          "the RGB approximation with the sensor.optics RGB values.",
-                          CHROMASIM_FIELD(render.spectral)));
-    out.push_back(choice("render.integrator", "direct", {"direct", "path", "fast"},
-                         "Light transport. direct: LED light straight to the coating and the "
-                         "markers, one bounce, no refraction (cheapest, an approximation). "
-                         "path: unbiased path tracing with refraction and Fresnel at the inner "
-                         "surface, diffuse interreflection and area LEDs (the reference). "
-                         "fast: the path integrator's light with the smooth indirect light and "
-                         "the LEDs' unshadowed light cached once per sensor on the coating "
-                         "(render.fast.*); marker transmittance and coloured shadows traced "
-                         "per frame. docs/VALIDATION.md has each one's error and cost.",
-                         CHROMASIM_FIELD(render.integrator)));
-    out.push_back(integer("render.fast.paths_per_vertex", 256, closed(1, 65536), "",
-                          "Fast integrator: paths traced per coating vertex (at the coating "
-                          "and above the outer markers) for the cached indirect light, once "
-                          "per sensor; its noise is a fixed pattern across frames.",
-                          CHROMASIM_FIELD(render.fast.paths_per_vertex)));
-    out.push_back(number("render.fast.smoothing_mm", 0.75, closed(0, 10), "mm",
-                         "Fast integrator: standard deviation of the Gaussian (local linear "
-                         "regression) that smooths the cached indirect light over the "
-                         "coating; 0: none.",
-                         CHROMASIM_FIELD(render.fast.smoothing_mm)));
-    out.push_back(integer("render.fast.direct_samples", 16, closed(1, 4096), "",
-                          "Fast integrator: LED points per LED per coating vertex for the "
-                          "cached unshadowed LED light.",
-                          CHROMASIM_FIELD(render.fast.direct_samples)));
-    add_render_sensor(out);
-    out.push_back(boolean("outputs.images", true,
-                          "Write a PNG per frame (8-bit sRGB); with outputs.exr false too, the "
-                          "render stage is skipped.",
-                          CHROMASIM_FIELD(outputs.images)));
-    out.push_back(
-        boolean("outputs.labels", true, "Write labels.csv.", CHROMASIM_FIELD(outputs.labels)));
-    out.push_back(boolean("outputs.markers", true,
-                          "Write markers.csv (3D displacement of every marker).",
-                          CHROMASIM_FIELD(outputs.markers)));
-    out.push_back(boolean("outputs.exr", false,
-                          "Write a linear float OpenEXR per frame (channels R, G, B; "
-                          "docs/DATASET_FORMAT.md).",
-                          CHROMASIM_FIELD(outputs.exr)));
-    out.push_back(boolean("outputs.marker_ids", false,
-                          "Add EXR channels inner_marker_id and outer_marker_id: the marker seen "
-                          "through each pixel's centre, per layer (-1: none). Needs outputs.exr.",
-                          CHROMASIM_FIELD(outputs.marker_ids)));
-    out.push_back(boolean("outputs.variance", false,
-                          "Add EXR channels variance.R, variance.G, variance.B: each pixel's "
-                          "variance of the mean over its samples. Needs outputs.exr.",
-                          CHROMASIM_FIELD(outputs.variance)));
-}
-
-#undef CHROMASIM_FIELD
-
-std::vector<SchemaEntry> build_schema() {
-    std::vector<SchemaEntry> out;
-    add_general(out);
-    add_sensor_mechanics(out);
-    add_sensor_optics(out);
-    add_object_and_protocol(out);
-    add_render_and_outputs(out);
-    return out;
-}
-
-std::vector<SchemaRule> build_rules() {
-    SchemaRule outputs;
-    outputs.key = "outputs";
-    outputs.holds = [](const Spec& s) {
-        return s.outputs.images || s.outputs.labels || s.outputs.markers || s.outputs.exr;
-    };
-    outputs.problem = "enables no output";
-    outputs.allowed =
-        "at least one of outputs.images, outputs.labels, outputs.markers, outputs.exr is true";
-    SchemaRule channels;
-    channels.key = "outputs.exr";
-    channels.holds = [](const Spec& s) {
-        return s.outputs.exr || !(s.outputs.marker_ids || s.outputs.variance);
-    };
-    channels.problem =
-        "is false while outputs.marker_ids or outputs.variance asks for EXR channels";
-    channels.allowed = "outputs.exr: true, or outputs.marker_ids and outputs.variance false";
-    SchemaRule mesh;
-    mesh.key = "object.mesh_file";
-    mesh.holds = [](const Spec& s) {
-        if (s.object.shape != "mesh") return true;
-        std::error_code ec;
-        return !s.object.mesh_file.empty() &&
-               std::filesystem::is_regular_file(resolve_spec_path(s, s.object.mesh_file), ec);
-    };
-    SchemaRule spectra;
-    spectra.key = "sensor.optics.spectra_dir";
-    spectra.holds = [](const Spec& s) {
-        if (!s.render.spectral || !(s.outputs.images || s.outputs.exr)) return true;
-        std::error_code ec;
-        return std::filesystem::is_directory(spectra_directory(s), ec);
-    };
-    spectra.problem = "names no existing folder, and render.spectral is true";
-    spectra.allowed = "a folder with the six spectrum CSVs (assets/spectra/README.md), or empty "
-                      "for the shipped ones";
-    mesh.problem = "names no existing file, and object.shape is mesh";
-    mesh.allowed = "a .gltf or .glb file; a relative path starts at the spec file's folder";
-    SchemaRule camera;
-    camera.key = "sensor.camera";
-    camera.holds = [](const Spec& s) {
-        if (s.sensor.camera_model != "kannala_brandt") return true;
-        const auto& c = s.sensor;
-        return render::kannala_brandt_min_slope(c.camera_k1, c.camera_k2, c.camera_k3, c.camera_k4,
-                                                c.camera_half_fov_deg * std::numbers::pi / 180)
-                   .slope > 0.0;
-    };
-    camera.problem = "has k1..k4 whose theta_d(theta) stops increasing before half_fov_deg, so "
-                     "pixels cannot be mapped back to rays";
-    camera.allowed = "k1..k4 with 1 + 3 k1 t^2 + 5 k2 t^4 + 7 k3 t^6 + 9 k4 t^8 > 0 for every "
-                     "polar angle t (rad) up to half_fov_deg, or a smaller half_fov_deg (the "
-                     "field the calibration covers)";
-    SchemaRule tilt;
-    tilt.key = "object.pitch_deg";
-    tilt.holds = [](const Spec& s) {
-        if (s.object.shape != "flat") return true;
-        // A plane tilted by t touches the dome at polar angle t: it must stay in the cap.
-        const double deg = std::numbers::pi / 180;
-        const double cos_tilt =
-            std::cos(s.object.roll_deg * deg) * std::cos(s.object.pitch_deg * deg);
-        return cos_tilt > std::cos((s.sensor.contact_candidate_angle_deg - 5) * deg);
-    };
-    tilt.problem = "with object.roll_deg tilts the flat object to within 5 deg of "
-                   "sensor.contact_candidate_angle_deg or beyond (the contact would leave the "
-                   "cap of nodes that may touch)";
-    tilt.allowed = "a tilt acos(cos(roll) cos(pitch)) below sensor.contact_candidate_angle_deg "
-                   "- 5 deg (30 deg by default)";
-    return {outputs, channels, mesh, camera, tilt, spectra};
-}
 
 // ---- Converting scalar text -----------------------------------------------------------------
 
@@ -711,6 +141,8 @@ const char* type_name(ValueType type) {
         return "rgb";
     case ValueType::Vec3:
         return "vec3";
+    case ValueType::Factor:
+        return "factor";
     }
     return "?";
 }
@@ -732,6 +164,8 @@ std::string allowed_cell(const SchemaEntry& e) {
     case ValueType::Rgb:
     case ValueType::Vec3:
         return "3 numbers, each in " + range_text(e);
+    case ValueType::Factor:
+        return "number, list of numbers or {min, max}, each in " + range_text(e);
     }
     return "";
 }
@@ -761,11 +195,19 @@ Reading rules (an error names the file, line:column, key, value and what is allo
 - Quoted text (`"1.5"`) is a string: it is never taken as a number or a bool.
 - `rgb`: a list of exactly 3 numbers in red, green, blue order, e.g. `[0.85, 0.85, 0.85]`.
 - `vec3`: a list of exactly 3 numbers x, y, z, e.g. `[0.0, 0.0, -1.5]`.
+- `factor`: a factor of the sampling plan: one number (`1.5`), a non-empty list of numbers
+  (`[1.0, 1.5, 2.0]`) or a uniform range (`{min: 2, max: 3}`, both keys, min <= max); every
+  number in the allowed range. How trials draw from it: `sampling.method`.
+- Lists of mappings: `objects`, `friction` and `splits` are YAML lists whose items are
+  mappings with the keys written `objects[].KEY` below, e.g.
+  `objects: [{name: flat, shape: flat}, {name: curved, shape: sphere, radius_mm: 45}]`. A
+  list has at least one item; a list left out is the one-item list of the item defaults.
+  Errors name the item as `objects[1].radius_mm` (items count from 0).
 - Ranges: `[a, b]` includes both ends, `(a, b]` excludes `a`.
 - A key given twice in the same mapping is an error.
 - [G] marks an assumption: a default to override when better data exist.
 
-This file is generated from the schema in `generators/spec_schema.cpp`; regenerate it with
+This file is generated from the schema table in `generators/spec_table.cpp`; regenerate it with
 `chromasim schema > docs/SPEC_REFERENCE.md`. A test (`tests/generators/test_spec.cpp`) fails
 when it no longer matches the schema.
 
@@ -788,6 +230,22 @@ bool Range::contains(double x) const {
 const std::vector<SchemaEntry>& spec_schema() {
     static const std::vector<SchemaEntry> schema = detail::build_schema();
     return schema;
+}
+
+std::string SchemaEntry::list() const {
+    const std::size_t brackets = key.find("[].");
+    return brackets == std::string::npos ? std::string() : key.substr(0, brackets);
+}
+
+const std::vector<SchemaList>& spec_lists() {
+    static const std::vector<SchemaList> lists = detail::build_lists();
+    return lists;
+}
+
+const SchemaList* find_schema_list(std::string_view name) {
+    for (const SchemaList& l : spec_lists())
+        if (l.name == name) return &l;
+    return nullptr;
 }
 
 const std::vector<SchemaRule>& spec_rules() {
@@ -819,7 +277,9 @@ std::vector<std::string> schema_children(std::string_view section) {
     for (const SchemaEntry& e : spec_schema()) {
         if (e.key.compare(0, prefix.size(), prefix) != 0) continue;
         const std::string rest = e.key.substr(prefix.size());
-        const std::string name = rest.substr(0, rest.find('.'));
+        std::string name = rest.substr(0, rest.find('.'));
+        if (name.size() > 2 && name.compare(name.size() - 2, 2, "[]") == 0)
+            name.resize(name.size() - 2);
         if (std::find(names.begin(), names.end(), name) == names.end()) names.push_back(name);
     }
     return names;
@@ -830,6 +290,7 @@ ScalarCheck check_scalar(const SchemaEntry& entry, std::string_view text, bool q
     case ValueType::Number:
     case ValueType::Rgb:
     case ValueType::Vec3:
+    case ValueType::Factor:
         return detail::check_number(entry, text, quoted);
     case ValueType::Integer:
         return detail::check_integer(entry, text, quoted);
@@ -863,6 +324,9 @@ std::string describe_allowed(const SchemaEntry& entry) {
     case ValueType::Rgb:
     case ValueType::Vec3:
         return "list of 3 numbers, each in " + detail::range_text(entry) + unit;
+    case ValueType::Factor:
+        return "a number, a non-empty list of numbers, or {min, max} with min <= max, each in " +
+               detail::range_text(entry) + unit;
     }
     return "";
 }
@@ -891,6 +355,15 @@ std::string value_to_yaml(const SpecValue& value, ValueType type) {
         return "[" + format_number(c[0]) + ", " + format_number(c[1]) + ", " + format_number(c[2]) +
                "]";
     }
+    case ValueType::Factor: {
+        const Factor& f = std::get<Factor>(value);
+        if (f.is_range)
+            return "{min: " + format_number(f.min) + ", max: " + format_number(f.max) + "}";
+        std::string out = "[";
+        for (std::size_t i = 0; i < f.values.size(); ++i)
+            out += (i ? ", " : "") + format_number(f.values[i]);
+        return out + "]";
+    }
     }
     return "";
 }
@@ -898,7 +371,24 @@ std::string value_to_yaml(const SpecValue& value, ValueType type) {
 std::string resolved_spec_yaml(const Spec& spec) {
     std::string out = "# chromasim resolved spec: every key, defaults filled, schema order.\n";
     std::vector<std::string> open; // the sections the previous key was in
-    for (const SchemaEntry& e : spec_schema()) {
+    const auto& schema = spec_schema();
+    for (std::size_t k = 0; k < schema.size(); ++k) {
+        const SchemaEntry& e = schema[k];
+        if (const std::string list = e.list(); !list.empty()) {
+            // A list (its entries are contiguous): every item, its keys in schema order.
+            std::size_t end = k;
+            while (end < schema.size() && schema[end].list() == list)
+                ++end;
+            out += list + ":\n";
+            for (std::size_t i = 0; i < find_schema_list(list)->size(spec); ++i)
+                for (std::size_t j = k; j < end; ++j)
+                    out += std::string(j == k ? "  - " : "    ") +
+                           schema[j].key.substr(list.size() + 3) + ": " +
+                           value_to_yaml(schema[j].get(spec, i), schema[j].type) + "\n";
+            open.clear();
+            k = end - 1;
+            continue;
+        }
         std::vector<std::string> parts = detail::split_key(e.key);
         const std::string leaf = parts.back();
         parts.pop_back();
@@ -910,7 +400,7 @@ std::string resolved_spec_yaml(const Spec& spec) {
             out += std::string(2 * i, ' ') + parts[i] + ":\n";
         }
         out += std::string(2 * parts.size(), ' ') + leaf + ": " +
-               value_to_yaml(e.get(spec), e.type) + "\n";
+               value_to_yaml(e.get(spec, 0), e.type) + "\n";
         open = std::move(parts);
     }
     return out;
@@ -918,8 +408,10 @@ std::string resolved_spec_yaml(const Spec& spec) {
 
 Spec default_spec() {
     Spec spec;
+    for (const SchemaList& list : spec_lists())
+        list.resize(spec, 1);
     for (const SchemaEntry& e : spec_schema()) {
-        e.set(spec, e.default_value);
+        e.set(spec, 0, e.default_value);
     }
     return spec;
 }
@@ -969,6 +461,9 @@ std::string schema_markdown() {
                detail::markdown_cell(detail::allowed_cell(e)) + " | " +
                detail::markdown_cell(e.doc) + " |\n";
     }
+    out += "\nLists of mappings:\n";
+    for (const SchemaList& l : spec_lists())
+        out += "- `" + l.name + "`: " + l.doc + "\n";
     out += "\nCross-key rules, checked once every key is valid:\n";
     for (const SchemaRule& r : spec_rules()) {
         out += "- `" + r.key + "`: " + r.allowed + ".\n";

@@ -23,12 +23,13 @@ enum class ValueType {
     String,  ///< any non-empty text
     Rgb,     ///< a list of exactly 3 numbers, each range-checked
     Vec3,    ///< a list of exactly 3 numbers (x, y, z of a point), each range-checked
+    Factor,  ///< a sampling factor: a number, a list of numbers or {min, max}, range-checked
 };
 
 /// A validated value; the alternative matches the entry's ValueType (Number -> double,
 /// Integer -> int64_t, Bool -> bool, Enum and String -> string, Rgb and Vec3 -> Rgb, the
-/// std::array<double, 3> both are stored in).
-using SpecValue = std::variant<double, std::int64_t, bool, std::string, Rgb>;
+/// std::array<double, 3> both are stored in, Factor -> Factor).
+using SpecValue = std::variant<double, std::int64_t, bool, std::string, Rgb, Factor>;
 
 /// An interval of allowed numbers; each end is inclusive ("[") or exclusive ("(").
 struct Range {
@@ -41,23 +42,40 @@ struct Range {
     bool contains(double x) const;
 };
 
-/// One leaf key of the spec.
+/// One leaf key of the spec. A key inside a list of mappings (objects, friction, splits) is
+/// written with "[]" after the list's name, e.g. "objects[].radius_mm": it exists once per
+/// item, and `set`/`get` take the item's index (ignored by keys outside lists).
 struct SchemaEntry {
-    std::string key; ///< dotted path, e.g. "sensor.materials.coating.E_MPa"
+    std::string key; ///< dotted path, e.g. "sensor.materials.coating.E_MPa", "objects[].shape"
     ValueType type = ValueType::Number;
     SpecValue default_value;
-    std::string unit;                                 ///< e.g. "MPa", "deg"; empty when unitless
-    Range range;                                      ///< Number, Integer, each Rgb/Vec3 item
-    std::vector<std::string> choices;                 ///< Enum only
-    std::string doc;                                  ///< one line for the manual
-    std::function<void(Spec&, const SpecValue&)> set; ///< stores a value of the right type
-    std::function<SpecValue(const Spec&)> get;        ///< reads the field back
+    std::string unit;                 ///< e.g. "MPa", "deg"; empty when unitless
+    Range range;                      ///< Number, Integer, each Rgb/Vec3 item
+    std::vector<std::string> choices; ///< Enum only
+    std::string doc;                  ///< one line for the manual
+    /// Stores a value of the right type (in item `item` of its list, if in one).
+    std::function<void(Spec&, std::size_t item, const SpecValue&)> set;
+    /// Reads the field back (of item `item` of its list, if in one).
+    std::function<SpecValue(const Spec&, std::size_t item)> get;
+    /// The list it belongs to ("objects" for "objects[].shape"); empty outside lists.
+    std::string list() const;
 };
 
-/// A constraint between keys, checked after every key is valid.
+/// A list of mappings in the spec (`objects`, `friction`, `splits`): its items' keys are the
+/// schema entries "NAME[].KEY". Written as a YAML list of mappings; at least one item.
+struct SchemaList {
+    std::string name; ///< e.g. "objects"
+    std::string doc;  ///< one line for the manual
+    std::function<std::size_t(const Spec&)> size;
+    /// Resizes the list; new items hold the item defaults.
+    std::function<void(Spec&, std::size_t)> resize;
+};
+
+/// A constraint between keys, checked after every key is valid. A rule whose key lies in a list
+/// ("objects[].mesh_file") is checked for every item and points at the failing one.
 struct SchemaRule {
     std::string key; ///< the section or key that an error points at
-    std::function<bool(const Spec&)> holds;
+    std::function<bool(const Spec&, std::size_t item)> holds;
     std::string problem; ///< e.g. "enables no output"
     std::string allowed; ///< what would be accepted
 };
@@ -75,17 +93,25 @@ const std::vector<SchemaEntry>& spec_schema();
 /// The cross-key rules, in the order they are checked.
 const std::vector<SchemaRule>& spec_rules();
 
+/// The lists of mappings, in manual order.
+const std::vector<SchemaList>& spec_lists();
+
+/// The list named `name` ("objects"), or nullptr.
+const SchemaList* find_schema_list(std::string_view name);
+
 /// The entry with this dotted key, or nullptr.
 const SchemaEntry* find_schema_entry(std::string_view key);
 
 /// Whether `key` is a section (a proper prefix of some entry's key, at a dot). "" is the top.
 bool is_schema_section(std::string_view key);
 
-/// The names of the keys directly inside `section` ("" is the top level), in schema order,
-/// e.g. {"mesh_level", "materials", ...} for "sensor".
+/// The names of the keys directly inside `section` ("" is the top level, "objects[]" an item of
+/// a list), in schema order, e.g. {"mesh_level", "materials", ...} for "sensor"; a list is
+/// named without its "[]".
 std::vector<std::string> schema_children(std::string_view section);
 
-/// Converts and checks the text of one scalar for `entry` (for an Rgb entry: one component).
+/// Converts and checks the text of one scalar for `entry` (for an Rgb entry or a Factor: one
+/// number).
 /// `quoted` is true when the text was written in quotes: quoted text is a string, never a
 /// number or bool.
 ScalarCheck check_scalar(const SchemaEntry& entry, std::string_view text, bool quoted);

@@ -18,11 +18,26 @@ namespace chromasim::generators {
 namespace detail {
 namespace { // internal linkage: these names are common
 
+/// A value read for an entry, in item `item` of its list (0 outside lists).
+struct ReadValue {
+    const SchemaEntry* entry = nullptr;
+    std::size_t item = 0;
+    SpecValue value;
+};
+
+/// Where a mapping sits: its schema section ("objects[]") and how messages name it
+/// ("objects[1]"), and its item in its list.
+struct Place {
+    std::string section, display;
+    std::size_t item = 0;
+};
+
 /// What one read of a spec text collects.
 struct SpecReader {
-    std::string file;                                             ///< name used in messages
-    std::vector<std::pair<const SchemaEntry*, SpecValue>> values; ///< in file order
-    std::map<std::string, YAML::Mark> key_marks;                  ///< every dotted key met
+    std::string file;                              ///< name used in messages
+    std::vector<ReadValue> values;                 ///< in file order
+    std::map<std::string, YAML::Mark> key_marks;   ///< every dotted key met, as messages name it
+    std::map<std::string, std::size_t> list_sizes; ///< items of every list given
 };
 
 /// "FILE:LINE:COL" with yaml-cpp's 0-based mark printed 1-based; "FILE" when there is no mark.
@@ -78,6 +93,9 @@ YAML::Mark value_mark(const YAML::Node& key_node, const YAML::Node& value) {
 }
 
 std::string keys_allowed_in(const std::string& section) {
+    if (section.size() > 2 && section.compare(section.size() - 2, 2, "[]") == 0)
+        return "keys in an item of '" + section.substr(0, section.size() - 2) +
+               "': " + join(schema_children(section));
     return (section.empty() ? std::string("keys at the top level: ")
                             : "keys in '" + section + "': ") +
            join(schema_children(section));
@@ -99,34 +117,96 @@ SpecValue read_scalar(const SpecReader& r, const SchemaEntry& entry, const std::
     return check.value;
 }
 
-SpecValue read_rgb(const SpecReader& r, const SchemaEntry& entry, const YAML::Node& key_node,
-                   const YAML::Node& value) {
+SpecValue read_rgb(const SpecReader& r, const SchemaEntry& entry, const std::string& key,
+                   const YAML::Node& key_node, const YAML::Node& value) {
     const std::string allowed = describe_allowed(entry);
-    if (value.IsNull()) fail(r, value_mark(key_node, value), entry.key, "", "is empty", allowed);
+    if (value.IsNull()) fail(r, value_mark(key_node, value), key, "", "is empty", allowed);
     if (!value.IsSequence()) {
-        fail(r, value.Mark(), entry.key, node_text(value), "is " + kind(value) + ", not a list",
-             allowed);
+        fail(r, value.Mark(), key, node_text(value), "is " + kind(value) + ", not a list", allowed);
     }
     if (value.size() != 3) {
-        fail(r, value.Mark(), entry.key, node_text(value),
+        fail(r, value.Mark(), key, node_text(value),
              "has " + std::to_string(value.size()) + " items", allowed);
     }
     Rgb rgb{};
     for (std::size_t i = 0; i < 3; ++i) {
-        const std::string key = entry.key + "[" + std::to_string(i) + "]";
-        rgb[i] = std::get<double>(read_scalar(r, entry, key, value, value[i]));
+        const std::string item = key + "[" + std::to_string(i) + "]";
+        rgb[i] = std::get<double>(read_scalar(r, entry, item, value, value[i]));
     }
     return rgb;
 }
 
-void read_map(SpecReader& r, const YAML::Node& map, const std::string& section);
+/// A factor: one number, a non-empty list of numbers, or a mapping {min, max}.
+SpecValue read_factor(const SpecReader& r, const SchemaEntry& entry, const std::string& key,
+                      const YAML::Node& key_node, const YAML::Node& value) {
+    const std::string allowed = describe_allowed(entry);
+    Factor f;
+    if (value.IsScalar() || value.IsNull()) {
+        f.values.push_back(std::get<double>(read_scalar(r, entry, key, key_node, value)));
+        return f;
+    }
+    if (value.IsSequence()) {
+        if (value.size() == 0) fail(r, value.Mark(), key, "[]", "is an empty list", allowed);
+        for (std::size_t i = 0; i < value.size(); ++i)
+            f.values.push_back(std::get<double>(
+                read_scalar(r, entry, key + "[" + std::to_string(i) + "]", value, value[i])));
+        return f;
+    }
+    f.is_range = true;
+    bool has_min = false, has_max = false;
+    for (const auto& pair : value) {
+        const std::string name = pair.first.IsScalar() ? pair.first.Scalar() : "";
+        if (name != "min" && name != "max")
+            fail(r, pair.first.Mark(), key + "." + node_text(pair.first), node_text(pair.first),
+                 "is not a key of a range", allowed);
+        bool& seen = name == "min" ? has_min : has_max;
+        if (seen) fail(r, pair.first.Mark(), key + "." + name, name, "is given twice", allowed);
+        seen = true;
+        (name == "min" ? f.min : f.max) =
+            std::get<double>(read_scalar(r, entry, key + "." + name, pair.first, pair.second));
+    }
+    if (!has_min || !has_max)
+        fail(r, value.Mark(), key, node_text(value),
+             std::string("has no ") + (has_min ? "max" : "min"), allowed);
+    if (f.min > f.max) fail(r, value.Mark(), key, node_text(value), "has min above max", allowed);
+    return f;
+}
+
+void read_map(SpecReader& r, const YAML::Node& map, const Place& place);
+
+/// The place of key `name` inside `place`.
+Place inside(const Place& place, const std::string& name) {
+    return {place.section.empty() ? name : place.section + "." + name,
+            place.display.empty() ? name : place.display + "." + name, place.item};
+}
 
 /// A section's value: a mapping, or empty (all defaults).
-void read_section(SpecReader& r, const std::string& key, const YAML::Node& value) {
-    if (value.IsMap()) return read_map(r, value, key);
+void read_section(SpecReader& r, const Place& place, const YAML::Node& value) {
+    if (value.IsMap()) return read_map(r, value, place);
     if (value.IsNull()) return;
-    fail(r, value.Mark(), key, node_text(value), "is " + kind(value) + ", not a mapping",
-         "a mapping with " + keys_allowed_in(key));
+    fail(r, value.Mark(), place.display, node_text(value), "is " + kind(value) + ", not a mapping",
+         "a mapping with " + keys_allowed_in(place.section));
+}
+
+/// A list of mappings (objects, friction, splits): at least one item, each a mapping.
+void read_list(SpecReader& r, const std::string& name, const YAML::Node& key_node,
+               const YAML::Node& value) {
+    const std::string allowed =
+        "a non-empty list of mappings with keys " + join(schema_children(name + "[]"));
+    if (value.IsNull()) fail(r, value_mark(key_node, value), name, "", "is empty", allowed);
+    if (!value.IsSequence())
+        fail(r, value.Mark(), name, node_text(value), "is " + kind(value) + ", not a list",
+             allowed);
+    if (value.size() == 0) fail(r, value.Mark(), name, "[]", "is an empty list", allowed);
+    r.list_sizes[name] = value.size();
+    for (std::size_t i = 0; i < value.size(); ++i) {
+        const Place item{name + "[]", name + "[" + std::to_string(i) + "]", i};
+        r.key_marks.emplace(item.display, value[i].Mark());
+        if (!value[i].IsMap())
+            fail(r, value[i].Mark(), item.display, node_text(value[i]),
+                 "is " + kind(value[i]) + ", not a mapping", allowed);
+        read_map(r, value[i], item);
+    }
 }
 
 [[noreturn]] void unknown_key(const SpecReader& r, const YAML::Node& key_node,
@@ -142,37 +222,52 @@ void read_section(SpecReader& r, const std::string& key, const YAML::Node& value
 }
 
 /// The key's name within its mapping; rejects keys that are not plain text.
-std::string key_name(const SpecReader& r, const YAML::Node& key_node, const std::string& section) {
+std::string key_name(const SpecReader& r, const YAML::Node& key_node, const Place& place) {
     if (key_node.IsScalar()) return key_node.Scalar();
-    fail(r, key_node.Mark(), section.empty() ? "(top level)" : section, node_text(key_node),
-         "is not a valid key (" + kind(key_node) + ")", keys_allowed_in(section));
+    fail(r, key_node.Mark(), place.display.empty() ? "(top level)" : place.display,
+         node_text(key_node), "is not a valid key (" + kind(key_node) + ")",
+         keys_allowed_in(place.section));
 }
 
-void read_entry(SpecReader& r, const std::string& section, const YAML::Node& key_node,
+SpecValue read_value(const SpecReader& r, const SchemaEntry& entry, const std::string& key,
+                     const YAML::Node& key_node, const YAML::Node& value) {
+    switch (entry.type) {
+    case ValueType::Rgb:
+    case ValueType::Vec3:
+        return read_rgb(r, entry, key, key_node, value);
+    case ValueType::Factor:
+        return read_factor(r, entry, key, key_node, value);
+    default:
+        return read_scalar(r, entry, key, key_node, value);
+    }
+}
+
+void read_entry(SpecReader& r, const Place& place, const YAML::Node& key_node,
                 const YAML::Node& value) {
-    const std::string name = key_name(r, key_node, section);
-    const std::string key = section.empty() ? name : section + "." + name;
-    const auto [first, inserted] = r.key_marks.emplace(key, key_node.Mark());
+    const std::string name = key_name(r, key_node, place);
+    const Place here = inside(place, name);
+    const auto [first, inserted] = r.key_marks.emplace(here.display, key_node.Mark());
     if (!inserted) {
-        fail(r, key_node.Mark(), key, name,
+        fail(r, key_node.Mark(), here.display, name,
              "is given twice (first at line " + std::to_string(first->second.line + 1) + ")",
              "each key once per mapping");
     }
     if (!name.empty() && name.find('.') == std::string::npos) {
-        if (const SchemaEntry* entry = find_schema_entry(key)) {
-            const bool list = entry->type == ValueType::Rgb || entry->type == ValueType::Vec3;
-            r.values.emplace_back(entry, list ? read_rgb(r, *entry, key_node, value)
-                                              : read_scalar(r, *entry, key, key_node, value));
+        if (const SchemaEntry* entry = find_schema_entry(here.section)) {
+            r.values.push_back(
+                {entry, place.item, read_value(r, *entry, here.display, key_node, value)});
             return;
         }
-        if (is_schema_section(key)) return read_section(r, key, value);
+        if (place.section.empty() && find_schema_list(name))
+            return read_list(r, name, key_node, value);
+        if (is_schema_section(here.section)) return read_section(r, here, value);
     }
-    unknown_key(r, key_node, key, name, section);
+    unknown_key(r, key_node, here.display, name, place.section);
 }
 
-void read_map(SpecReader& r, const YAML::Node& map, const std::string& section) {
+void read_map(SpecReader& r, const YAML::Node& map, const Place& place) {
     for (const auto& pair : map) {
-        read_entry(r, section, pair.first, pair.second);
+        read_entry(r, place, pair.first, pair.second);
     }
 }
 
@@ -199,25 +294,49 @@ YAML::Node parse_document(const SpecReader& r, const std::string& text) {
     return docs[0];
 }
 
-/// "{images: false, labels: false, markers: false}": the resolved values under a section.
-std::string resolved_text(const Spec& spec, const std::string& section) {
+/// The resolved values under a section as one line, e.g. "{images: false, labels: false}";
+/// a list as "[{name: train, fraction: 0.8}, ...]"; a leaf's value (of item `item`).
+std::string resolved_text(const Spec& spec, const std::string& section, std::size_t item = 0) {
     if (const SchemaEntry* leaf = find_schema_entry(section))
-        return value_to_yaml(leaf->get(spec), leaf->type);
+        return value_to_yaml(leaf->get(spec, item), leaf->type);
+    if (const SchemaList* list = find_schema_list(section)) {
+        std::string out = "[";
+        for (std::size_t i = 0; i < list->size(spec); ++i)
+            out += (i ? ", " : "") + resolved_text(spec, section + "[]", i);
+        return out + "]";
+    }
     std::string out;
     for (const SchemaEntry& e : spec_schema()) {
         if (e.key.compare(0, section.size() + 1, section + ".") != 0) continue;
         out += (out.empty() ? "{" : ", ") + e.key.substr(section.size() + 1) + ": " +
-               value_to_yaml(e.get(spec), e.type);
+               value_to_yaml(e.get(spec, item), e.type);
     }
     return out + "}";
 }
 
+/// The mark of the first of `keys` that was met (null when none).
+YAML::Mark first_mark(const SpecReader& r, const std::vector<std::string>& keys) {
+    for (const std::string& key : keys)
+        if (const auto mark = r.key_marks.find(key); mark != r.key_marks.end()) return mark->second;
+    return YAML::Mark::null_mark();
+}
+
 void check_rules(const SpecReader& r, const Spec& spec) {
     for (const SchemaRule& rule : spec_rules()) {
-        if (rule.holds(spec)) continue;
-        const auto mark = r.key_marks.find(rule.key);
-        fail(r, mark == r.key_marks.end() ? YAML::Mark::null_mark() : mark->second, rule.key,
-             resolved_text(spec, rule.key), rule.problem, rule.allowed);
+        const std::size_t brackets = rule.key.find("[]");
+        if (brackets == std::string::npos) {
+            if (rule.holds(spec, 0)) continue;
+            fail(r, first_mark(r, {rule.key}), rule.key, resolved_text(spec, rule.key),
+                 rule.problem, rule.allowed);
+        }
+        const std::string list = rule.key.substr(0, brackets);
+        for (std::size_t i = 0; i < find_schema_list(list)->size(spec); ++i) {
+            if (rule.holds(spec, i)) continue;
+            const std::string item = list + "[" + std::to_string(i) + "]";
+            const std::string key = item + rule.key.substr(brackets + 2);
+            fail(r, first_mark(r, {key, item, list}), key, resolved_text(spec, rule.key, i),
+                 rule.problem, rule.allowed);
+        }
     }
 }
 
@@ -250,11 +369,16 @@ std::filesystem::path spectra_directory(const Spec& spec) {
 }
 
 Spec parse_spec(const std::string& yaml_text, const std::string& display_name) {
-    detail::SpecReader reader{display_name, {}, {}};
-    detail::read_map(reader, detail::parse_document(reader, yaml_text), "");
+    detail::SpecReader reader{display_name, {}, {}, {}};
+    detail::read_map(reader, detail::parse_document(reader, yaml_text), {});
     Spec spec = default_spec();
-    for (const auto& [entry, value] : reader.values) {
-        entry->set(spec, value);
+    for (const auto& [name, size] : reader.list_sizes) {
+        const SchemaList* list = find_schema_list(name);
+        list->resize(spec, 0); // the items written start from the item defaults
+        list->resize(spec, size);
+    }
+    for (const detail::ReadValue& v : reader.values) {
+        v.entry->set(spec, v.item, v.value);
     }
     spec.source_path = display_name; // relative paths in the spec start at its folder
     detail::check_rules(reader, spec);

@@ -2,6 +2,7 @@
 #include "generators/bench.hpp"
 #include "generators/generate.hpp"
 #include "generators/image_io.hpp"
+#include "generators/plan.hpp"
 #include "generators/scene_export.hpp"
 #include "generators/spec.hpp"
 #include "generators/verify.hpp"
@@ -24,31 +25,39 @@ int run_generate(const std::string& spec_path, const gen::GenerateOptions& optio
     const gen::Spec spec = gen::load_spec(spec_path); // validation before any work
     const gen::GenerateReport r = gen::generate(spec, options, std::cerr);
     if (r.up_to_date) return 0;
-    std::cout << "chromasim: wrote " << r.frames << " frames (" << r.images << " images) to "
+    std::cout << "chromasim: wrote " << r.trials << " of " << r.planned_trials << " trials, "
+              << r.frames << " frames (" << r.images << " images, " << r.renders << " rendered; "
+              << r.solves << " solves, " << r.reused_solves << " reused) to "
               << options.out_dir.string() << " in " << r.total_s << " s (precompute "
               << r.precompute_s << " s, mechanics " << r.mechanics_s << " s, render " << r.render_s
               << " s, write " << r.write_s << " s)\n";
     const auto& out = options.out_dir;
     if (spec.outputs.images)
-        std::cout << "  images: " << (out / "images").string() << "/frame_*.png\n";
-    if (spec.outputs.exr) std::cout << "  exr: " << (out / "images").string() << "/frame_*.exr\n";
+        std::cout << "  images: " << (out / "images").string()
+                  << "/<split>/trial_NNNNNN/<finger>_NNNNNN.png\n";
+    if (spec.outputs.exr)
+        std::cout << "  exr: " << (out / "images").string()
+                  << "/<split>/trial_NNNNNN/<finger>_NNNNNN.exr\n";
     if (spec.outputs.labels) std::cout << "  labels: " << (out / "labels.csv").string() << "\n";
     if (spec.outputs.markers) std::cout << "  markers: " << (out / "markers.csv").string() << "\n";
+    if (spec.outputs.strain)
+        std::cout << "  strain: " << (out / "strain").string()
+                  << "/<split>/trial_NNNNNN/<finger>.csv\n";
     if (r.flagged_frames > 0)
         std::cerr << "chromasim: " << r.flagged_frames
                   << " frame(s) flagged as not converged (labels.csv: converged = 0)\n";
     return 0;
 }
 
-int run_export_scene(const std::string& spec_path, int frame, const std::string& out,
-                     const gen::SceneExportOptions& options) {
+int run_export_scene(const std::string& spec_path, const gen::SceneSelection& which,
+                     const std::string& out, const gen::SceneExportOptions& options) {
     const gen::Spec spec = gen::load_spec(spec_path); // validation before any work
-    const gen::SceneExportReport r = gen::export_scene(spec, frame, out, options, std::cerr);
+    const gen::SceneExportReport r = gen::export_scene(spec, which, out, options, std::cerr);
     const gen::LabelRow& l = r.labels;
-    std::cout << "chromasim: wrote frame " << r.frame << " of " << r.frames << " (" << l.phase
-              << ", Fn " << l.normal_force_N << " N, Ft "
-              << std::hypot(l.tangential_x_N, l.tangential_y_N) << " N, Gamma " << l.gamma
-              << ") to " << out << " in " << r.total_s << " s\n";
+    std::cout << "chromasim: wrote trial " << r.trial << " " << gen::finger_name(r.finger)
+              << " frame " << r.frame << " of " << r.frames << " (" << l.phase << ", Fn "
+              << l.normal_force_N << " N, Ft " << std::hypot(l.tangential_x_N, l.tangential_y_N)
+              << " N, Gamma " << l.gamma << ") to " << out << " in " << r.total_s << " s\n";
     return 0;
 }
 
@@ -80,7 +89,11 @@ int main(int argc, char** argv) {
         ->required();
     generate->add_flag("--overwrite", options.overwrite,
                        "replace an existing dataset once the new one is complete");
-    generate->add_flag("-q,--quiet", options.quiet, "no per-frame progress");
+    generate->add_flag("-q,--quiet", options.quiet, "no per-trial progress");
+    generate
+        ->add_option("--max-trials", options.max_trials,
+                     "run only the first N trials of the plan (a slice; 0: all)")
+        ->check(CLI::Range(0, 1 << 30));
     std::string cache_dir = gen::default_cache_dir().string();
     bool no_cache = false;
     add_cache_options(generate, cache_dir, no_cache);
@@ -88,8 +101,16 @@ int main(int argc, char** argv) {
     auto* export_scene = app.add_subcommand(
         "export-scene", "write one frame's scene as glTF 2.0 (meshes, materials, LEDs, camera)");
     export_scene->add_option("spec", spec_path, "spec file (YAML)")->required();
-    int export_frame = 0;
-    export_scene->add_option("--frame", export_frame, "frame to export (0: the first)")->required();
+    gen::SceneSelection export_which;
+    export_scene->add_option("--trial", export_which.trial, "trial of the plan (0: the first)")
+        ->capture_default_str();
+    std::string export_finger = "left";
+    export_scene->add_option("--finger", export_finger, "fingertip")
+        ->check(CLI::IsMember({"left", "right"}))
+        ->capture_default_str();
+    export_scene
+        ->add_option("--frame", export_which.frame, "frame of the trial to export (0: the first)")
+        ->required();
     std::string export_out;
     export_scene
         ->add_option("-o,--output", export_out,
@@ -209,13 +230,21 @@ int main(int argc, char** argv) {
         if (*export_scene) {
             gen::SceneExportOptions export_options;
             if (!no_cache) export_options.cache_dir = cache_dir;
-            return run_export_scene(spec_path, export_frame, export_out, export_options);
+            export_which.finger = export_finger == "right" ? 1 : 0;
+            return run_export_scene(spec_path, export_which, export_out, export_options);
         }
         if (*validate) {
+            std::vector<gen::Spec> specs;
             for (const auto& p : validate_paths)
-                gen::load_spec(p);
-            for (const auto& p : validate_paths)
-                std::cout << p << ": ok\n";
+                specs.push_back(gen::load_spec(p));
+            for (std::size_t i = 0; i < specs.size(); ++i) {
+                const gen::Plan plan = gen::make_plan(specs[i]);
+                const std::size_t frames = plan.frame_count();
+                const std::size_t images =
+                    specs[i].outputs.images ? frames * std::size_t(specs[i].fingers.count) : 0;
+                std::cout << validate_paths[i] << ": ok (" << plan.trials.size() << " trials, "
+                          << frames << " frames, " << images << " images)\n";
+            }
             return 0;
         }
         if (*bench_dome) {

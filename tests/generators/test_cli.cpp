@@ -66,11 +66,11 @@ TEST_CASE("a bad spec stops generate before any work and writes nothing", "[gene
 }
 
 TEST_CASE("validate reports a typo with its position and a suggestion", "[generators][cli]") {
-    const fs::path spec = write_spec("chromasim_typo.yaml", "object:\n  muu: 0.5\n");
+    const fs::path spec = write_spec("chromasim_typo.yaml", "friction:\n  - muu: 0.5\n");
     const Run r = run_chromasim("validate " + spec.string());
     INFO(r.output);
     CHECK(r.code == 2);
-    CHECK(r.output.find("chromasim_typo.yaml:2:3") != std::string::npos);
+    CHECK(r.output.find("chromasim_typo.yaml:2:5") != std::string::npos);
     CHECK(r.output.find("did you mean 'mu'") != std::string::npos);
 }
 
@@ -103,8 +103,9 @@ TEST_CASE("export-scene writes any frame as glTF, reuses the cache, and refuses 
     const fs::path spec = write_spec(
         "chromasim_export.yaml",
         "name: export\nsensor: {mesh_level: coarse}\nrender: {width_px: 64, height_px: 48}\n"
-        "protocol: {press: {normal_force_N: 1.0, frames: 2}, pull: {tangential_force_N: 0.3, "
-        "frames: 1}}\n");
+        "fingers: {count: 1}\n"
+        "protocol: {frame_rate_Hz: 1, grip_N: 1.0, grasp_s: 2, hold_s: 0, load_rate_N_per_s: "
+        "0.3, target_load_N: 0.3}\n");
     const auto export_frame = [&](int frame, const std::string& file) {
         return run_chromasim("export-scene " + spec.string() + " --frame " + std::to_string(frame) +
                              " -o " + (dir / file).string() + " --cache-dir " +
@@ -136,7 +137,9 @@ TEST_CASE("export-scene writes any frame as glTF, reuses the cache, and refuses 
     REQUIRE(scene.camera.has_value());
     CHECK(scene.camera->aspect_ratio == Approx(64.0 / 48.0));
     CHECK(number(scene, "frame") == 2.0);
-    CHECK(text(scene, "phase") == "pull");
+    CHECK(text(scene, "phase") == "load");
+    CHECK(text(scene, "finger") == "left");
+    CHECK(number(scene, "trial") == 0.0);
     CHECK(number(scene, "normal_force_N") == Approx(1.0));
     CHECK(number(scene, "tangential_force_x_N") == Approx(0.3));
     CHECK(number(scene, "converged") == 1.0);
@@ -148,7 +151,7 @@ TEST_CASE("export-scene writes any frame as glTF, reuses the cache, and refuses 
     REQUIRE(first.code == 0);
     CHECK(first.output.find("cache: hit") != std::string::npos);
     const GltfScene scene0 = chromasim::generators::read_gltf_scene(dir / "first.gltf").scene;
-    CHECK(text(scene0, "phase") == "press");
+    CHECK(text(scene0, "phase") == "grasp");
     CHECK(number(scene0, "normal_force_N") == Approx(0.5));
     CHECK(scene0.meshes[0].surface.V.col(1).maxCoeff() >
           scene.meshes[0].surface.V.col(1).maxCoeff() + 0.05);
@@ -161,6 +164,15 @@ TEST_CASE("export-scene writes any frame as glTF, reuses the cache, and refuses 
     CHECK(range.output.find("[0, 2]") != std::string::npos);
     CHECK(range.output.find("dome mesh") == std::string::npos);
     CHECK_FALSE(fs::exists(dir / "range.glb"));
+    const Run trial = run_chromasim("export-scene " + spec.string() + " --trial 1 --frame 0 -o " +
+                                    (dir / "trial.glb").string());
+    CHECK(trial.code != 0);
+    CHECK(trial.output.find("--trial 1") != std::string::npos);
+    CHECK(trial.output.find("[0, 0]") != std::string::npos);
+    const Run finger = run_chromasim("export-scene " + spec.string() +
+                                     " --finger right --frame 0 -o " + (dir / "f.glb").string());
+    CHECK(finger.code != 0);
+    CHECK(finger.output.find("--finger right is out of range") != std::string::npos);
     const Run obj = export_frame(0, "scene.obj");
     CHECK(obj.code != 0);
     CHECK(obj.output.find((dir / "scene.obj").string()) != std::string::npos);
@@ -169,4 +181,37 @@ TEST_CASE("export-scene writes any frame as glTF, reuses the cache, and refuses 
     CHECK_FALSE(fs::exists(dir / "scene.obj"));
     fs::remove_all(dir);
     fs::remove(spec);
+}
+
+TEST_CASE("validate counts what a spec describes, and generate --max-trials runs a slice that "
+          "is its own dataset",
+          "[generators][cli]") {
+    const Run v = run_chromasim("validate datasets_spec/seed000_train.yaml "
+                                "datasets_spec/seed001_sliding.yaml");
+    INFO(v.output);
+    CHECK(v.code == 0);
+    CHECK(v.output.find("seed000_train.yaml: ok (96 trials, ") != std::string::npos);
+    CHECK(v.output.find("seed001_sliding.yaml: ok (336 trials, 10080 frames, 0 images)") !=
+          std::string::npos);
+
+    const fs::path out =
+        fs::temp_directory_path() / ("chromasim_cli_slice_" + std::to_string(::getpid()));
+    fs::remove_all(out);
+    const std::string generate =
+        "generate datasets_spec/seed001_sliding.yaml -q -o " + out.string();
+    const Run slice = run_chromasim(generate + " --max-trials 1");
+    INFO(slice.output);
+    REQUIRE(slice.code == 0);
+    CHECK(slice.output.find("wrote 1 of 336 trials, 30 frames") != std::string::npos);
+    std::ifstream manifest(out / "manifest.yaml");
+    std::stringstream text;
+    text << manifest.rdbuf();
+    CHECK(text.str().find("\ntrials: 1\nplanned_trials: 336\n") != std::string::npos);
+    // The same slice again is up to date; the whole spec is another dataset, refused.
+    CHECK(run_chromasim(generate + " --max-trials 1").output.find("nothing to do") !=
+          std::string::npos);
+    const Run whole = run_chromasim(generate);
+    CHECK(whole.code == 2);
+    CHECK(whole.output.find("other content") != std::string::npos);
+    fs::remove_all(out);
 }

@@ -1,6 +1,7 @@
 // End to end: the quickstart spec through mechanics, render and writers, read back from disk.
 #include "generators/generate.hpp"
 #include "generators/image_io.hpp"
+#include "generators/plan.hpp"
 #include "generators/sensor_bridge.hpp"
 #include "generators/spec.hpp"
 
@@ -68,6 +69,7 @@ std::array<int, 2> pixel_of(double theta_deg, double phi_deg, int w, int h) {
 
 struct Quickstart {
     Spec spec = load_spec("datasets_spec/quickstart.yaml");
+    Plan plan = make_plan(spec);
     fs::path out = fresh_dir("quickstart");
     GenerateReport report;
     Quickstart() {
@@ -88,67 +90,93 @@ const Quickstart& quickstart() {
 
 TEST_CASE("quickstart writes a complete dataset and nothing else", "[generators][e2e]") {
     const Quickstart& q = quickstart();
-    const int frames = q.spec.press.frames + q.spec.pull.frames;
+    const int frames = int(q.plan.frame_count());
+    CHECK(q.report.trials == 2);
     CHECK(q.report.frames == frames);
+    CHECK(q.report.images == 2 * frames); // left and right
     CHECK(q.report.flagged_frames == 0);
     for (const char* f : {"labels.csv", "markers.csv", "manifest.yaml", "spec.resolved.yaml"})
         CHECK(fs::is_regular_file(q.out / f));
     int pngs = 0;
-    for (const auto& e : fs::directory_iterator(q.out / "images"))
+    for (const auto& e : fs::recursive_directory_iterator(q.out / "images"))
         pngs += e.path().extension() == ".png";
-    CHECK(pngs == frames);
+    CHECK(pngs == 2 * frames);
+    for (const TrialPlan& t : q.plan.trials) {
+        char trial[32];
+        std::snprintf(trial, sizeof trial, "trial_%06d", t.id);
+        CHECK(fs::is_regular_file(q.out / "images" / t.split / trial / "left_000000.png"));
+        CHECK(fs::is_regular_file(q.out / "images" / t.split / trial / "right_000000.png"));
+    }
     for (const auto& e : fs::directory_iterator(q.out.parent_path()))
         CHECK(e.path().filename().string().find(q.out.filename().string() + ".partial") ==
               std::string::npos);
 }
 
-TEST_CASE("quickstart labels are finite, in range and follow the protocol", "[generators][e2e]") {
+TEST_CASE("quickstart labels are finite, in range and follow the plan", "[generators][e2e]") {
     const Quickstart& q = quickstart();
     const auto rows = read_csv(q.out / "labels.csv");
-    REQUIRE(rows.size() == std::size_t(q.spec.press.frames + q.spec.pull.frames));
-    const double P = q.spec.press.normal_force_N, mu = q.spec.object.mu;
-    for (std::size_t i = 0; i < rows.size(); ++i) {
-        const CsvRow& r = rows[i];
-        INFO("frame " << i);
-        const double gamma = num(r, "gamma"), fn = num(r, "normal_force_N");
-        const double ft = num(r, "tangential_force_N");
-        CHECK(gamma >= 0.0);
-        CHECK(gamma <= 1.0);
-        CHECK(fn > 0.0);
-        CHECK(fn <= P * (1 + 1e-9));
-        CHECK(num(r, "indentation_mm") > 0.0);
-        CHECK(num(r, "contact_area_mm2") > 0.0);
-        CHECK(r.at("converged") == "1");
-        CHECK(gamma == Approx(std::max(0.0, (mu * fn - ft) / (mu * fn))).margin(1e-9));
-        CHECK(fs::is_regular_file(q.out / r.at("image")));
-    }
-    CHECK(num(rows.back(), "normal_force_N") == Approx(P));
-    CHECK(num(rows.back(), "tangential_force_N") ==
-          Approx(std::min(q.spec.pull.tangential_force_N, mu * P)));
-    CHECK(num(rows.front(), "gamma") == 1.0); // press only: no tangential load
+    REQUIRE(rows.size() == q.plan.frame_count());
+    std::size_t i = 0;
+    for (const TrialPlan& t : q.plan.trials)
+        for (const FramePlan& f : t.frames) {
+            const CsvRow& r = rows[i++];
+            INFO("trial " << t.id << " frame " << f.index);
+            CHECK(r.at("split") == t.split);
+            CHECK(std::stoi(r.at("trial")) == t.id);
+            CHECK(std::stoi(r.at("frame")) == f.index);
+            CHECK(num(r, "time_s") == Approx(f.time_s));
+            CHECK(r.at("phase") == phase_name(f.phase));
+            CHECK(r.at("object") == q.spec.objects[std::size_t(t.object)].name);
+            CHECK(num(r, "load_N") == Approx(f.load_N));
+            for (const std::string finger : {"left", "right"}) {
+                const auto col = [&](const char* c) { return num(r, finger + "_" + c); };
+                const double gamma = col("gamma"), fn = col("normal_force_N");
+                CHECK(gamma >= 0.0);
+                CHECK(gamma <= 1.0);
+                CHECK(fn > 0.0);
+                CHECK(col("indentation_mm") > 0.0);
+                CHECK(col("contact_area_mm2") > 0.0);
+                CHECK(r.at(finger + "_converged") == "1");
+                CHECK(fs::is_regular_file(q.out / r.at(finger + "_image")));
+            }
+        }
+    CHECK(num(rows.front(), "left_gamma") == 1.0); // grasp only: no tangential load
 }
 
-TEST_CASE("quickstart markers: 164 per frame, apex pushed in", "[generators][e2e]") {
+TEST_CASE("quickstart markers: 164 per finger and frame, apex pushed in, moved along each "
+          "finger's own pull",
+          "[generators][e2e]") {
     const Quickstart& q = quickstart();
     const auto rows = read_csv(q.out / "markers.csv");
-    const int frames = q.spec.press.frames + q.spec.pull.frames;
-    REQUIRE(rows.size() == std::size_t(164 * frames));
+    const std::size_t frames = q.plan.frame_count();
+    REQUIRE(rows.size() == 164 * 2 * frames);
     for (const auto& r : rows)
         for (const char* k : {"x0_mm", "y0_mm", "z0_mm", "ux_mm", "uy_mm", "uz_mm"})
             num(r, k);
-    // Last frame, apex marker of each layer (marker 0) moved down, and along the pull (+x).
-    const auto& inner = rows[std::size_t(164 * (frames - 1))];
-    const auto& outer = rows[std::size_t(164 * (frames - 1) + 82)];
-    CHECK(inner.at("layer") == "inner");
-    CHECK(outer.at("layer") == "outer");
-    CHECK(num(inner, "uz_mm") < -0.1);
-    CHECK(num(outer, "ux_mm") > 0.0);
+    // The last load frame (before slip) of the first trial: apex markers (marker 0) of both
+    // layers moved down, and the outer one along the pull: +x for the left finger, -x for the
+    // right one (it sees the object from the other side).
+    const TrialPlan& t = q.plan.trials[0];
+    int last_load = -1;
+    for (const FramePlan& f : t.frames)
+        if (f.phase == Phase::load) last_load = f.index;
+    REQUIRE(last_load > 0);
+    const std::size_t left = std::size_t(last_load) * 2 * 164, right = left + 164;
+    CHECK(rows[left].at("finger") == "left");
+    CHECK(rows[right].at("finger") == "right");
+    CHECK(std::stoi(rows[left].at("frame")) == last_load);
+    CHECK(rows[left].at("layer") == "inner");
+    CHECK(rows[left + 82].at("layer") == "outer");
+    CHECK(num(rows[left], "uz_mm") < -0.1);
+    CHECK(num(rows[left + 82], "ux_mm") > 0.0);
+    CHECK(num(rows[right + 82], "ux_mm") < 0.0);
 }
 
 TEST_CASE("quickstart images: right size, not blank, markers visible", "[generators][e2e]") {
     const Quickstart& q = quickstart();
     const int w = q.spec.render.width_px, h = q.spec.render.height_px;
-    const Image8 img = read_image8(q.out / "images" / "frame_000000.png");
+    const auto rows = read_csv(q.out / "labels.csv");
+    const Image8 img = read_image8(q.out / rows.front().at("left_image"));
     REQUIRE(img.width == w);
     REQUIRE(img.height == h);
     REQUIRE(img.channels == 3);
@@ -220,12 +248,22 @@ std::vector<CsvRow> labels_only(const std::string& spec_text) {
     return rows;
 }
 
+/// The folder of the first trial's images in a spec with the default single split.
+const fs::path kFirstImage = fs::path("images") / "all" / "trial_000000";
+
+/// One finger, `frames` grasp frames at 1 Hz to 1.5 N and nothing else: the load ramp's first
+/// frame slips at once (100 N) and slip_frames 0 ends the trial before it.
+std::string press_only(int frames) {
+    return "fingers: {count: 1}\nprotocol: {frame_rate_Hz: 1, grip_N: 1.5, grasp_s: " +
+           std::to_string(frames) +
+           ", hold_s: 0, load_rate_N_per_s: 100, target_load_N: 100, slip_frames: 0}\n";
+}
+
 /// Indentation (mm) of one press frame of `object` (a YAML flow map).
 double press_indentation(const std::string& object) {
-    const auto rows = labels_only("name: s\nobject: " + object +
-                                  "\nprotocol: {press: {frames: 1}, pull: {frames: 0}}\n");
+    const auto rows = labels_only("name: s\nobjects: [" + object + "]\n" + press_only(1));
     REQUIRE(rows.size() == 1);
-    return num(rows[0], "indentation_mm");
+    return num(rows[0], "left_indentation_mm");
 }
 
 } // namespace
@@ -262,12 +300,13 @@ TEST_CASE("a glTF mesh object from the spec presses like the analytic sphere it 
     CHECK(mesh == Approx(sphere).margin(0.0125)); // facets lie within 0.0125 mm of the sphere
 
     CHECK_THROWS_WITH(
-        parse_spec("name: s\nobject: {shape: mesh, mesh_file: no/such.glb}\n", "inline.yaml"),
-        Catch::Contains("object.mesh_file") && Catch::Contains("no existing file"));
+        parse_spec("name: s\nobjects: [{shape: mesh, mesh_file: no/such.glb}]\n", "inline.yaml"),
+        Catch::Contains("objects[0].mesh_file") && Catch::Contains("no existing file"));
     const fs::path dir = fresh_dir("broken_mesh");
     fs::create_directories(dir);
     std::ofstream(dir / "broken.glb") << "not a glTF file";
-    std::ofstream(dir / "spec.yaml") << "name: s\nobject: {shape: mesh, mesh_file: broken.glb}\n";
+    std::ofstream(dir / "spec.yaml")
+        << "name: s\nobjects: [{name: a}, {name: b, shape: mesh, mesh_file: broken.glb}]\n";
     const Spec spec = load_spec(dir / "spec.yaml"); // exists: the spec is valid
     std::ostringstream log;
     CHECK_THROWS_WITH(generate(spec, {dir / "out", false, true, {}}, log),
@@ -276,24 +315,27 @@ TEST_CASE("a glTF mesh object from the spec presses like the analytic sphere it 
     fs::remove_all(dir);
 }
 
-TEST_CASE("a displacement-controlled pull (seed 001's sliding plate): the object travels as "
-          "asked, the force rises to mu f_n and the contact ends sliding",
+TEST_CASE("a slide trial (seed 001's sliding plate): the object travels as asked, the force "
+          "rises to mu f_n and the contact ends sliding",
           "[generators][e2e]") {
     const auto rows = labels_only(
-        "name: s\nobject: {mu: 0.5}\nprotocol: {press: {normal_force_N: 1.2, frames: 1}, "
-        "pull: {control: displacement, displacement_mm: 2.0, frames: 8}}\n");
-    REQUIRE(rows.size() == 9);
+        "name: s\nfriction: [{mu: 0.5}]\nfingers: {count: 1}\n"
+        "protocol: {type: slide, grip_N: 1.2, grasp_s: 0, hold_s: 0, slide: {start_mm: 0.25, "
+        "end_mm: 2.0, frames: 8}}\n");
+    REQUIRE(rows.size() == 8);
     double last_ft = 0;
-    for (std::size_t i = 1; i < rows.size(); ++i) {
-        CHECK(num(rows[i], "object_travel_x_mm") == Approx(2.0 * double(i) / 8));
-        CHECK(num(rows[i], "requested_tangential_force_N") == 0.0);
-        CHECK(num(rows[i], "tangential_force_N") >= last_ft - 1e-9);
-        CHECK(num(rows[i], "converged") == 1.0);
-        last_ft = num(rows[i], "tangential_force_N");
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        CHECK(num(rows[i], "left_object_travel_x_mm") == Approx(0.25 + 1.75 * double(i) / 7));
+        CHECK(num(rows[i], "left_requested_tangential_force_N") == 0.0);
+        CHECK(num(rows[i], "left_tangential_force_N") >= last_ft - 1e-9);
+        CHECK(num(rows[i], "left_converged") == 1.0);
+        CHECK(rows[i].at("phase") == "slide");
+        last_ft = num(rows[i], "left_tangential_force_N");
     }
     CHECK(last_ft == Approx(0.5 * 1.2).epsilon(1e-3));
-    CHECK(num(rows.back(), "sliding") == 1.0);
-    CHECK(num(rows.back(), "gamma") == 0.0);
+    CHECK(num(rows.back(), "left_sliding") == 1.0);
+    CHECK(num(rows.back(), "left_gamma") == 0.0);
+    CHECK(num(rows.front(), "left_gamma") > 0.0);
 }
 
 namespace {
@@ -320,9 +362,9 @@ TEST_CASE("object poses reach the mechanics: an offset sphere and a tilted flat 
     const mechanics::DomeModel model(dome_options(base));
     const mechanics::ContactLoad load{0.5, {0, 0}, 0.8};
 
-    Spec sphere = parse_spec("object:\n  shape: sphere\n  offset_x_mm: 3\n", "pose.yaml");
+    Spec sphere = parse_spec("objects:\n  - shape: sphere\n    offset_x_mm: 3\n", "pose.yaml");
     // First touch on the line between the centres: polar angle asin(3 / (13.2 + 45)).
-    const mechanics::FrameResult s = model.solve(load, {}, object_shape(sphere));
+    const mechanics::FrameResult s = model.solve(load, {}, object_shape(sphere, sphere.objects[0]));
     REQUIRE(s.contact.converged);
     const Eigen::Vector2d cs = force_centroid(model, s);
     CHECK(cs.x() == Approx(13.2 * 3 / 58.2).margin(0.05));
@@ -331,8 +373,8 @@ TEST_CASE("object poses reach the mechanics: an offset sphere and a tilted flat 
     // A flat pitched by 20 deg (about y, counter-clockwise) faces along -z rotated to
     // (-sin 20, 0, -cos 20): it touches the dome where the dome's normal is opposite,
     // at polar angle 20 deg on the +x side.
-    const Spec flat = parse_spec("object:\n  shape: flat\n  pitch_deg: 20\n", "pose.yaml");
-    const mechanics::ObjectShape tilted = object_shape(flat);
+    const Spec flat = parse_spec("objects:\n  - shape: flat\n    pitch_deg: 20\n", "pose.yaml");
+    const mechanics::ObjectShape tilted = object_shape(flat, flat.objects[0]);
     CHECK(tilted.kind == mechanics::ObjectShape::Kind::mesh);
     const mechanics::FrameResult f = model.solve(load, {}, tilted);
     REQUIRE(f.contact.converged);
@@ -340,12 +382,11 @@ TEST_CASE("object poses reach the mechanics: an offset sphere and a tilted flat 
     CHECK(cf.x() == Approx(13.2 * std::sin(20 * std::numbers::pi / 180)).margin(0.2));
     CHECK(std::abs(cf.y()) < 0.25);
     // An untilted flat stays the analytic plane whatever its offset and yaw.
-    CHECK(
-        object_shape(parse_spec("object:\n  offset_x_mm: 5\n  yaw_deg: 30\n", "pose.yaml")).kind ==
-        mechanics::ObjectShape::Kind::flat);
+    const Spec moved = parse_spec("objects:\n  - offset_x_mm: 5\n    yaw_deg: 30\n", "pose.yaml");
+    CHECK(object_shape(moved, moved.objects[0]).kind == mechanics::ObjectShape::Kind::flat);
     // A tilt that would leave the contact cap is refused when the spec is read.
-    CHECK_THROWS_WITH(parse_spec("object:\n  shape: flat\n  roll_deg: 32\n", "pose.yaml"),
-                      Catch::Contains("object.pitch_deg") &&
+    CHECK_THROWS_WITH(parse_spec("objects:\n  - shape: flat\n    roll_deg: 32\n", "pose.yaml"),
+                      Catch::Contains("objects[0].pitch_deg") &&
                           Catch::Contains("sensor.contact_candidate_angle_deg"));
 }
 
@@ -357,8 +398,8 @@ TEST_CASE("EXR output: linear RGB like the PNG, marker ids and variance channels
     {
         std::ofstream f(spec_file);
         f << "name: exr\nrender:\n  width_px: 64\n  height_px: 64\n  samples_per_pixel: 2\n"
-             "protocol:\n  press:\n    frames: 1\n  pull:\n    frames: 0\n"
-             "outputs:\n  exr: true\n  marker_ids: true\n  variance: true\n  markers: false\n";
+          << press_only(1)
+          << "outputs:\n  exr: true\n  marker_ids: true\n  variance: true\n  markers: false\n";
     }
     const fs::path out = dir / "out";
     GenerateOptions options;
@@ -366,8 +407,8 @@ TEST_CASE("EXR output: linear RGB like the PNG, marker ids and variance channels
     options.quiet = true;
     std::ostringstream log;
     generate(load_spec(spec_file), options, log);
-    const ImageF exr = read_image_float(out / "images" / "frame_000000.exr");
-    const Image8 png = read_image8(out / "images" / "frame_000000.png");
+    const ImageF exr = read_image_float(out / kFirstImage / "left_000000.exr");
+    const Image8 png = read_image8(out / kFirstImage / "left_000000.png");
     REQUIRE(exr.width == 64);
     for (const char* c : {"R", "G", "B", "variance.R", "variance.G", "variance.B",
                           "inner_marker_id", "outer_marker_id"})
@@ -393,8 +434,9 @@ TEST_CASE("EXR output: linear RGB like the PNG, marker ids and variance channels
     std::string header, first;
     std::getline(labels, header);
     std::getline(labels, first);
-    CHECK(header.rfind("frame,phase,image,exr,", 0) == 0);
-    CHECK(first.find("images/frame_000000.exr") != std::string::npos);
+    CHECK(header.rfind("split,trial,frame,time_s,phase,", 0) == 0);
+    CHECK(header.find(",left_image,left_exr,") != std::string::npos);
+    CHECK(first.find("images/all/trial_000000/left_000000.exr") != std::string::npos);
     // Channels without the EXR they belong to are refused before any work.
     CHECK_THROWS_WITH(parse_spec("outputs:\n  marker_ids: true\n", "bad.yaml"),
                       Catch::Contains("outputs.exr") && Catch::Contains("marker_ids"));
@@ -402,13 +444,12 @@ TEST_CASE("EXR output: linear RGB like the PNG, marker ids and variance channels
     {
         std::ofstream f(spec_file);
         f << "name: exr_only\nrender:\n  width_px: 32\n  height_px: 32\n  samples_per_pixel: 1\n"
-             "protocol:\n  press:\n    frames: 1\n  pull:\n    frames: 0\n"
-             "outputs:\n  images: false\n  exr: true\n  markers: false\n";
+          << press_only(1) << "outputs:\n  images: false\n  exr: true\n  markers: false\n";
     }
     options.out_dir = dir / "exr_only";
     generate(load_spec(spec_file), options, log);
-    CHECK(read_image_float(options.out_dir / "images" / "frame_000000.exr").width == 32);
-    CHECK_FALSE(fs::exists(options.out_dir / "images" / "frame_000000.png"));
+    CHECK(read_image_float(options.out_dir / kFirstImage / "left_000000.exr").width == 32);
+    CHECK_FALSE(fs::exists(options.out_dir / kFirstImage / "left_000000.png"));
     fs::remove_all(dir);
 }
 
@@ -423,17 +464,16 @@ TEST_CASE("render.sensor: the PNG is the sensor's recording, the EXR stays the n
         const fs::path spec_file = dir / (name + ".yaml");
         std::ofstream(spec_file)
             << "name: sensor\nrender:\n  width_px: 48\n  height_px: 48\n  samples_per_pixel: 1\n"
-            << sensor << "protocol:\n  press:\n    frames: 2\n  pull:\n    frames: 0\n"
-            << "outputs:\n  exr: true\n  markers: false\n";
+            << sensor << press_only(2) << "outputs:\n  exr: true\n  markers: false\n";
         options.out_dir = dir / name;
         std::ostringstream log;
         generate(load_spec(spec_file), options, log);
-        return options.out_dir / "images";
+        return options.out_dir / kFirstImage;
     };
     const fs::path plain = run("plain", "");
     const fs::path noisy = run("noisy", "  sensor:\n    enabled: true\n    vignetting:\n"
                                         "      model: none\n");
-    for (const char* frame : {"frame_000000", "frame_000001"}) {
+    for (const char* frame : {"left_000000", "left_000001"}) {
         INFO(frame);
         const ImageF exr_plain = read_image_float(plain / (std::string(frame) + ".exr"));
         const ImageF exr_noisy = read_image_float(noisy / (std::string(frame) + ".exr"));

@@ -38,21 +38,38 @@ std::string error_of(const std::string& yaml) {
     return "";
 }
 
-/// Every schema value of two specs agrees.
+/// Items of the list `entry` lies in (1 outside lists).
+std::size_t items(const Spec& spec, const SchemaEntry& entry) {
+    const std::string list = entry.list();
+    return list.empty() ? 1 : find_schema_list(list)->size(spec);
+}
+
+/// Every schema value of two specs agrees, in every item of every list.
 void require_same_values(const Spec& a, const Spec& b) {
     for (const SchemaEntry& e : spec_schema()) {
         INFO(e.key);
-        CHECK(e.get(a) == e.get(b));
+        REQUIRE(items(a, e) == items(b, e));
+        for (std::size_t i = 0; i < items(a, e); ++i)
+            CHECK(e.get(a, i) == e.get(b, i));
     }
 }
 
 const char* const quickstart_reordered = R"(# same values as quickstart.yaml, other order
 outputs: {markers: true, labels: true, images: true}
-render: {exposure: 1, samples_per_pixel: 4, height_px: 256, width_px: 256}
+render: {exposure: 1, samples_per_pixel: 4, height_px: 128, width_px: 128}
+splits: [{fraction: 0.5, name: train}, {name: test, fraction: 0.5}]
+sampling: {repetitions: 1}
 protocol:
-  pull: {frames: 3, direction_deg: 0, tangential_force_N: 0.6}   # a comment
-  press: {frames: 2, normal_force_N: 1.5}
-object: {mu: 0.8, shape: flat}
+  slip_frames: 2
+  target_load_N: [1.8]   # a comment
+  load_rate_N_per_s: 4
+  hold_s: 0.2
+  grasp_s: 0.2
+  grip_N: 1.0
+  frame_rate_Hz: 10
+friction:
+  - {mu: 0.8}
+objects: [{shape: flat}, {radius_mm: 45, shape: sphere, name: curved}]
 seed: 1
 name: quickstart
 sensor:
@@ -68,15 +85,26 @@ TEST_CASE("the quickstart spec validates with its documented values", "[generato
     CHECK(spec.name == "quickstart");
     CHECK(spec.seed == 1);
     CHECK(spec.sensor.mesh_level == "coarse");
-    CHECK(spec.object.shape == "flat");
-    CHECK(spec.object.mu == 0.8);
-    CHECK(spec.press.normal_force_N == 1.5);
-    CHECK(spec.press.frames == 2);
-    CHECK(spec.pull.tangential_force_N == 0.6);
-    CHECK(spec.pull.direction_deg == 0.0);
-    CHECK(spec.pull.frames == 3);
-    CHECK(spec.render.width_px == 256);
-    CHECK(spec.render.height_px == 256);
+    REQUIRE(spec.objects.size() == 2);
+    CHECK(spec.objects[0].name == "flat");
+    CHECK(spec.objects[0].shape == "flat");
+    CHECK(spec.objects[1].name == "curved");
+    CHECK(spec.objects[1].shape == "sphere");
+    CHECK(spec.objects[1].radius_mm == 45.0);
+    REQUIRE(spec.friction.size() == 1);
+    CHECK(spec.friction[0].mu == Factor{{0.8}});
+    CHECK(spec.fingers.count == 2);
+    CHECK(spec.protocol.type == "grasp_load");
+    CHECK(spec.protocol.frame_rate_Hz == 10.0);
+    CHECK(spec.protocol.grip_N == Factor{{1.0}});
+    CHECK(spec.protocol.target_load_N == Factor{{1.8}});
+    CHECK(spec.protocol.load_direction_deg == 0.0);
+    CHECK(spec.sampling.method == "full_grid");
+    REQUIRE(spec.splits.size() == 2);
+    CHECK(spec.splits[0].name == "train");
+    CHECK(spec.splits[1].fraction == 0.5);
+    CHECK(spec.render.width_px == 128);
+    CHECK(spec.render.height_px == 128);
     CHECK(spec.render.samples_per_pixel == 4);
     CHECK((spec.outputs.images && spec.outputs.labels && spec.outputs.markers));
 }
@@ -88,7 +116,8 @@ TEST_CASE("a minimal spec gets the documented defaults", "[generators][spec]") {
     for (const SchemaEntry& e : spec_schema()) {
         if (e.key == "name") continue;
         INFO(e.key);
-        CHECK(e.get(spec) == e.default_value);
+        REQUIRE(items(spec, e) == 1); // a list left out holds one item of defaults
+        CHECK(e.get(spec, 0) == e.default_value);
     }
     // The values the project brief asks for, independent of the schema table.
     CHECK(spec.seed == 1);
@@ -108,22 +137,33 @@ TEST_CASE("a minimal spec gets the documented defaults", "[generators][spec]") {
     CHECK(spec.sensor.outer_marker_absorption_per_mm == Rgb{3.0, 0.3, 0.2});
     CHECK(spec.sensor.outer_marker_albedo == Rgb{0.10, 0.70, 0.75});
     CHECK(spec.sensor.outer_marker_scatter_fraction == 0.5);
-    CHECK(spec.pull.tangential_force_N == 0.5);
+    CHECK(spec.protocol.grip_N == Factor{{1.5}});
+    CHECK(spec.protocol.hold_s == 2.0);
+    CHECK(spec.protocol.frame_rate_Hz == 100.0);
+    CHECK(spec.protocol.slip_frames == 3);
+    CHECK(spec.fingers.count == 2);
+    CHECK(spec.fingers.mu_jitter == 0.0);
+    CHECK(spec.sampling.method == "full_grid");
+    CHECK(spec.sampling.repetitions == 1);
+    CHECK(spec.objects.size() == 1);
+    CHECK(spec.friction[0].mu == Factor{{0.8}});
+    CHECK(spec.splits.size() == 1);
+    CHECK(spec.splits[0].fraction == 1.0);
     CHECK(spec.render.exposure == 1.0);
     CHECK(parse_spec("seed: 3\n", "min.yaml").name == "unnamed");
 }
 
 TEST_CASE("an empty section keeps its defaults", "[generators][spec]") {
-    const Spec spec = parse_spec("sensor:\nprotocol:\n  pull:\n", "min.yaml");
+    const Spec spec = parse_spec("sensor:\nprotocol:\n  slide:\n", "min.yaml");
     require_same_values(spec, default_spec());
 }
 
 TEST_CASE("the in-class defaults of Spec agree with the schema", "[generators][spec]") {
-    const Spec plain{};
+    const Spec plain;
     for (const SchemaEntry& e : spec_schema()) {
         if (e.key == "name") continue; // Spec{} leaves it empty; the schema says "unnamed"
         INFO(e.key);
-        CHECK(e.get(plain) == e.default_value);
+        CHECK(e.get(plain, 0) == e.default_value);
     }
 }
 
@@ -136,12 +176,21 @@ TEST_CASE("the schema is well formed", "[generators][spec]") {
         if (e.type == ValueType::Rgb || e.type == ValueType::Vec3) {
             for (double c : std::get<Rgb>(e.default_value))
                 CHECK(e.range.contains(c));
+        } else if (e.type == ValueType::Factor) {
+            const Factor& f = std::get<Factor>(e.default_value);
+            CHECK_FALSE(f.values.empty());
+            for (double x : f.values)
+                CHECK(e.range.contains(x));
         } else {
             CHECK(check_scalar(e, text, e.type == ValueType::String).problem.empty());
         }
     }
-    CHECK(schema_children("") == std::vector<std::string>{"name", "seed", "sensor", "object",
-                                                          "protocol", "render", "outputs"});
+    CHECK(schema_children("") ==
+          std::vector<std::string>{"name", "seed", "sensor", "objects", "friction", "fingers",
+                                   "protocol", "sampling", "splits", "render", "outputs"});
+    CHECK(schema_children("splits[]") == std::vector<std::string>{"name", "fraction"});
+    for (const SchemaList& list : spec_lists()) // every list has item keys
+        CHECK_FALSE(schema_children(list.name + "[]").empty());
     CHECK(is_schema_section("sensor.materials"));
     CHECK_FALSE(is_schema_section("sensor.materials.coating.E_MPa"));
     CHECK_FALSE(is_schema_section("sens"));
@@ -165,7 +214,8 @@ TEST_CASE("an unknown key is named with its position and the allowed keys", "[ge
           "integrator, fast, sensor");
     CHECK(error_of("name: x\nfrobnicate: 1\n") ==
           "bad.yaml:2:1: frobnicate: unknown key 'frobnicate'; allowed keys at the top level: "
-          "name, seed, sensor, object, protocol, render, outputs");
+          "name, seed, sensor, objects, friction, fingers, protocol, sampling, splits, render, "
+          "outputs");
     CHECK_THAT(error_of("sensor.mesh_level: fine\n"),
                StartsWith("bad.yaml:1:1: sensor.mesh_level: unknown key 'sensor.mesh_level' "
                           "(a dotted key is written nested"));
@@ -179,13 +229,15 @@ TEST_CASE("a key given twice is rejected", "[generators][spec]") {
 
 TEST_CASE("a value of the wrong type is rejected", "[generators][spec]") {
     SECTION("text for a number") {
-        CHECK(error_of("object:\n  mu: high\n") ==
-              "bad.yaml:2:7: object.mu: value 'high' is not a number; allowed: number in [0, 10]");
+        CHECK(error_of("objects:\n  - radius_mm: big\n") ==
+              "bad.yaml:2:16: objects[0].radius_mm: value 'big' is not a number; allowed: number "
+              "in (0, 10000] (mm)");
     }
     SECTION("quoted text for a number") {
-        CHECK(error_of("object:\n  mu: \"0.5\"\n") ==
-              "bad.yaml:2:7: object.mu: value '0.5' is quoted text, not a number; allowed: "
-              "number in [0, 10]");
+        CHECK(
+            error_of("fingers:\n  mu_jitter: \"0.5\"\n") ==
+            "bad.yaml:2:14: fingers.mu_jitter: value '0.5' is quoted text, not a number; allowed: "
+            "number in [0, 0.5]");
     }
     SECTION("a fraction or text for an integer") {
         CHECK(error_of("name: x\nseed: 2.5\n") ==
@@ -199,8 +251,8 @@ TEST_CASE("a value of the wrong type is rejected", "[generators][spec]") {
         CHECK(error_of("seed: {a: 1}\n") ==
               "bad.yaml:1:7: seed: value '{a: 1}' is a mapping, not a single value; allowed: "
               "integer in [0, 2147483647]");
-        CHECK(error_of("object:\n  shape: [flat]\n") ==
-              "bad.yaml:2:10: object.shape: value '[flat]' is a list, not a single value; "
+        CHECK(error_of("objects:\n  - shape: [flat]\n") ==
+              "bad.yaml:2:12: objects[0].shape: value '[flat]' is a list, not a single value; "
               "allowed: one of flat, sphere, mesh");
     }
     SECTION("a single value for a section") {
@@ -229,9 +281,9 @@ TEST_CASE("a value of the wrong type is rejected", "[generators][spec]") {
 
 TEST_CASE("a value out of its range is rejected", "[generators][spec]") {
     SECTION("below") {
-        CHECK(error_of("protocol:\n  press:\n    frames: 0\n") ==
-              "bad.yaml:3:13: protocol.press.frames: value '0' is out of range; allowed: "
-              "integer in [1, 10000]");
+        CHECK(error_of("protocol:\n  slide:\n    frames: 0\n") ==
+              "bad.yaml:3:13: protocol.slide.frames: value '0' is out of range; allowed: "
+              "integer in [1, 100000]");
         CHECK(error_of("seed: -1\n") ==
               "bad.yaml:1:7: seed: value '-1' is out of range; allowed: integer in [0, "
               "2147483647]");
@@ -247,23 +299,23 @@ TEST_CASE("a value out of its range is rejected", "[generators][spec]") {
         CHECK_THAT(error_of("seed: 99999999999999999999\n"), Contains("is out of range"));
     }
     SECTION("exclusive bounds exclude, inclusive bounds include") {
-        CHECK(error_of("protocol:\n  press:\n    normal_force_N: 0\n") ==
-              "bad.yaml:3:21: protocol.press.normal_force_N: value '0' is out of range; "
-              "allowed: number in (0, 50] (N)");
+        CHECK(error_of("protocol:\n  slide:\n    speed_mm_per_s: 0\n") ==
+              "bad.yaml:3:21: protocol.slide.speed_mm_per_s: value '0' is out of range; "
+              "allowed: number in (0, 1000] (mm/s)");
         CHECK(error_of("sensor:\n  camera:\n    half_fov_deg: 10\n") ==
               "bad.yaml:3:19: sensor.camera.half_fov_deg: value '10' is out of range; allowed: "
               "number in (10, 100] (deg)");
-        const Spec edge = parse_spec("protocol:\n  press: {normal_force_N: 50, frames: 1}\n"
+        const Spec edge = parse_spec("protocol:\n  slide: {speed_mm_per_s: 1000, frames: 1}\n"
                                      "sensor:\n  camera: {half_fov_deg: 10.000001}\n"
                                      "seed: 2147483647\nrender: {exposure: 1e-300}\n",
                                      "edge.yaml");
-        CHECK(edge.press.normal_force_N == 50.0);
+        CHECK(edge.protocol.slide_speed_mm_per_s == 1000.0);
         CHECK(edge.sensor.camera_half_fov_deg == 10.000001);
         CHECK(edge.seed == 2147483647u);
         CHECK(edge.render.exposure == 1e-300);
     }
     SECTION("not finite") {
-        CHECK_THAT(error_of("object: {mu: inf}\n"), Contains("value 'inf' is not a finite"));
+        CHECK_THAT(error_of("friction: [{mu: inf}]\n"), Contains("value 'inf' is not a finite"));
     }
 }
 
@@ -297,7 +349,8 @@ TEST_CASE("an rgb must be a list of exactly 3 numbers in range", "[generators][s
 
 TEST_CASE("an empty spec or a top level that is not a mapping is rejected", "[generators][spec]") {
     const std::string allowed = "allowed: a mapping with keys at the top level: name, seed, "
-                                "sensor, object, protocol, render, outputs";
+                                "sensor, objects, friction, fingers, protocol, sampling, splits, "
+                                "render, outputs";
     CHECK(error_of("") == "bad.yaml:1:1: spec is empty; " + allowed);
     CHECK(error_of("# only a comment\n\n") == "bad.yaml:1:1: spec is empty; " + allowed);
     CHECK(error_of("- name\n- seed\n") ==
@@ -309,9 +362,9 @@ TEST_CASE("an empty spec or a top level that is not a mapping is rejected", "[ge
 TEST_CASE("a spec that enables no output is rejected", "[generators][spec]") {
     CHECK(error_of("name: x\noutputs:\n  images: false\n  labels: false\n  markers: false\n") ==
           "bad.yaml:2:1: outputs: value '{images: false, labels: false, markers: false, exr: "
-          "false, marker_ids: false, variance: false}' "
+          "false, marker_ids: false, variance: false, strain: false}' "
           "enables no output; allowed: at least one of outputs.images, outputs.labels, "
-          "outputs.markers, outputs.exr is true");
+          "outputs.markers, outputs.exr, outputs.strain is true");
     CHECK_FALSE(parse_spec("outputs: {images: false, labels: false}\n", "ok.yaml").outputs.images);
 }
 
@@ -421,8 +474,8 @@ TEST_CASE("the resolved YAML parses back to the same spec", "[generators][spec]"
     // Values that only survive with shortest-round-trip printing and careful quoting.
     const Spec odd = parse_spec("name: \"a: b # \\\"c\\\" \\\\ \\t\"\n"
                                 "sensor:\n  materials: {coating: {E_MPa: 0.30000000000000004}}\n"
-                                "render: {exposure: 1e-300}\nprotocol:\n  pull: "
-                                "{direction_deg: -0.1}\n",
+                                "render: {exposure: 1e-300}\nprotocol:\n  "
+                                "load_direction_deg: -0.1\n",
                                 "odd.yaml");
     CHECK(odd.name == "a: b # \"c\" \\ \t");
     const Spec odd_again = parse_spec(odd.resolved_yaml, "resolved.yaml");
@@ -435,7 +488,8 @@ TEST_CASE("the resolved YAML ignores key order and comments", "[generators][spec
     const Spec a = load_spec(repo_file("datasets_spec/quickstart.yaml"));
     const Spec b = parse_spec(quickstart_reordered, "reordered.yaml");
     CHECK(b.resolved_yaml == a.resolved_yaml);
-    CHECK_THAT(a.resolved_yaml, Contains("\nprotocol:\n  press:\n    normal_force_N: 1.5\n"));
+    CHECK_THAT(a.resolved_yaml, Contains("\nobjects:\n  - name: \"flat\"\n    shape: flat\n"));
+    CHECK_THAT(a.resolved_yaml, Contains("\n  grip_N: [1.0]\n"));
     const Spec c = parse_spec(std::string(quickstart_reordered) + "  led: {count: 5}\n", "c.yaml");
     CHECK(c.resolved_yaml != a.resolved_yaml);
 }
@@ -465,4 +519,103 @@ TEST_CASE("docs/SPEC_REFERENCE.md holds the current schema table", "[generators]
     doc << in.rdbuf();
     // On failure: chromasim schema > docs/SPEC_REFERENCE.md
     CHECK_THAT(doc.str(), Contains(schema_markdown()));
+}
+
+TEST_CASE("every shipped spec in datasets_spec/ validates", "[generators][spec]") {
+    int specs = 0;
+    for (const auto& file : std::filesystem::directory_iterator(repo_file("datasets_spec"))) {
+        if (file.path().extension() != ".yaml") continue;
+        INFO(file.path());
+        CHECK_NOTHROW(load_spec(file.path()));
+        ++specs;
+    }
+    CHECK(specs >= 5); // quickstart, seed000_train, seed000_validation, seed001, unseen
+}
+
+TEST_CASE("a factor is a number, a non-empty list or {min, max} in range", "[generators][spec]") {
+    SECTION("the three forms") {
+        const Spec s = parse_spec("protocol:\n  grip_N: 2\n  load_rate_N_per_s: [0.5, 1]\n"
+                                  "  target_load_N: {min: 2, max: 3}\n",
+                                  "ok.yaml");
+        CHECK(s.protocol.grip_N == Factor{{2.0}});
+        CHECK(s.protocol.load_rate_N_per_s == Factor{{0.5, 1.0}});
+        CHECK(s.protocol.target_load_N == Factor{{}, true, 2.0, 3.0});
+        const Spec again = parse_spec(s.resolved_yaml, "resolved.yaml");
+        require_same_values(s, again);
+        CHECK_THAT(s.resolved_yaml, Contains("  target_load_N: {min: 2.0, max: 3.0}\n"));
+    }
+    const std::string allowed = "allowed: a number, a non-empty list of numbers, or {min, max} "
+                                "with min <= max, each in (0, 50] (N)";
+    CHECK(error_of("protocol:\n  grip_N: []\n") ==
+          "bad.yaml:2:11: protocol.grip_N: value '[]' is an empty list; " + allowed);
+    CHECK(error_of("protocol:\n  grip_N: [1, 0]\n") ==
+          "bad.yaml:2:15: protocol.grip_N[1]: value '0' is out of range; " + allowed);
+    CHECK(error_of("protocol:\n  grip_N: {min: 3, max: 2}\n") ==
+          "bad.yaml:2:11: protocol.grip_N: value '{min: 3, max: 2}' has min above max; " + allowed);
+    CHECK(error_of("protocol:\n  grip_N: {min: 1}\n") ==
+          "bad.yaml:2:11: protocol.grip_N: value '{min: 1}' has no max; " + allowed);
+    CHECK(error_of("protocol:\n  grip_N: {min: 1, max: 2, step: 1}\n") ==
+          "bad.yaml:2:28: protocol.grip_N.step: value 'step' is not a key of a range; " + allowed);
+    CHECK(error_of("protocol:\n  grip_N: {min: 1, max: 60}\n") ==
+          "bad.yaml:2:25: protocol.grip_N.max: value '60' is out of range; " + allowed);
+    CHECK(error_of("protocol:\n  grip_N: {min: 1, min: 2, max: 3}\n") ==
+          "bad.yaml:2:20: protocol.grip_N.min: value 'min' is given twice; " + allowed);
+}
+
+TEST_CASE("lists of mappings: items replace the default list, errors name the item",
+          "[generators][spec]") {
+    const Spec s = parse_spec("objects:\n  - {name: a}\n  - {name: b, shape: sphere}\n"
+                              "friction:\n  - {name: dry, mu: {min: 1, max: 1.2}}\n",
+                              "ok.yaml");
+    REQUIRE(s.objects.size() == 2);
+    CHECK(s.objects[0].shape == "flat"); // item defaults
+    CHECK(s.objects[1].radius_mm == 45.0);
+    CHECK(s.friction[0].name == "dry");
+    const std::string keys = "name, shape, radius_mm, mesh_file, offset_x_mm, offset_y_mm, "
+                             "roll_deg, pitch_deg, yaw_deg";
+    CHECK(error_of("objects: []\n") == "bad.yaml:1:10: objects: value '[]' is an empty list; "
+                                       "allowed: a non-empty list of mappings with keys " +
+                                           keys);
+    CHECK(error_of("objects: {name: x}\n") ==
+          "bad.yaml:1:10: objects: value '{name: x}' is a mapping, not a list; allowed: a "
+          "non-empty list of mappings with keys " +
+              keys);
+    CHECK(error_of("objects:\n  - flat\n") ==
+          "bad.yaml:2:5: objects[0]: value 'flat' is a single value, not a mapping; allowed: a "
+          "non-empty list of mappings with keys " +
+              keys);
+    CHECK(error_of("objects:\n  - {name: a}\n  - {name: b, shap: flat}\n") ==
+          "bad.yaml:3:15: objects[1].shap: unknown key 'shap' (did you mean 'shape'?); allowed "
+          "keys in an item of 'objects': " +
+              keys);
+    CHECK(error_of("objects:\n  - {name: a, shape: cube}\n") ==
+          "bad.yaml:2:22: objects[0].shape: value 'cube' is not one of the allowed values; "
+          "allowed: one of flat, sphere, mesh");
+}
+
+TEST_CASE("cross-key rules of the trial keys", "[generators][spec]") {
+    CHECK(error_of("friction:\n  - {name: dry, mu: 1}\n  - {name: dry, mu: 0.5}\n") ==
+          "bad.yaml:3:6: friction[1].name: value '\"dry\"' is the name of an earlier item of "
+          "friction; allowed: a name used once in friction");
+    CHECK(
+        error_of("splits:\n  - {name: train, fraction: 0.8}\n  - {name: test, fraction: 0.1}\n") ==
+        "bad.yaml:1:1: splits: value '[{name: \"train\", fraction: 0.8}, {name: \"test\", "
+        "fraction: 0.1}]' has fractions whose sum is not 1; allowed: splits[].fraction summing "
+        "to 1 (within 1e-9), e.g. train 0.8, test 0.2");
+    CHECK(error_of("protocol:\n  slide: {start_mm: 2, end_mm: 1}\n") ==
+          "bad.yaml:2:24: protocol.slide.end_mm: value '1.0' is below protocol.slide.start_mm; "
+          "allowed: protocol.slide.end_mm >= protocol.slide.start_mm");
+    CHECK_THAT(error_of("protocol:\n  frame_rate_Hz: 10000\n  load_rate_N_per_s: 0.001\n"),
+               StartsWith("bad.yaml:2:3: protocol.frame_rate_Hz: value '10000.0' with the "
+                          "grasp, hold and load durations plans a trial longer than 1000000 "
+                          "frames"));
+    // A rule about one item points at that item's key.
+    CHECK_THAT(error_of("objects:\n  - {name: a}\n  - {name: b, shape: flat, roll_deg: 32}\n"),
+               StartsWith("bad.yaml:3:5: objects[1].pitch_deg: value '0.0' with roll_deg tilts "
+                          "the flat object"));
+    CHECK(error_of("fingers: {count: 3}\n") ==
+          "bad.yaml:1:18: fingers.count: value '3' is out of range; allowed: integer in [1, 2]");
+    CHECK(error_of("sampling: {method: grid}\n") ==
+          "bad.yaml:1:20: sampling.method: value 'grid' is not one of the allowed values; "
+          "allowed: one of full_grid, random, latin_hypercube");
 }
