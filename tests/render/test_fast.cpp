@@ -17,22 +17,9 @@ using namespace chromasim::render;
 using namespace chromasim::render::detail;
 using namespace chromasim::render::test;
 
-namespace {
-
-/// The dome's optics without markers, coarse enough for a quick light cache: coating
-/// hemisphere r = 12.7 mm, inner surface r = 10.5 mm.
-SensorFrame clear_dome() {
-    SensorFrame frame;
-    frame.coating = hemisphere(12.7, 16, 64);
-    frame.inner_surface = hemisphere(10.5, 24, 96);
-    return frame;
-}
-
-} // namespace
-
 TEST_CASE("fast integrator: on a dome without markers it agrees with the path integrator",
           "[render][fast]") {
-    const SensorFrame frame = clear_dome();
+    const SensorFrame frame = clear_dome(16, 64, 24, 96);
     EmbreeScene scene;
     scene.set_frame(frame);
     OpticsParams optics;
@@ -79,7 +66,7 @@ TEST_CASE("fast integrator: on a dome without markers it agrees with the path in
 TEST_CASE("fast integrator: the same image with 1 and 2 threads, a light cache of another "
           "sensor is refused",
           "[render][fast]") {
-    const SensorFrame frame = clear_dome();
+    const SensorFrame frame = clear_dome(16, 64, 24, 96);
     Renderer renderer(CameraParams{24, 24, 84.0}, OpticsParams{});
     renderer.set_frame(frame);
     RenderSettings settings;

@@ -45,4 +45,14 @@ inline SurfaceMesh hemisphere(double radius_mm, int rings, int segments) {
     return uv_sphere(radius_mm, rings, segments, 90.0);
 }
 
+/// The dome's optics without markers: coating hemisphere r = 12.7 mm and inner surface
+/// r = 10.5 mm, each with its rings and segments.
+inline SensorFrame clear_dome(int coating_rings, int coating_segments, int inner_rings,
+                              int inner_segments) {
+    SensorFrame frame;
+    frame.coating = hemisphere(12.7, coating_rings, coating_segments);
+    frame.inner_surface = hemisphere(10.5, inner_rings, inner_segments);
+    return frame;
+}
+
 } // namespace chromasim::render::test

@@ -46,14 +46,6 @@ Estimate mean_radiance(const PathIntegrator& integrator, const EmbreeScene& scen
     return {mean, ((sum2 / paths - mean.square()).max(0.0) / (paths - 1.0)).sqrt()};
 }
 
-/// The dome's optics without markers: coating hemisphere r = 12.7 mm, inner surface r = 10.5.
-SensorFrame clear_dome() {
-    SensorFrame frame;
-    frame.coating = hemisphere(12.7, 48, 192);
-    frame.inner_surface = hemisphere(10.5, 48, 192);
-    return frame;
-}
-
 } // namespace
 
 TEST_CASE("furnace: an integrating sphere's radiance out of direct light is rho^2 Phi / "
@@ -75,7 +67,7 @@ TEST_CASE("refracted connections obey Snell's law and their Jacobian matches fin
           "differences of the solve",
           "[render][path]") {
     EmbreeScene scene;
-    scene.set_frame(clear_dome());
+    scene.set_frame(clear_dome(48, 192, 48, 192));
     REQUIRE(scene.has_interface());
     const ShadingModel shading(OpticsParams{});
     const PathIntegrator integrator(shading);
@@ -138,7 +130,7 @@ TEST_CASE("through the inner surface, next-event estimation with MIS agrees with
           "sampling alone",
           "[render][path]") {
     EmbreeScene scene;
-    scene.set_frame(clear_dome());
+    scene.set_frame(clear_dome(48, 192, 48, 192));
     const ShadingModel shading(OpticsParams{});
     const PathIntegrator mis(shading), bsdf(shading, false);
     const auto lanes = rgb_lanes(RgbLanes(0.85, 0.6, 0.3, 0.0));
