@@ -217,14 +217,21 @@ void filter_product_cases(const mechanics::DomeModel& model, std::vector<RenderV
     }
 }
 
+/// `rest`: the sensor at rest, for the fast integrator's light cache (nullptr otherwise).
 void determinism_case(const render::SensorFrame& frame, render::Integrator integrator, int size,
-                      std::vector<RenderVerifyCase>& out) {
+                      std::vector<RenderVerifyCase>& out,
+                      const render::SensorFrame* rest = nullptr) {
     const auto t0 = Clock::now();
     const render::OpticsParams optics = spectral_optics();
     auto render_with = [&](int threads) {
         const tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
                                         std::size_t(threads));
         render::Renderer renderer({size, size, 84.0}, optics);
+        if (rest) {
+            render::LightCacheSettings cache;
+            cache.paths_per_vertex = 32; // the cache's own determinism, at a quick size
+            renderer.set_light_cache(*rest, cache);
+        }
         renderer.set_frame(frame);
         render::RenderSettings settings{4, 11};
         settings.integrator = integrator;
@@ -236,14 +243,16 @@ void determinism_case(const render::SensorFrame& frame, render::Integrator integ
         differing += std::memcmp(&one.rgb[i], &two.rgb[i], sizeof(float)) != 0;
     RenderVerifyCase c;
     c.key = "determinism";
-    c.mode = integrator == render::Integrator::path ? "spectral path" : "spectral direct";
+    c.mode = integrator == render::Integrator::path   ? "spectral path"
+             : integrator == render::Integrator::fast ? "spectral fast"
+                                                      : "spectral direct";
     c.measured = differing;
     c.error = differing;
     c.target = 0;
     c.unit = "floats";
     c.seconds = seconds_since(t0);
     c.note = "values that differ between 1 and 2 threads (" + std::to_string(size) +
-             " px, 4 spp, loaded dome)";
+             " px, 4 spp, loaded dome" + (rest ? ", light cache built on each" : "") + ")";
     out.push_back(c);
 }
 
@@ -340,6 +349,8 @@ std::vector<RenderVerifyCase> verify_render() {
     const render::SensorFrame loaded = dome_frame(model, &load);
     determinism_case(loaded, render::Integrator::direct, 224, out);
     determinism_case(loaded, render::Integrator::path, 96, out);
+    const render::SensorFrame rest = undeformed_sensor_frame(model);
+    determinism_case(loaded, render::Integrator::fast, 224, out, &rest);
     convergence_case(loaded, render::Integrator::direct, 224, 256, out);
     convergence_case(loaded, render::Integrator::path, 64, 1024, out);
     furnace_cases(out);
