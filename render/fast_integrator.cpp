@@ -280,8 +280,7 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
     cache->build_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     m_cache = std::move(cache);
-    m_triangles.clear(); // set_frame brings the frame's data up to date
-    m_direct.clear();
+    m_direct.clear(); // set_frame brings the frame's data up to date
 }
 
 void FastIntegrator::check_topology(const SensorFrame& frame) const {
@@ -302,7 +301,6 @@ void FastIntegrator::check_topology(const SensorFrame& frame) const {
 void FastIntegrator::set_frame(const SensorFrame& frame, const EmbreeScene& scene) {
     check_topology(frame);
     const LightCache& c = *m_cache;
-    m_triangles = c.coating_triangles;
     m_direct.assign(c.direct.size(), 0.0f);
     m_radius.assign(scene.has_interface() ? std::size_t(c.vertices) : 0, 0.0f);
     const std::vector<Vec3> normals = coating_normals(frame.coating);
@@ -334,7 +332,7 @@ FastIntegrator::Lookup<N> FastIntegrator::lookup(std::uint32_t prim, double u, d
                                                  const Vec3& normal,
                                                  const LanesN<N>* lambda_nm) const {
     const LightCache& c = *m_cache;
-    const std::uint32_t* f = m_triangles.data() + 3 * std::size_t(prim);
+    const std::uint32_t* f = c.coating_triangles.data() + 3 * std::size_t(prim);
     const double w[3] = {1.0 - u - v, u, v};
     Lookup<N> at;
     for (int k = 0; k < c.leds; ++k) {
@@ -481,7 +479,7 @@ template <int N>
 LanesN<N> FastIntegrator::radiance(const EmbreeScene& scene, const Vec3& origin,
                                    const Vec3& direction, const LaneOptics<N>& lanes,
                                    const LanesN<N>* lambda_nm, PixelRng& rng) const {
-    if (!m_cache || m_triangles.empty())
+    if (!m_cache || m_direct.empty())
         throw std::logic_error("FastIntegrator::radiance called before build_cache/set_frame");
     constexpr double inf = std::numeric_limits<double>::infinity();
     const double eta = m_shading.optics().refractive_index;

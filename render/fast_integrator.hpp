@@ -129,8 +129,7 @@ private:
     const ShadingModel& m_shading;
     const PathIntegrator& m_path;
     std::shared_ptr<const LightCache> m_cache;
-    std::vector<float> m_direct;            ///< the frame's G_k, [vertex * leds + k]
-    std::vector<std::uint32_t> m_triangles; ///< the frame's coating triangles
+    std::vector<float> m_direct; ///< the frame's G_k, [vertex * leds + k]
     std::vector<float> m_radius; ///< the sphere model's inner radius below each vertex, mm
 };
 
