@@ -439,22 +439,30 @@ LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, c
                 lookup<N>(hit.prim_id, hit.u, hit.v, facing(hit.normal, d), lambda_nm);
             // Below an outer marker the indirect light comes through it: the light above the
             // marker layer times the diffuse transmittance over the marker's thickness along
-            // the normal.
+            // the normal. And the coating there shares its light with the marker's underside:
+            // what it reflects up enters the marker and is scattered back with probability s
+            // and albedo rho_m, so its irradiance is 1 / (1 - s rho_m rho_c) times what
+            // arrives through the marker (the cache's own coating value, at a vertex, cannot
+            // hold this: markers are smaller than the vertex spacing).
             const double open = path.open_path(true, hit.t_mm);
             const double chord = open > 0.0                                   ? open
                                  : hit.t_mm - outer_exit_mm < kUnderMarker_mm ? outer_chord_mm
                                                                               : 0.0;
-            const LanesN<N> indirect =
-                chord > 0.0 ? LanesN<N>((1.0 - optics.outer_marker_scatter_fraction) *
-                                        diffuse_transmittance<N>(lanes.outer_absorption_per_mm *
-                                                                 (chord * std::abs(cos_g))) *
-                                        at.indirect_above)
-                            : at.indirect;
-            LanesN<N> L =
-                beta * lanes.coating_albedo * lanes.led * shade(scene, p, at, indirect, lanes, rng);
-            for (int s = 0; s < pending; ++s)
-                L += scatters[std::size_t(s)].weight * lanes.led *
-                     shade(scene, scatters[std::size_t(s)].p, at, at.indirect_above, lanes, rng);
+            const double s = optics.outer_marker_scatter_fraction;
+            LanesN<N> L = beta * lanes.coating_albedo * lanes.led;
+            if (chord > 0.0) {
+                const LanesN<N> through = (1.0 - s) *
+                                          diffuse_transmittance<N>(lanes.outer_absorption_per_mm *
+                                                                   (chord * std::abs(cos_g))) *
+                                          at.indirect_above;
+                L *= shade(scene, p, at, through, lanes, rng) /
+                     (1.0 - s * lanes.outer_albedo * lanes.coating_albedo);
+            } else {
+                L *= shade(scene, p, at, at.indirect, lanes, rng);
+            }
+            for (int k = 0; k < pending; ++k)
+                L += scatters[std::size_t(k)].weight * lanes.led *
+                     shade(scene, scatters[std::size_t(k)].p, at, at.indirect_above, lanes, rng);
             return L;
         }
         if (hit.kind != SurfaceKind::inner_marker && hit.kind != SurfaceKind::outer_marker)
