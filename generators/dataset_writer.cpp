@@ -330,16 +330,23 @@ void DatasetWriter::assemble_csv(const char* name, const std::string& header,
 }
 
 std::map<std::string, std::string> DatasetWriter::checksums() const {
+    // A trial's files were hashed when it completed (and checked again on resume): only the
+    // files assembled since are read here.
+    std::map<std::string, std::string> known;
+    for (const auto& [trial, record] : m_records)
+        known.insert(record.files.begin(), record.files.end());
     std::map<std::string, std::string> sums;
     for (const auto& e : fs::recursive_directory_iterator(m_staging)) {
         const std::string relative = fs::relative(e.path(), m_staging).generic_string();
         if (relative == kProgress || relative.starts_with(std::string(kProgress) + "/") ||
             relative == kLock || relative == kManifest || !e.is_regular_file())
             continue;
-        if (relative.ends_with(".tmp")) // a temporary left by a killed run's last step
-            throw std::runtime_error("internal error: leftover temporary " + e.path().string());
-        // A trial's files were hashed when it completed (and checked on resume).
-        sums[relative] = sha256_file(e.path());
+        // Every writer renames its temporary before returning, and a trial's leftovers are
+        // removed before it is redone: a temporary here is a bug of ours, not a user's file.
+        if (relative.ends_with(".tmp") || relative.find(".tmp.") != std::string::npos)
+            throw std::logic_error("leftover temporary " + e.path().string());
+        const auto it = known.find(relative);
+        sums[relative] = it != known.end() ? it->second : sha256_file(e.path());
     }
     return sums;
 }

@@ -282,8 +282,7 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     DatasetWriter writer(options.out_dir, spec, {options.overwrite, options.resume, slice}, log);
     if (writer.assembled()) { // killed after the last write, before the rename
         writer.finish();
-        report.trials = int(plan.trials.size());
-        report.resumed_trials = report.trials;
+        report.moved_only = true;
         log << "chromasim: " << writer.staging().string()
             << " held the whole dataset; moved it into place\n";
         return report;

@@ -34,7 +34,10 @@ struct GenerateReport {
     bool up_to_date = false; ///< nothing done: the output already holds this dataset
     int trials = 0;          ///< trials in the dataset (run now or kept from an interrupted run)
     int resumed_trials = 0;  ///< of those, trials an interrupted run had completed (--resume)
-    int planned_trials = 0;  ///< trials in the whole plan
+    /// --resume found the whole dataset assembled in DIR.partial and only renamed it (the
+    /// counts are then in its manifest.json, not here).
+    bool moved_only = false;
+    int planned_trials = 0; ///< trials in the whole plan
     /// The dataset's counts (resumed trials included).
     int frames = 0, images = 0;
     int flagged_frames = 0; ///< finger-frames whose solver did not converge

@@ -24,7 +24,7 @@ namespace {
 int run_generate(const std::string& spec_path, const gen::GenerateOptions& options) {
     const gen::Spec spec = gen::load_spec(spec_path); // validation before any work
     const gen::GenerateReport r = gen::generate(spec, options, std::cerr);
-    if (r.up_to_date) return 0;
+    if (r.up_to_date || r.moved_only) return 0; // generate() said so on the log
     if (r.resumed_trials > 0)
         std::cout << "chromasim: kept " << r.resumed_trials
                   << " trial(s) of the interrupted run (--resume)\n";
