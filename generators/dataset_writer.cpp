@@ -98,19 +98,21 @@ DatasetWriter::DatasetWriter(fs::path out_dir, const Spec& spec, const WriterOpt
     make_folder(parent);
     m_staging = parent / (m_out.filename().string() + ".partial");
     std::error_code ec;
-    if (fs::exists(m_staging, ec)) {
-        take_over_partial(options, log);
-    } else {
-        make_folder(m_staging);
-        m_made_here = true;
-        lock();
-    }
     try {
+        if (fs::exists(m_staging, ec)) {
+            take_over_partial(options, log);
+        } else {
+            make_folder(m_staging);
+            m_made_here = true;
+            lock();
+        }
+        write_pid(); // only now: a refused run leaves the folder as it found it
         if (!fs::exists(m_staging / kSpec))
             write_file_atomic(m_staging / kSpec, stored_spec_text(spec, m_max_trials));
         make_folder(m_staging / kProgress);
-    } catch (...) {
-        if (m_made_here) fs::remove_all(m_staging, ec); // the destructor does not run here
+    } catch (...) { // the destructor does not run for a constructor that throws
+        if (m_made_here) fs::remove_all(m_staging, ec);
+        if (m_lock_fd >= 0) ::close(m_lock_fd); // a library caller may try again in-process
         throw;
     }
 }
@@ -119,11 +121,11 @@ void DatasetWriter::take_over_partial(const WriterOptions& options, std::ostream
     if (!fs::is_directory(m_staging))
         throw SpecError(partial_error(m_staging, "exists and is not a folder; allowed: remove "
                                                  "it, or another output path"));
+    lock(); // first: a running generation is not an interrupted one
     if (!options.resume && !options.overwrite)
         throw SpecError(partial_error(
             m_staging, "holds an interrupted generation of this output; allowed: --resume to "
                        "finish it (same spec), or --overwrite to discard it and start over"));
-    lock();
     const fs::path spec_file = m_staging / kSpec;
     const bool has_spec = fs::exists(spec_file);
     if (options.resume && has_spec &&
@@ -157,9 +159,12 @@ void DatasetWriter::lock() {
             m_staging, "another chromasim process (pid " + holder +
                            ") is writing this output now; allowed: wait for it to finish"));
     }
+}
+
+void DatasetWriter::write_pid() const {
     const std::string pid = std::to_string(::getpid());
-    if (::ftruncate(m_lock_fd, 0) != 0 || ::write(m_lock_fd, pid.data(), pid.size()) < 0)
-        fail("cannot write", path, std::error_code(errno, std::generic_category()));
+    if (::ftruncate(m_lock_fd, 0) != 0 || ::pwrite(m_lock_fd, pid.data(), pid.size(), 0) < 0)
+        fail("cannot write", m_staging / kLock, std::error_code(errno, std::generic_category()));
 }
 
 DatasetWriter::~DatasetWriter() {

@@ -128,7 +128,8 @@ public:
 
 private:
     void take_over_partial(const WriterOptions& options, std::ostream& log);
-    void lock();
+    void lock();            ///< flock()s DIR.partial/lock; throws if another process holds it
+    void write_pid() const; ///< the holder's pid in the lock file, for the message above
     void assemble_csv(const char* name, const std::string& header, const char* shard) const;
     std::map<std::string, std::string> checksums() const;
     void move_into_place();

@@ -290,6 +290,10 @@ TEST_CASE("resume redoes a trial whose files do not match their checksums, refus
     INFO(busy.output);
     CHECK(busy.code == 2);
     CHECK_THAT(busy.output, Catch::Contains("another chromasim process"));
+    const Run busy_plain = f.generate(locked); // running, not interrupted: the same answer
+    INFO(busy_plain.output);
+    CHECK(busy_plain.code == 2);
+    CHECK_THAT(busy_plain.output, Catch::Contains("another chromasim process"));
     ::close(fd);
     f.resume_matches(locked);
 }
