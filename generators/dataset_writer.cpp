@@ -1,11 +1,17 @@
 #include "generators/dataset_writer.hpp"
 
-#include <chrono>
+#include "generators/file_io.hpp"
+
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
-#include <ctime>
+#include <cstring>
 #include <iomanip>
-#include <sstream>
+#include <ostream>
+#include <stdexcept>
+
+#include <fcntl.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 namespace fs = std::filesystem;
@@ -14,35 +20,42 @@ namespace chromasim::generators {
 
 namespace {
 
-std::string read_file(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    std::ostringstream s;
-    s << in.rdbuf();
-    return s.str();
+constexpr const char* kProgress = "_progress"; ///< trial records and shards, in DIR.partial only
+constexpr const char* kLock = "lock";          ///< in DIR.partial: flock()ed by the running process
+constexpr const char* kManifest = "manifest.json";
+constexpr const char* kSpec = "spec.resolved.yaml";
+constexpr const char* kMarkersHeader =
+    "split,trial,frame,finger,layer,marker,x0_mm,y0_mm,z0_mm,ux_mm,uy_mm,uz_mm";
+
+std::string trial_name(int trial) {
+    char name[32];
+    std::snprintf(name, sizeof name, "trial_%06d", trial);
+    return name;
 }
 
-std::string utc_now() {
-    const std::time_t t = std::time(nullptr);
-    char buf[32];
-    std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
-    return buf;
+std::string trial_folder(const std::string& split, int trial) {
+    return split + "/" + trial_name(trial);
 }
 
-/// A YAML double-quoted scalar.
-std::string quoted(const std::string& text) {
-    std::string out = "\"";
-    for (char c : text) {
-        if (c == '"' || c == '\\') out += '\\';
-        out += c;
-    }
-    return out + '"';
+/// A filesystem call's failure as the user should read it: the path and the OS's reason.
+[[noreturn]] void fail(const std::string& what, const fs::path& path, const std::error_code& ec) {
+    throw std::runtime_error(what + " " + path.string() + ": " + ec.message());
 }
 
-std::ofstream open_csv(const fs::path& p, const char* header) {
-    std::ofstream out(p);
-    if (!out) throw std::runtime_error("cannot write " + p.string());
-    out << header << '\n' << std::setprecision(9);
-    return out;
+void make_folder(const fs::path& path) {
+    std::error_code ec;
+    fs::create_directories(path, ec);
+    if (ec) fail("cannot create folder", path, ec);
+}
+
+void remove_path(const fs::path& path) {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+    if (ec) fail("cannot remove", path, ec);
+}
+
+std::string partial_error(const fs::path& staging, const std::string& what) {
+    return staging.string() + ": " + what;
 }
 
 } // namespace
@@ -66,31 +79,98 @@ OutputState inspect_output(const fs::path& out_dir, const Spec& spec, int max_tr
         throw SpecError(out_dir.string() + ": output path exists and is not a folder; allowed: " +
                         "a new path or an existing dataset folder");
     if (fs::is_empty(out_dir, ec)) return OutputState::absent;
-    const fs::path stored = out_dir / "spec.resolved.yaml";
-    if (fs::exists(out_dir / "manifest.yaml") && fs::exists(stored) &&
+    const fs::path stored = out_dir / kSpec;
+    if (fs::exists(out_dir / kManifest) && fs::exists(stored) &&
         read_file(stored) == stored_spec_text(spec, max_trials))
         return OutputState::up_to_date;
     return OutputState::other_content;
 }
 
-DatasetWriter::DatasetWriter(fs::path out_dir, const Spec& spec, bool overwrite, int max_trials)
-    : m_out(std::move(out_dir)), m_spec(spec), m_overwrite(overwrite), m_max_trials(max_trials) {
-    if (!m_overwrite && inspect_output(m_out, spec, max_trials) == OutputState::other_content)
+DatasetWriter::DatasetWriter(fs::path out_dir, const Spec& spec, const WriterOptions& options,
+                             std::ostream& log)
+    : m_out(std::move(out_dir)), m_spec(spec), m_overwrite(options.overwrite),
+      m_max_trials(options.max_trials) {
+    if (!m_overwrite && inspect_output(m_out, spec, m_max_trials) == OutputState::other_content)
         throw SpecError(m_out.string() + ": output folder already holds other content (a " +
                         "dataset from another spec or version, or other files); allowed: a new " +
                         "path, or --overwrite to replace it once the new dataset is complete");
     const fs::path parent = fs::absolute(m_out).parent_path();
-    fs::create_directories(parent);
-    m_staging = parent / (m_out.filename().string() + ".partial-" + std::to_string(::getpid()));
-    fs::remove_all(m_staging);
-    fs::create_directories(m_staging);
+    make_folder(parent);
+    m_staging = parent / (m_out.filename().string() + ".partial");
+    std::error_code ec;
     try {
-        open_outputs();
-    } catch (...) {
-        std::error_code ec;
-        fs::remove_all(m_staging, ec); // the destructor does not run for a failed constructor
+        if (fs::exists(m_staging, ec)) {
+            take_over_partial(options, log);
+        } else {
+            make_folder(m_staging);
+            m_made_here = true;
+            lock();
+        }
+        write_pid(); // only now: a refused run leaves the folder as it found it
+        if (!fs::exists(m_staging / kSpec))
+            write_file_atomic(m_staging / kSpec, stored_spec_text(spec, m_max_trials));
+        make_folder(m_staging / kProgress);
+    } catch (...) { // the destructor does not run for a constructor that throws
+        if (m_made_here) fs::remove_all(m_staging, ec);
+        if (m_lock_fd >= 0) ::close(m_lock_fd); // a library caller may try again in-process
         throw;
     }
+}
+
+void DatasetWriter::take_over_partial(const WriterOptions& options, std::ostream& log) {
+    if (!fs::is_directory(m_staging))
+        throw SpecError(partial_error(m_staging, "exists and is not a folder; allowed: remove "
+                                                 "it, or another output path"));
+    lock(); // first: a running generation is not an interrupted one
+    if (!options.resume && !options.overwrite)
+        throw SpecError(partial_error(
+            m_staging, "holds an interrupted generation of this output; allowed: --resume to "
+                       "finish it (same spec), or --overwrite to discard it and start over"));
+    const fs::path spec_file = m_staging / kSpec;
+    const bool has_spec = fs::exists(spec_file);
+    if (options.resume && has_spec &&
+        read_file(spec_file) != stored_spec_text(m_spec, m_max_trials))
+        throw SpecError(partial_error(
+            spec_file, "the interrupted generation was made from another resolved spec (or "
+                       "chromasim version, or --max-trials); allowed: --resume with the same "
+                       "spec and options, or --overwrite to discard it and start over"));
+    if (!options.resume || !has_spec) { // start over, keeping only the lock we hold
+        for (const auto& entry : fs::directory_iterator(m_staging))
+            if (entry.path().filename() != kLock) remove_path(entry.path());
+        if (options.resume)
+            log << "chromasim: " << m_staging.string()
+                << " holds no spec yet (killed at the start); starting over\n";
+        return;
+    }
+    m_assembled = fs::exists(m_staging / kManifest);
+    log << "chromasim: resuming the generation in " << m_staging.string() << '\n';
+}
+
+void DatasetWriter::lock() {
+    const fs::path path = m_staging / kLock;
+    m_lock_fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (m_lock_fd < 0) fail("cannot write", path, std::error_code(errno, std::generic_category()));
+    // flock: released by the kernel when the process ends, however it ends (kill -9 too).
+    if (::flock(m_lock_fd, LOCK_EX | LOCK_NB) != 0) {
+        const std::string holder = read_file(path);
+        ::close(m_lock_fd);
+        m_lock_fd = -1;
+        throw SpecError(partial_error(
+            m_staging, "another chromasim process (pid " + holder +
+                           ") is writing this output now; allowed: wait for it to finish"));
+    }
+}
+
+void DatasetWriter::write_pid() const {
+    const std::string pid = std::to_string(::getpid());
+    if (::ftruncate(m_lock_fd, 0) != 0 || ::pwrite(m_lock_fd, pid.data(), pid.size(), 0) < 0)
+        fail("cannot write", m_staging / kLock, std::error_code(errno, std::generic_category()));
+}
+
+DatasetWriter::~DatasetWriter() {
+    std::error_code ec;
+    if (!m_committed && m_made_here && m_records.empty()) fs::remove_all(m_staging, ec);
+    if (m_lock_fd >= 0) ::close(m_lock_fd);
 }
 
 /// The labels.csv header: the frame's columns, then each finger's, prefixed by its name.
@@ -125,44 +205,48 @@ std::string labels_header(int fingers) {
     return h;
 }
 
-void DatasetWriter::open_outputs() {
-    if (m_spec.outputs.images || m_spec.outputs.exr) fs::create_directories(m_staging / "images");
-    if (m_spec.outputs.labels)
-        m_labels = open_csv(m_staging / "labels.csv", labels_header(m_spec.fingers.count).c_str());
-    if (m_spec.outputs.markers)
-        m_markers = open_csv(m_staging / "markers.csv",
-                             "split,trial,frame,finger,layer,marker,x0_mm,y0_mm,z0_mm,ux_mm,"
-                             "uy_mm,uz_mm");
+bool DatasetWriter::completed(int trial) {
+    const fs::path record_path = m_staging / kProgress / (trial_name(trial) + ".json");
+    std::error_code ec;
+    if (!fs::exists(record_path, ec)) return false;
+    std::optional<TrialRecord> record = parse_trial_record(read_file(record_path));
+    if (!record || record->trial != trial) return false;
+    for (const auto& [relative, sha] : record->files)
+        if (!fs::is_regular_file(m_staging / relative, ec) ||
+            sha256_file(m_staging / relative) != sha)
+            return false;
+    m_records[trial] = std::move(*record);
+    return true;
 }
 
-DatasetWriter::~DatasetWriter() {
-    if (!m_committed) {
-        std::error_code ec;
-        fs::remove_all(m_staging, ec);
-    }
+void DatasetWriter::begin_trial(const std::string& split, int trial) {
+    const std::string name = trial_name(trial);
+    remove_path(m_staging / kProgress / (name + ".json"));
+    remove_path(m_staging / "images" / trial_folder(split, trial));
+    remove_path(m_staging / "strain" / trial_folder(split, trial));
+    m_split = split;
+    m_trial = trial;
+    m_images = 0;
+    m_labels.str({});
+    m_markers.str({});
+    m_labels << std::setprecision(9);
+    m_markers << std::setprecision(9);
+    m_strain.clear();
 }
-
-namespace {
-std::string trial_folder(const std::string& split, int trial) {
-    char name[32];
-    std::snprintf(name, sizeof name, "trial_%06d", trial);
-    return split + "/" + name;
-}
-} // namespace
 
 fs::path DatasetWriter::image_path(const std::string& split, int trial, const std::string& finger,
                                    int frame, std::string* relative, const char* extension) {
     char name[64];
     std::snprintf(name, sizeof name, "%s_%06d.%s", finger.c_str(), frame, extension);
     const std::string folder = "images/" + trial_folder(split, trial);
-    fs::create_directories(m_staging / folder);
+    make_folder(m_staging / folder);
     if (relative) *relative = folder + "/" + name;
     ++m_images;
     return m_staging / folder / name;
 }
 
 void DatasetWriter::write_labels(const FrameLabels& f) {
-    if (!m_labels.is_open()) return;
+    if (!m_spec.outputs.labels) return;
     m_labels << f.split << ',' << f.trial << ',' << f.frame << ',' << f.time_s << ',' << f.phase
              << ',' << f.object << ',' << f.friction << ',' << f.grip_N << ',' << f.load_N << ','
              << f.travel_mm;
@@ -180,12 +264,11 @@ void DatasetWriter::write_labels(const FrameLabels& f) {
                  << int(r.converged) << ',' << r.status << ',' << int(r.reused);
     }
     m_labels << '\n';
-    ++m_label_rows;
 }
 
 void DatasetWriter::write_marker(const FrameLabels& f, const std::string& finger, const char* layer,
                                  int marker, const double x0[3], const double u[3]) {
-    if (!m_markers.is_open()) return;
+    if (!m_spec.outputs.markers) return;
     m_markers << f.split << ',' << f.trial << ',' << f.frame << ',' << finger << ',' << layer << ','
               << marker << ',' << x0[0] << ',' << x0[1] << ',' << x0[2] << ',' << u[0] << ','
               << u[1] << ',' << u[2] << '\n';
@@ -196,11 +279,11 @@ void DatasetWriter::write_strain(const FrameLabels& f, const std::string& finger
     const std::string relative = "strain/" + trial_folder(f.split, f.trial) + "/" + finger + ".csv";
     auto it = m_strain.find(relative);
     if (it == m_strain.end()) {
-        fs::create_directories((m_staging / relative).parent_path());
-        std::string header = "frame";
+        it = m_strain.emplace(relative, std::ostringstream()).first;
+        it->second << "frame";
         for (std::size_t i = 0; i < eps_xx.size(); ++i)
-            header += ",e" + std::to_string(i);
-        it = m_strain.emplace(relative, open_csv(m_staging / relative, header.c_str())).first;
+            it->second << ",e" << i;
+        it->second << '\n' << std::setprecision(9);
     }
     it->second << f.frame;
     for (const double e : eps_xx)
@@ -208,42 +291,104 @@ void DatasetWriter::write_strain(const FrameLabels& f, const std::string& finger
     it->second << '\n';
 }
 
-void DatasetWriter::end_trial() {
-    for (auto& [relative, file] : m_strain) {
-        file.close();
-        if (!file) throw std::runtime_error("write error in " + (m_staging / relative).string());
-    }
+void DatasetWriter::end_trial(TrialRecord record) {
+    const std::string name = trial_name(m_trial);
+    // 1. The trial's text files, each under a temporary name and renamed.
+    std::vector<std::string> written;
+    const auto write = [&](const std::string& relative, const std::string& text) {
+        make_folder((m_staging / relative).parent_path());
+        write_file_atomic(m_staging / relative, text);
+        written.push_back(relative);
+    };
+    if (m_spec.outputs.labels)
+        write(std::string(kProgress) + "/" + name + ".labels.csv", m_labels.str());
+    if (m_spec.outputs.markers)
+        write(std::string(kProgress) + "/" + name + ".markers.csv", m_markers.str());
+    for (const auto& [relative, text] : m_strain)
+        write(relative, text.str());
     m_strain.clear();
+    // 2. Every file's checksum, the images' too (already renamed into place by image_io).
+    const fs::path images = m_staging / "images" / trial_folder(m_split, m_trial);
+    std::error_code ec;
+    if (fs::exists(images, ec))
+        for (const auto& e : fs::directory_iterator(images))
+            written.push_back(fs::relative(e.path(), m_staging).generic_string());
+    for (const std::string& relative : written)
+        record.files[relative] = sha256_file(m_staging / relative);
+    record.trial = m_trial;
+    record.split = m_split;
+    record.images = m_images;
+    // 3. The record, last: from here on the trial is complete.
+    write_file_atomic(m_staging / kProgress / (name + ".json"), trial_record_json(record));
+    m_records[m_trial] = std::move(record);
 }
 
-void DatasetWriter::commit(const std::string& manifest_extra) {
-    for (std::ofstream* f : {&m_labels, &m_markers})
-        if (f->is_open()) {
-            f->close();
-            if (!*f) throw std::runtime_error("write error in " + m_staging.string());
-        }
-    end_trial();
-    std::ofstream(m_staging / "spec.resolved.yaml", std::ios::binary)
-        << stored_spec_text(m_spec, m_max_trials);
-    std::ofstream manifest(m_staging / "manifest.yaml");
-    manifest << "# chromasim dataset manifest (docs/DATASET_FORMAT.md)\n"
-             << "name: " << quoted(m_spec.name) << "\nchromasim_version: " CHROMASIM_VERSION "\n"
-             << "created_utc: " << utc_now()
-             << "\nspec_source: " << quoted(m_spec.source_path.string()) << "\nimages: " << m_images
-             << "\nlabel_rows: " << m_label_rows << '\n'
-             << manifest_extra;
-    manifest.close();
-    if (!manifest) throw std::runtime_error("write error in " + m_staging.string());
+void DatasetWriter::assemble_csv(const char* name, const std::string& header,
+                                 const char* shard) const {
+    const fs::path tmp = m_staging / (std::string(name) + ".tmp");
+    FileWriter out(tmp);
+    out.append(header + "\n");
+    for (const auto& [trial, record] : m_records) // std::map: plan order (trial ids ascend)
+        out.append(read_file(m_staging / kProgress / (trial_name(trial) + shard)));
+    out.close();
+    rename_path(tmp, m_staging / name);
+}
+
+std::map<std::string, std::string> DatasetWriter::checksums() const {
+    // A trial's files were hashed when it completed (and checked again on resume): only the
+    // files assembled since are read here.
+    std::map<std::string, std::string> known;
+    for (const auto& [trial, record] : m_records)
+        known.insert(record.files.begin(), record.files.end());
+    std::map<std::string, std::string> sums;
+    for (const auto& e : fs::recursive_directory_iterator(m_staging)) {
+        const std::string relative = fs::relative(e.path(), m_staging).generic_string();
+        if (relative == kProgress || relative.starts_with(std::string(kProgress) + "/") ||
+            relative == kLock || relative == kManifest || !e.is_regular_file())
+            continue;
+        // Every writer renames its temporary before returning, and a trial's leftovers are
+        // removed before it is redone: a temporary here is a bug of ours, not a user's file.
+        if (relative.ends_with(".tmp") || relative.find(".tmp.") != std::string::npos)
+            throw std::logic_error("leftover temporary " + e.path().string());
+        const auto it = known.find(relative);
+        sums[relative] = it != known.end() ? it->second : sha256_file(e.path());
+    }
+    return sums;
+}
+
+void DatasetWriter::assemble(const ManifestInfo& info, int trials) {
+    if (int(m_records.size()) != trials)
+        throw std::logic_error("assemble: " + std::to_string(m_records.size()) + " of " +
+                               std::to_string(trials) + " trials complete");
+    if (m_spec.outputs.labels)
+        assemble_csv("labels.csv", labels_header(m_spec.fingers.count), ".labels.csv");
+    if (m_spec.outputs.markers) assemble_csv("markers.csv", kMarkersHeader, ".markers.csv");
+    std::vector<TrialRecord> records;
+    for (const auto& [trial, record] : m_records)
+        records.push_back(record);
+    const std::string spec_text = read_file(m_staging / kSpec);
+    write_file_atomic(m_staging / kManifest,
+                      manifest_json(m_spec, spec_text, m_max_trials, info, records, checksums()));
+}
+
+void DatasetWriter::finish() {
+    remove_path(m_staging / kProgress);
+    move_into_place();
+}
+
+void DatasetWriter::move_into_place() {
+    remove_path(m_staging / kLock); // the lock stays held (open descriptor) until we return
     // Swap into place: the old dataset (if replacing) is removed only after the rename.
     fs::path old;
-    if (fs::exists(m_out)) {
+    std::error_code ec;
+    if (fs::exists(m_out, ec)) {
         old = m_staging.parent_path() /
               (m_out.filename().string() + ".old-" + std::to_string(::getpid()));
-        fs::rename(m_out, old);
+        rename_path(m_out, old);
     }
-    fs::rename(m_staging, m_out);
+    rename_path(m_staging, m_out);
     m_committed = true;
-    if (!old.empty()) fs::remove_all(old);
+    if (!old.empty()) remove_path(old);
 }
 
 } // namespace chromasim::generators

@@ -1,13 +1,19 @@
 #pragma once
-/// Writes a dataset so that it is either complete or absent: everything goes to a staging
-/// folder beside the output, which is renamed into place only after the last file is closed.
-/// An existing dataset is never touched unless the user asked to overwrite it, and then only
-/// replaced once the new one is complete.
+/// Writes a dataset so that it is either complete or absent, and so that a run killed at any
+/// moment can be resumed: everything goes to DIR.partial beside the output (locked against a
+/// second run), one trial at a time. A trial's files are written under temporary names and
+/// renamed; its record (_progress/trial_NNNNNN.json, with every file's SHA-256) is written
+/// last and makes it complete. At the end labels.csv and markers.csv are assembled from the
+/// trials' shards in plan order, manifest.json lists every file's SHA-256, and the folder is
+/// renamed into place. An existing dataset is never touched unless the user asked to overwrite
+/// it, and then only replaced once the new one is complete. docs/DATASET_FORMAT.md.
+#include "generators/manifest.hpp"
 #include "generators/spec.hpp"
 
 #include <filesystem>
-#include <fstream>
+#include <iosfwd>
 #include <map>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -16,7 +22,7 @@ namespace chromasim::generators {
 /// What is at the output path now.
 enum class OutputState {
     absent,        ///< nothing there (or an empty folder)
-    up_to_date,    ///< a complete dataset from the same resolved spec and chromasim version
+    up_to_date,    ///< a complete dataset (manifest.json) from the same resolved spec and version
     other_content, ///< anything else
 };
 
@@ -56,17 +62,42 @@ struct FrameLabels {
     std::vector<LabelRow> fingers; ///< left, then right
 };
 
+/// How the writer treats what is already there.
+struct WriterOptions {
+    bool overwrite = false; ///< replace `out_dir` at commit; discard a partial folder (no resume)
+    bool resume = false;    ///< finish the run that left DIR.partial (same resolved spec)
+    int max_trials = 0;     ///< the slice written (0: every trial)
+};
+
 class DatasetWriter {
 public:
-    /// Creates the staging folder. `overwrite` allows replacing `out_dir` at commit;
-    /// `max_trials` is the slice written (0: every trial). Throws SpecError if `out_dir` holds
-    /// other content and `overwrite` is false.
-    DatasetWriter(std::filesystem::path out_dir, const Spec& spec, bool overwrite,
-                  int max_trials = 0);
-    /// Removes the staging folder unless commit() succeeded.
+    /// Checks the output, then creates (or, with `resume`, takes over) DIR.partial and locks
+    /// it. Throws SpecError, naming the path and what is allowed, if `out_dir` holds other
+    /// content and `overwrite` is false; if DIR.partial exists and neither `resume` nor
+    /// `overwrite` is set; if another process holds its lock; or if DIR.partial was written
+    /// from another resolved spec. Throws std::runtime_error naming the path and the OS error
+    /// if the folder cannot be made or written. Resuming logs what it found on `log`.
+    DatasetWriter(std::filesystem::path out_dir, const Spec& spec, const WriterOptions& options,
+                  std::ostream& log);
+    /// Removes DIR.partial if this run made it and completed no trial in it; otherwise keeps
+    /// it for --resume.
     ~DatasetWriter();
     DatasetWriter(const DatasetWriter&) = delete;
     DatasetWriter& operator=(const DatasetWriter&) = delete;
+
+    /// True if a previous run was killed after assembling the whole dataset in DIR.partial
+    /// (manifest.json written), only the final rename missing: call finish() and nothing else.
+    bool assembled() const { return m_assembled; }
+    /// Removes the run's own files (records, shards, lock) from the assembled DIR.partial and
+    /// renames it to DIR (an old DIR, with --overwrite, is removed only after that).
+    void finish();
+
+    /// True (and the record kept for the manifest) if a previous run completed `trial` and
+    /// every file of its record is there with its SHA-256. Otherwise false, and the trial must
+    /// be run: begin_trial() removes whatever it left.
+    bool completed(int trial);
+    /// Starts trial `trial` of split `split`: removes any files an interrupted run left for it.
+    void begin_trial(const std::string& split, int trial);
 
     /// Path (inside staging) of a fingertip's image of a frame,
     /// images/<split>/trial_NNNNNN/<finger>_NNNNNN.<extension> (png, exr), its folder made;
@@ -81,22 +112,39 @@ public:
     /// A frame's eps_xx grid (row-major) as a row of strain/<split>/trial_NNNNNN/<finger>.csv.
     void write_strain(const FrameLabels& frame, const std::string& finger,
                       const std::vector<double>& eps_xx);
-    /// Closes the trial's strain files.
-    void end_trial();
-    /// Closes the files, writes the manifest and moves the dataset into place.
-    void commit(const std::string& manifest_extra);
+    /// Writes the trial's shards and strain files (temporary names, renamed), then its record
+    /// with every file's SHA-256: from here on the trial is complete. `record` holds the
+    /// trial's counts; its file list is filled here.
+    void end_trial(TrialRecord record);
+    /// Assembles labels.csv and markers.csv from the shards of every trial in plan order and
+    /// writes manifest.json (last). Every trial of the plan (slice) must be complete, `trials`
+    /// of them. Then call finish().
+    void assemble(const ManifestInfo& info, int trials);
 
     const std::filesystem::path& staging() const { return m_staging; }
+    /// Trials complete in DIR.partial (run now or resumed).
+    int completed_trials() const { return int(m_records.size()); }
+    const std::map<int, TrialRecord>& records() const { return m_records; }
 
 private:
-    void open_outputs();
+    void take_over_partial(const WriterOptions& options, std::ostream& log);
+    void lock();            ///< flock()s DIR.partial/lock; throws if another process holds it
+    void write_pid() const; ///< the holder's pid in the lock file, for the message above
+    void assemble_csv(const char* name, const std::string& header, const char* shard) const;
+    std::map<std::string, std::string> checksums() const;
+    void move_into_place();
+
     std::filesystem::path m_out, m_staging;
     const Spec& m_spec;
-    bool m_overwrite = false, m_committed = false;
-    std::ofstream m_labels, m_markers;
-    std::map<std::string, std::ofstream> m_strain; ///< the current trial's, by relative path
+    bool m_overwrite = false, m_committed = false, m_made_here = false, m_assembled = false;
     int m_max_trials = 0;
-    int m_images = 0, m_label_rows = 0;
+    int m_lock_fd = -1;
+    std::map<int, TrialRecord> m_records; ///< complete trials, by id
+    // The current trial's text, written at end_trial.
+    std::string m_split;
+    int m_trial = -1, m_images = 0;
+    std::ostringstream m_labels, m_markers;
+    std::map<std::string, std::ostringstream> m_strain; ///< by relative path
 };
 
 } // namespace chromasim::generators

@@ -9,6 +9,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdlib>
 #include <memory>
 #include <optional>
@@ -35,6 +36,16 @@ void write_markers(DatasetWriter& writer, const FrameLabels& frame, const std::s
             }
             writer.write_marker(frame, finger, layer == 0 ? "inner" : "outer", m, x0, u);
         }
+}
+
+/// Test only (generate.hpp): kills the process at the CHROMASIM_TEST_KILL_AT-th write step.
+void test_kill_point() {
+    static const long kill_at = [] {
+        const char* v = std::getenv("CHROMASIM_TEST_KILL_AT");
+        return v ? std::atol(v) : 0L;
+    }();
+    static long steps = 0;
+    if (kill_at > 0 && ++steps >= kill_at) std::raise(SIGKILL);
 }
 
 /// What every trial shares: the spec, the models and the writer.
@@ -127,6 +138,8 @@ LabelRow run_finger(Stages& s, const FramePlan& frame, const FrameLabels& labels
 }
 
 void run_trial(Stages& s, const TrialPlan& trial) {
+    const GenerateReport before = s.report;
+    s.writer.begin_trial(trial.split, trial.id);
     const Spec::Object& object = s.spec.objects[std::size_t(trial.object)];
     std::vector<FingerRun> runs(trial.fingers.size());
     for (std::size_t f = 0; f < runs.size(); ++f)
@@ -148,10 +161,19 @@ void run_trial(Stages& s, const TrialPlan& trial) {
         const auto t0 = Clock::now();
         s.writer.write_labels(labels);
         s.report.write_s += seconds_since(t0);
+        test_kill_point();
     }
-    s.writer.end_trial();
-    s.report.frames += int(trial.frames.size());
-    ++s.report.trials;
+    // The trial's counts go into its record: a resumed run's manifest sums the same numbers.
+    TrialRecord record;
+    record.frames = int(trial.frames.size());
+    record.solves = s.report.solves - before.solves;
+    record.reused_solves = s.report.reused_solves - before.reused_solves;
+    record.renders = s.report.renders - before.renders;
+    record.flagged_frames = s.report.flagged_frames - before.flagged_frames;
+    const auto t0 = Clock::now();
+    s.writer.end_trial(std::move(record));
+    s.report.write_s += seconds_since(t0);
+    test_kill_point();
     if (!s.quiet)
         s.log << "  trial " << trial.id + 1 << "/" << s.report.planned_trials << " (" << trial.split
               << ", " << object.name << ", mu " << trial.mu << ", grip " << trial.grip_N
@@ -160,6 +182,22 @@ void run_trial(Stages& s, const TrialPlan& trial) {
                       ? ", slips at frame " + std::to_string(trial.first_slip_frame)
                       : std::string())
               << '\n';
+}
+
+/// `report` with the dataset's counts summed over the writer's trial records.
+GenerateReport dataset_counts(const DatasetWriter& writer, GenerateReport report) {
+    report.trials = report.frames = report.images = report.solves = report.reused_solves =
+        report.renders = report.flagged_frames = 0;
+    for (const auto& [id, r] : writer.records()) {
+        ++report.trials;
+        report.frames += r.frames;
+        report.images += r.images;
+        report.solves += r.solves;
+        report.reused_solves += r.reused_solves;
+        report.renders += r.renders;
+        report.flagged_frames += r.flagged_frames;
+    }
+    return report;
 }
 
 } // namespace
@@ -241,7 +279,23 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     const bool render_stage = spec.outputs.images || spec.outputs.exr;
     std::optional<render::OpticsParams> optics;
     if (render_stage) optics = optics_params(spec);
-    DatasetWriter writer(options.out_dir, spec, options.overwrite, slice);
+    DatasetWriter writer(options.out_dir, spec, {options.overwrite, options.resume, slice}, log);
+    if (writer.assembled()) { // killed after the last write, before the rename
+        writer.finish();
+        report.moved_only = true;
+        log << "chromasim: " << writer.staging().string()
+            << " held the whole dataset; moved it into place\n";
+        return report;
+    }
+    // Trials an interrupted run completed, checked against their records' checksums.
+    std::vector<const TrialPlan*> to_run;
+    for (const TrialPlan& trial : plan.trials)
+        if (!options.resume || !writer.completed(trial.id)) to_run.push_back(&trial);
+    report.resumed_trials = int(plan.trials.size() - to_run.size());
+    if (report.resumed_trials > 0)
+        log << "chromasim: " << report.resumed_trials << " of " << plan.trials.size()
+            << " trials already complete (checksums match); running the other " << to_run.size()
+            << '\n';
 
     // 2. Precompute what every trial shares: mesh, factorization, contact compliance, scene.
     auto t0 = Clock::now();
@@ -285,25 +339,37 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     stages.request.inner_surface =
         render_stage && stages.settings.integrator != render::Integrator::direct;
     stages.request.strain = spec.outputs.strain;
-    for (const TrialPlan& trial : plan.trials)
-        run_trial(stages, trial);
+    try {
+        for (const TrialPlan* trial : to_run)
+            run_trial(stages, *trial);
+    } catch (const std::exception& e) {
+        if (writer.completed_trials() == 0) throw;
+        throw std::runtime_error(std::string(e.what()) + "\nchromasim: the " +
+                                 std::to_string(writer.completed_trials()) +
+                                 " complete trial(s) are kept in " + writer.staging().string() +
+                                 "; fix the cause, then run the same command with --resume");
+    }
 
-    report.total_s = seconds_since(t_start);
+    // 4. The dataset's counts, over every trial (resumed ones too), then assemble and rename.
+    report = dataset_counts(writer, report);
+    ManifestInfo info;
+    info.planned_trials = report.planned_trials;
     const auto& st = model.stats();
+    info.mesh_level = spec.sensor.mesh_level;
+    info.mesh_nodes = st.nodes;
+    info.mesh_tets = st.tets;
     const mechanics::StrainGridSpec& grid = model.options().strain_grid;
-    std::ostringstream extra;
-    extra << "trials: " << report.trials << "\nplanned_trials: " << report.planned_trials
-          << "\nfingers: " << spec.fingers.count << "\nframes: " << report.frames
-          << "\nsolves: " << report.solves << "\nreused_solves: " << report.reused_solves
-          << "\nrenders: " << report.renders << "\nflagged_frames: " << report.flagged_frames
-          << "\nmesh: {level: " << spec.sensor.mesh_level << ", nodes: " << st.nodes
-          << ", tets: " << st.tets << "}\n";
-    if (spec.outputs.strain)
-        extra << "strain_grid: {nx: " << grid.nx << ", ny: " << grid.ny
-              << ", half_width_x_mm: " << grid.half_width_x_mm
-              << ", half_width_y_mm: " << grid.half_width_y_mm << "}\n";
-    extra << "wall_time_s: " << report.total_s << '\n';
-    writer.commit(extra.str());
+    info.strain = spec.outputs.strain;
+    info.strain_nx = grid.nx;
+    info.strain_ny = grid.ny;
+    info.strain_half_width_x_mm = grid.half_width_x_mm;
+    info.strain_half_width_y_mm = grid.half_width_y_mm;
+    t0 = Clock::now();
+    writer.assemble(info, int(plan.trials.size()));
+    test_kill_point();
+    writer.finish();
+    report.write_s += seconds_since(t0);
+    report.total_s = seconds_since(t_start);
     return report;
 }
 

@@ -20,6 +20,10 @@ struct GenerateOptions {
     /// all): a slice of a big spec. Trial k of the slice is trial k of the whole plan (same
     /// content, same split).
     int max_trials = 0;
+    /// Finish the interrupted run that left DIR.partial: its complete trials are checked
+    /// against their SHA-256 and kept, the others run; the dataset is byte-identical to an
+    /// uninterrupted run's.
+    bool resume = false;
 };
 
 /// $CHROMASIM_CACHE_DIR, else $XDG_CACHE_HOME/chromasim, else $HOME/.cache/chromasim; empty
@@ -28,8 +32,13 @@ std::filesystem::path default_cache_dir();
 
 struct GenerateReport {
     bool up_to_date = false; ///< nothing done: the output already holds this dataset
-    int trials = 0;          ///< trials run
-    int planned_trials = 0;  ///< trials in the whole plan
+    int trials = 0;          ///< trials in the dataset (run now or kept from an interrupted run)
+    int resumed_trials = 0;  ///< of those, trials an interrupted run had completed (--resume)
+    /// --resume found the whole dataset assembled in DIR.partial and only renamed it (the
+    /// counts are then in its manifest.json, not here).
+    bool moved_only = false;
+    int planned_trials = 0; ///< trials in the whole plan
+    /// The dataset's counts (resumed trials included).
     int frames = 0, images = 0;
     int flagged_frames = 0; ///< finger-frames whose solver did not converge
     /// Finger-frames solved, and those that reused the previous frame's result (same load).
@@ -54,9 +63,12 @@ void log_dome_model(const Spec& spec, const mechanics::DomeModel& model, double 
 /// finger's frames in order from the state its previous frame left. A finger whose load equals
 /// its previous frame's (the hold) is not solved again: the result is reused, and so is the
 /// image rendered from it. Checks the output path and reads every object's file before any
-/// work; writes atomically (dataset_writer.hpp). Frames whose solver did not converge are
-/// written with converged = 0 and a status, counted in `flagged_frames`, and reported on
-/// `log`.
+/// work; writes atomically and resumably (dataset_writer.hpp). Frames whose solver did not converge
+/// are written with converged = 0 and a status, counted in `flagged_frames`, and reported on `log`.
+///
+/// Test only: CHROMASIM_TEST_KILL_AT=K makes the process kill itself (SIGKILL) at its K-th
+/// write step (each frame written, each trial's record, the assembled dataset before its
+/// rename), so that tests can check --resume at every kind of step.
 GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::ostream& log);
 
 } // namespace chromasim::generators

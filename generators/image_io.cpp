@@ -1,5 +1,7 @@
 #include "generators/image_io.hpp"
 
+#include "generators/file_io.hpp"
+
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
@@ -8,60 +10,89 @@
 
 namespace chromasim::generators {
 
+namespace {
+
+/// "name.tmp.ext" beside `path`: OpenImageIO picks the format from the extension.
+std::filesystem::path temporary_name(const std::filesystem::path& path) {
+    return path.parent_path() / (path.stem().string() + ".tmp" + path.extension().string());
+}
+
+/// Calls write(tmp) and renames tmp to `path`: an image is complete or absent.
+template <class Write> void write_then_rename(const std::filesystem::path& path, Write write) {
+    const std::filesystem::path tmp = temporary_name(path);
+    try {
+        write(tmp);
+    } catch (...) {
+        std::error_code ec;
+        std::filesystem::remove(tmp, ec);
+        throw;
+    }
+    rename_path(tmp, path);
+}
+
+} // namespace
+
 double srgb_encode(double x) {
     x = std::clamp(x, 0.0, 1.0);
     return x <= 0.0031308 ? 12.92 * x : 1.055 * std::pow(x, 1.0 / 2.4) - 0.055;
 }
 
-void write_png(const std::filesystem::path& path, const render::Image& image) {
-    std::vector<std::uint8_t> bytes(image.rgb.size());
-    for (std::size_t i = 0; i < bytes.size(); ++i)
-        bytes[i] = std::uint8_t(std::lround(255.0 * srgb_encode(image.rgb[i])));
-    auto out = OIIO::ImageOutput::create(path.string());
-    if (!out)
-        throw std::runtime_error("cannot create image writer for " + path.string() + ": " +
-                                 OIIO::geterror());
-    OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT8);
-    spec.attribute("oiio:ColorSpace", "sRGB");
-    spec.attribute("Software", "chromasim " CHROMASIM_VERSION);
-    if (!out->open(path.string(), spec) || !out->write_image(OIIO::TypeDesc::UINT8, bytes.data()) ||
-        !out->close())
-        throw std::runtime_error("cannot write " + path.string() + ": " + out->geterror());
+void write_png(const std::filesystem::path& final_path, const render::Image& image) {
+    write_then_rename(final_path, [&](const std::filesystem::path& path) {
+        std::vector<std::uint8_t> bytes(image.rgb.size());
+        for (std::size_t i = 0; i < bytes.size(); ++i)
+            bytes[i] = std::uint8_t(std::lround(255.0 * srgb_encode(image.rgb[i])));
+        auto out = OIIO::ImageOutput::create(path.string());
+        if (!out)
+            throw std::runtime_error("cannot create image writer for " + path.string() + ": " +
+                                     OIIO::geterror());
+        OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT8);
+        spec.attribute("oiio:ColorSpace", "sRGB");
+        spec.attribute("Software", "chromasim " CHROMASIM_VERSION);
+        if (!out->open(path.string(), spec) ||
+            !out->write_image(OIIO::TypeDesc::UINT8, bytes.data()) || !out->close())
+            throw std::runtime_error("cannot write " + path.string() + ": " + out->geterror());
+    });
 }
 
-void write_exr(const std::filesystem::path& path, const render::Image& image) {
-    const std::size_t pixels = std::size_t(image.width) * image.height;
-    std::vector<std::string> names{"R", "G", "B"};
-    const bool variance = !image.variance.empty(), ids = !image.inner_marker_id.empty();
-    if (variance) names.insert(names.end(), {"variance.R", "variance.G", "variance.B"});
-    if (ids) names.insert(names.end(), {"inner_marker_id", "outer_marker_id"});
-    const std::size_t nc = names.size();
-    std::vector<float> data(pixels * nc);
-    for (std::size_t p = 0; p < pixels; ++p) {
-        float* out = data.data() + p * nc;
-        std::size_t c = 0;
-        for (int k = 0; k < 3; ++k)
-            out[c++] = image.rgb[3 * p + std::size_t(k)];
-        if (variance)
+void write_exr(const std::filesystem::path& final_path, const render::Image& image) {
+    write_then_rename(final_path, [&](const std::filesystem::path& path) {
+        const std::size_t pixels = std::size_t(image.width) * image.height;
+        std::vector<std::string> names{"R", "G", "B"};
+        const bool variance = !image.variance.empty(), ids = !image.inner_marker_id.empty();
+        if (variance) names.insert(names.end(), {"variance.R", "variance.G", "variance.B"});
+        if (ids) names.insert(names.end(), {"inner_marker_id", "outer_marker_id"});
+        const std::size_t nc = names.size();
+        std::vector<float> data(pixels * nc);
+        for (std::size_t p = 0; p < pixels; ++p) {
+            float* out = data.data() + p * nc;
+            std::size_t c = 0;
             for (int k = 0; k < 3; ++k)
-                out[c++] = image.variance[3 * p + std::size_t(k)];
-        if (ids) {
-            out[c++] = float(image.inner_marker_id[p]);
-            out[c++] = float(image.outer_marker_id[p]);
+                out[c++] = image.rgb[3 * p + std::size_t(k)];
+            if (variance)
+                for (int k = 0; k < 3; ++k)
+                    out[c++] = image.variance[3 * p + std::size_t(k)];
+            if (ids) {
+                out[c++] = float(image.inner_marker_id[p]);
+                out[c++] = float(image.outer_marker_id[p]);
+            }
         }
-    }
-    auto out = OIIO::ImageOutput::create(path.string());
-    if (!out)
-        throw std::runtime_error("cannot create image writer for " + path.string() + ": " +
-                                 OIIO::geterror());
-    OIIO::ImageSpec spec(image.width, image.height, int(nc), OIIO::TypeDesc::FLOAT);
-    spec.channelnames = names;
-    spec.attribute("oiio:ColorSpace", "Linear");
-    spec.attribute("compression", "zip");
-    spec.attribute("Software", "chromasim " CHROMASIM_VERSION);
-    if (!out->open(path.string(), spec) || !out->write_image(OIIO::TypeDesc::FLOAT, data.data()) ||
-        !out->close())
-        throw std::runtime_error("cannot write " + path.string() + ": " + out->geterror());
+        auto out = OIIO::ImageOutput::create(path.string());
+        if (!out)
+            throw std::runtime_error("cannot create image writer for " + path.string() + ": " +
+                                     OIIO::geterror());
+        OIIO::ImageSpec spec(image.width, image.height, int(nc), OIIO::TypeDesc::FLOAT);
+        spec.channelnames = names;
+        spec.attribute("oiio:ColorSpace", "Linear");
+        spec.attribute("compression", "zip");
+        spec.attribute("Software", "chromasim " CHROMASIM_VERSION);
+        // OpenImageIO stamps EXRs with the wall clock unless DateTime is set; empty leaves it
+        // out, so that the same spec gives the same bytes (manifest.json's checksums).
+        spec.attribute("DateTime", "");
+        if (!out->open(path.string(), spec) ||
+            !out->write_image(OIIO::TypeDesc::FLOAT, data.data()) || !out->close())
+            throw std::runtime_error("cannot write " + path.string() + ": " + out->geterror());
+    });
 }
 
 float ImageF::at(int x, int y, const std::string& channel) const {

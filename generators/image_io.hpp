@@ -10,13 +10,14 @@
 namespace chromasim::generators {
 
 /// Writes a linear-RGB image as an 8-bit sRGB PNG (values clamped to [0, 1]).
-/// Throws std::runtime_error naming the file on failure.
+/// Written as "<stem>.tmp.png" and renamed: complete or absent. Throws std::runtime_error naming
+/// the file on failure.
 void write_png(const std::filesystem::path& path, const render::Image& linear_rgb);
 
 /// Writes a linear-RGB image as a float OpenEXR file (ZIP compressed) with channels R, G, B, then
 /// the extra channels the image holds: variance.R, variance.G, variance.B (variance of the
 /// mean), inner_marker_id and outer_marker_id (float, -1 where none; exact as integers).
-/// Throws std::runtime_error naming the file on failure.
+/// Written as "<stem>.tmp.exr" and renamed. Throws std::runtime_error naming the file on failure.
 void write_exr(const std::filesystem::path& path, const render::Image& image);
 
 /// A float image read back (for tests and tools): channel names and interleaved values.

@@ -24,7 +24,10 @@ namespace {
 int run_generate(const std::string& spec_path, const gen::GenerateOptions& options) {
     const gen::Spec spec = gen::load_spec(spec_path); // validation before any work
     const gen::GenerateReport r = gen::generate(spec, options, std::cerr);
-    if (r.up_to_date) return 0;
+    if (r.up_to_date || r.moved_only) return 0; // generate() said so on the log
+    if (r.resumed_trials > 0)
+        std::cout << "chromasim: kept " << r.resumed_trials
+                  << " trial(s) of the interrupted run (--resume)\n";
     std::cout << "chromasim: wrote " << r.trials << " of " << r.planned_trials << " trials, "
               << r.frames << " frames (" << r.images << " images, " << r.renders << " rendered; "
               << r.solves << " solves, " << r.reused_solves << " reused) to "
@@ -85,10 +88,16 @@ int main(int argc, char** argv) {
     auto* generate = app.add_subcommand("generate", "run a dataset spec and write the dataset");
     generate->add_option("spec", spec_path, "spec file (YAML)")->required();
     std::string out_dir;
-    generate->add_option("-o,--output", out_dir, "output folder (created; written atomically)")
+    generate
+        ->add_option("-o,--output", out_dir,
+                     "output folder (created; written as DIR.partial, renamed when complete)")
         ->required();
     generate->add_flag("--overwrite", options.overwrite,
-                       "replace an existing dataset once the new one is complete");
+                       "replace an existing dataset once the new one is complete (and discard "
+                       "an interrupted run's DIR.partial unless --resume)");
+    generate->add_flag("--resume", options.resume,
+                       "finish the interrupted run that left DIR.partial (same spec): its "
+                       "complete trials are checked and kept");
     generate->add_flag("-q,--quiet", options.quiet, "no per-trial progress");
     generate
         ->add_option("--max-trials", options.max_trials,

@@ -2,6 +2,7 @@
 #include "generators/gltf_io.hpp"
 
 #include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
 
 #include <cstdlib>
 #include <filesystem>
@@ -203,10 +204,11 @@ TEST_CASE("validate counts what a spec describes, and generate --max-trials runs
     INFO(slice.output);
     REQUIRE(slice.code == 0);
     CHECK(slice.output.find("wrote 1 of 336 trials, 30 frames") != std::string::npos);
-    std::ifstream manifest(out / "manifest.yaml");
-    std::stringstream text;
-    text << manifest.rdbuf();
-    CHECK(text.str().find("\ntrials: 1\nplanned_trials: 336\n") != std::string::npos);
+    std::ifstream manifest_file(out / "manifest.json");
+    const auto manifest = nlohmann::json::parse(manifest_file);
+    CHECK(manifest["counts"]["trials"] == 1);
+    CHECK(manifest["planned_trials"] == 336);
+    CHECK(manifest["slice"]["max_trials"] == 1);
     // The same slice again is up to date; the whole spec is another dataset, refused.
     CHECK(run_chromasim(generate + " --max-trials 1").output.find("nothing to do") !=
           std::string::npos);

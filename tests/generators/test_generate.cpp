@@ -95,7 +95,7 @@ TEST_CASE("quickstart writes a complete dataset and nothing else", "[generators]
     CHECK(q.report.frames == frames);
     CHECK(q.report.images == 2 * frames); // left and right
     CHECK(q.report.flagged_frames == 0);
-    for (const char* f : {"labels.csv", "markers.csv", "manifest.yaml", "spec.resolved.yaml"})
+    for (const char* f : {"labels.csv", "markers.csv", "manifest.json", "spec.resolved.yaml"})
         CHECK(fs::is_regular_file(q.out / f));
     int pngs = 0;
     for (const auto& e : fs::recursive_directory_iterator(q.out / "images"))

@@ -6,6 +6,7 @@
 #include "generators/spec.hpp"
 
 #include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -219,11 +220,8 @@ TEST_CASE("a slice of seed001_sliding runs: strain grids per frame, the plate en
         ++lines;
     }
     CHECK(lines == 1 + 30); // header and one row per frame
-    const std::string manifest = [&] {
-        std::ifstream m(run.out / "manifest.yaml");
-        std::stringstream s;
-        s << m.rdbuf();
-        return s.str();
-    }();
-    CHECK(manifest.find("strain_grid: {nx: 101, ny: 76,") != std::string::npos);
+    std::ifstream manifest_file(run.out / "manifest.json");
+    const auto manifest = nlohmann::json::parse(manifest_file);
+    CHECK(manifest["strain_grid"]["nx"] == 101);
+    CHECK(manifest["strain_grid"]["ny"] == 76);
 }

@@ -1,0 +1,46 @@
+#pragma once
+/// manifest.json (docs/DATASET_FORMAT.md) and the per-trial records a run keeps in its partial
+/// folder until the dataset is assembled. Plain data in, JSON text out: no file access here.
+#include "generators/spec.hpp"
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace chromasim::generators {
+
+/// What one trial wrote: the record that makes the trial complete (DIR.partial/_progress/
+/// trial_NNNNNN.json). A trial without a record, or whose files do not match it, is redone.
+struct TrialRecord {
+    int trial = 0;
+    std::string split;
+    int frames = 0, images = 0; ///< frames (labels rows) and image files written
+    int solves = 0, reused_solves = 0, renders = 0, flagged_frames = 0;
+    std::map<std::string, std::string> files; ///< path relative to the dataset -> SHA-256 hex
+};
+
+std::string trial_record_json(const TrialRecord& record);
+/// The record in `text`, or nothing if it is not a whole, well-formed record.
+std::optional<TrialRecord> parse_trial_record(const std::string& text);
+
+/// What only the run knows: the mesh it built and the strain grid.
+struct ManifestInfo {
+    int planned_trials = 0; ///< trials in the whole plan (the dataset may be a slice)
+    std::string mesh_level;
+    int mesh_nodes = 0, mesh_tets = 0;
+    bool strain = false;
+    int strain_nx = 0, strain_ny = 0;
+    double strain_half_width_x_mm = 0, strain_half_width_y_mm = 0;
+};
+
+/// manifest.json's text: the resolved spec `spec_text` (spec.resolved.yaml's bytes) and its
+/// SHA-256, versions, counts per split summed over `records` (in plan order), and
+/// `checksums` (every other file of the dataset, relative path -> SHA-256). Holds nothing
+/// that depends on the clock, the thread count or the machine: identical runs give identical
+/// bytes.
+std::string manifest_json(const Spec& spec, const std::string& spec_text, int max_trials,
+                          const ManifestInfo& info, const std::vector<TrialRecord>& records,
+                          const std::map<std::string, std::string>& checksums);
+
+} // namespace chromasim::generators
