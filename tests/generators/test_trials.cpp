@@ -5,6 +5,8 @@
 #include "generators/plan.hpp"
 #include "generators/spec.hpp"
 
+#include "test_files.hpp"
+
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
@@ -20,49 +22,9 @@
 
 namespace fs = std::filesystem;
 using namespace chromasim::generators;
+using namespace chromasim::generators::test;
 
 namespace {
-
-fs::path fresh_dir(const std::string& name) {
-    const fs::path p =
-        fs::temp_directory_path() / ("chromasim_trials_" + name + "_" + std::to_string(::getpid()));
-    fs::remove_all(p);
-    return p;
-}
-
-using CsvRow = std::map<std::string, std::string>;
-std::vector<CsvRow> read_csv(const fs::path& p) {
-    std::ifstream in(p);
-    std::string line;
-    std::getline(in, line);
-    std::vector<std::string> header;
-    std::stringstream hs(line);
-    for (std::string h; std::getline(hs, h, ',');)
-        header.push_back(h);
-    std::vector<CsvRow> rows;
-    while (std::getline(in, line)) {
-        std::stringstream ls(line);
-        CsvRow row;
-        std::string v;
-        for (const auto& h : header) {
-            std::getline(ls, v, ',');
-            row[h] = v;
-        }
-        rows.push_back(row);
-    }
-    return rows;
-}
-
-double num(const CsvRow& r, const std::string& key) {
-    return std::stod(r.at(key));
-}
-
-std::string file_bytes(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    std::stringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
 
 /// A dataset generated into a fresh folder, removed at the end.
 struct Run {
