@@ -52,4 +52,23 @@ struct RenderBenchOptions {
 /// `reference_integrator` at `reference_spp`, per integrator and mode.
 void bench_render(const RenderBenchOptions& options, std::ostream& out);
 
+struct PipelineBenchOptions {
+    /// Trials of the seed000_train slice (its first trials, as `generate --max-trials`).
+    int trials = 1;
+    int repeats = 3; ///< runs of each spec (medians reported)
+    /// The slice's render.integrator and render.samples_per_pixel (empty, 0: the spec's).
+    /// The quickstart always runs as written.
+    std::string integrator;
+    int samples_per_pixel = 0;
+    /// The folder of quickstart.yaml and seed000_train.yaml.
+    std::filesystem::path spec_dir = std::filesystem::path(CHROMASIM_SOURCE_DIR) / "datasets_spec";
+};
+
+/// Labelled stereo frames per second of `generate` (mechanics, render, writers; precompute
+/// apart) on the quickstart and on a seed000_train slice, each into a temporary folder that is
+/// removed afterwards: median frames/s, and per frame the median mechanics, render, writing
+/// and other time. Precompute (mesh, factorization, the fast integrator's light cache) is a
+/// column of its own, not part of the per-frame rates. Runs without the precompute cache.
+void bench_pipeline(const PipelineBenchOptions& options, std::ostream& out);
+
 } // namespace chromasim::generators

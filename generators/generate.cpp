@@ -310,8 +310,11 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
         if (spec.render.integrator != "direct") {
             const render::SensorFrame rest = undeformed_sensor_frame(model);
             renderer->set_exposure_reference(rest);
-            if (spec.render.integrator == "fast")
+            if (spec.render.integrator == "fast") {
+                const auto t_cache = Clock::now();
                 renderer->set_light_cache(rest, light_cache_settings(spec));
+                report.light_cache_s = seconds_since(t_cache);
+            }
         }
     }
     // The camera sensor turns the PNG's pixels into a recording; the EXR stays noise-free.

@@ -45,6 +45,7 @@ struct GenerateReport {
     int solves = 0, reused_solves = 0;
     int renders = 0; ///< images rendered (a reused result of an unmoved scene reuses its image)
     double precompute_s = 0, mechanics_s = 0, render_s = 0, write_s = 0, total_s = 0;
+    double light_cache_s = 0; ///< the fast integrator's light cache, part of precompute_s
 };
 
 /// One fingertip's labels of a solved frame: `load` is the finger's load in frame `f` (image

@@ -4,6 +4,7 @@
 #include "generators/spec.hpp"
 #include "generators/spec_schema.hpp"
 
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
 #include <cerrno>
@@ -271,27 +272,78 @@ void read_map(SpecReader& r, const YAML::Node& map, const Place& place) {
     }
 }
 
+/// Where the first documents of a text start, and where each one's first node is, from
+/// yaml-cpp's event parser.
+class DocumentMarks : public YAML::EventHandler {
+public:
+    std::vector<YAML::Mark> starts, nodes;
+
+    void OnDocumentStart(const YAML::Mark& mark) override { starts.push_back(mark); }
+    void OnDocumentEnd() override {}
+    void OnNull(const YAML::Mark& mark, YAML::anchor_t) override { node(mark); }
+    void OnAlias(const YAML::Mark& mark, YAML::anchor_t) override { node(mark); }
+    void OnScalar(const YAML::Mark& mark, const std::string&, YAML::anchor_t,
+                  const std::string&) override {
+        node(mark);
+    }
+    void OnSequenceStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t,
+                         YAML::EmitterStyle::value) override {
+        node(mark);
+    }
+    void OnSequenceEnd() override {}
+    void OnMapStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t,
+                    YAML::EmitterStyle::value) override {
+        node(mark);
+    }
+    void OnMapEnd() override {}
+
+private:
+    void node(const YAML::Mark& mark) {
+        if (nodes.size() < starts.size()) nodes.push_back(mark);
+    }
+};
+
+/// The marks of the text's first two documents at most. Not YAML::LoadAll: on a token that no
+/// node starts with (a ',' outside a flow list), yaml-cpp 0.7's parser reports an empty
+/// document there without consuming the token, again and again, and LoadAll collects them
+/// until memory runs out (jbeder/yaml-cpp#1040, fixed upstream by #1319; found by
+/// tests/fuzz/fuzz_spec). Two documents starting at one place are that token: malformed YAML.
+DocumentMarks first_documents(const SpecReader& r, const std::string& text) {
+    std::istringstream in(text);
+    YAML::Parser parser(in);
+    DocumentMarks marks;
+    while (marks.starts.size() < 2 && parser.HandleNextDocument(marks)) {
+    }
+    if (marks.starts.size() == 2 && marks.starts[0].pos == marks.starts[1].pos) {
+        const YAML::Mark& at = marks.starts[1];
+        const std::string token = std::size_t(at.pos) < text.size() ? text.substr(at.pos, 1) : "";
+        throw SpecError(where(r.file, at) + ": malformed YAML: unexpected '" + token +
+                        "'; allowed: a mapping of keys to values (',' only inside [ ] or { })");
+    }
+    return marks;
+}
+
 /// The one document of the text, which must be a mapping.
 YAML::Node parse_document(const SpecReader& r, const std::string& text) {
-    std::vector<YAML::Node> docs;
+    YAML::Node doc;
     try {
-        docs = YAML::LoadAll(text);
+        const DocumentMarks marks = first_documents(r, text);
+        if (marks.starts.size() > 1) {
+            const YAML::Mark& at = marks.nodes.size() > 1 ? marks.nodes[1] : marks.starts[1];
+            throw SpecError(where(r.file, at) +
+                            ": a second YAML document; allowed: one document per spec file");
+        }
+        doc = YAML::Load(text);
     } catch (const YAML::Exception& ex) {
         throw SpecError(where(r.file, ex.mark) + ": malformed YAML: " + ex.msg);
     }
     const std::string allowed = "a mapping with " + keys_allowed_in("");
-    if (docs.empty() || docs[0].IsNull()) {
-        throw SpecError(r.file + ":1:1: spec is empty; allowed: " + allowed);
+    if (doc.IsNull()) throw SpecError(r.file + ":1:1: spec is empty; allowed: " + allowed);
+    if (!doc.IsMap()) {
+        fail(r, doc.Mark(), "(top level)", node_text(doc), "is " + kind(doc) + ", not a mapping",
+             allowed);
     }
-    if (docs.size() > 1) {
-        throw SpecError(where(r.file, docs[1].Mark()) +
-                        ": a second YAML document; allowed: one document per spec file");
-    }
-    if (!docs[0].IsMap()) {
-        fail(r, docs[0].Mark(), "(top level)", node_text(docs[0]),
-             "is " + kind(docs[0]) + ", not a mapping", allowed);
-    }
-    return docs[0];
+    return doc;
 }
 
 /// The resolved values under a section as one line, e.g. "{images: false, labels: false}";

@@ -193,6 +193,23 @@ int main(int argc, char** argv) {
         ->check(CLI::ExistingFile);
     bench_render->add_option("--reference-out", render_bench.reference_out,
                              "write the rendered reference (with variance) to this EXR");
+    gen::PipelineBenchOptions pipeline_bench;
+    auto* bench_pipeline = bench->add_subcommand(
+        "pipeline", "labelled stereo frames per second of generate, per stage");
+    bench_pipeline->add_option("--trials", pipeline_bench.trials, "trials of the seed000 slice")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    bench_pipeline->add_option("--repeat", pipeline_bench.repeats, "runs of each spec")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    bench_pipeline
+        ->add_option("--integrator", pipeline_bench.integrator,
+                     "the slice's render.integrator (default: the spec's)")
+        ->check(CLI::IsMember({"direct", "path", "fast"}));
+    bench_pipeline
+        ->add_option("--spp", pipeline_bench.samples_per_pixel,
+                     "the slice's samples per pixel (default: the spec's)")
+        ->check(CLI::Range(1, 1024));
 
     auto* verify = app.add_subcommand("verify", "validation against analytic references");
     verify->require_subcommand(1);
@@ -262,6 +279,10 @@ int main(int argc, char** argv) {
         }
         if (*bench_render) {
             gen::bench_render(render_bench, std::cout);
+            return 0;
+        }
+        if (*bench_pipeline) {
+            gen::bench_pipeline(pipeline_bench, std::cout);
             return 0;
         }
         if (*verify_mech) {

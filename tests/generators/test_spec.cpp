@@ -203,6 +203,17 @@ TEST_CASE("malformed YAML is reported at its line and column", "[generators][spe
           "bad.yaml:3:1: malformed YAML: end of sequence flow not found");
 }
 
+TEST_CASE("a stray ',' is malformed YAML at its place, not a hang", "[generators][spec]") {
+    // tests/fuzz/fuzz_spec's first finding: yaml-cpp 0.7's LoadAll looped forever, allocating,
+    // on a ',' that no node starts with (jbeder/yaml-cpp#1040).
+    const std::string allowed =
+        "; allowed: a mapping of keys to values (',' only inside [ ] or { })";
+    CHECK(error_of(",") == "bad.yaml:1:1: malformed YAML: unexpected ','" + allowed);
+    CHECK(error_of("# quickstart\n, # a comment\nname: x\n") ==
+          "bad.yaml:2:1: malformed YAML: unexpected ','" + allowed);
+    CHECK_THAT(error_of("seed: 1\n,\n"), StartsWith("bad.yaml:2:1: "));
+}
+
 TEST_CASE("an unknown key is named with its position and the allowed keys", "[generators][spec]") {
     CHECK(error_of("sensor:\n  materials:\n    coatng:\n      E_MPa: 1\n") ==
           "bad.yaml:3:5: sensor.materials.coatng: unknown key 'coatng' (did you mean "
