@@ -323,6 +323,9 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
         sensor.emplace(camera_params(spec), sensor_params(spec));
     report.precompute_s = seconds_since(t0);
     log_dome_model(spec, model, report.precompute_s, options.cache_dir, log);
+    if (report.light_cache_s > 0.0)
+        log << "chromasim: the fast integrator's light cache took " << report.light_cache_s
+            << " s of that (once per sensor; render.fast.*)\n";
 
     // 3. Trials, one after the other; in each, frames: mechanics, render (only if images are
     // asked for), writers.
