@@ -1,5 +1,7 @@
 #include "generators/generate.hpp"
 
+#include "generators/progress.hpp"
+
 #include "generators/dataset_writer.hpp"
 #include "generators/image_io.hpp"
 #include "generators/plan.hpp"
@@ -60,6 +62,7 @@ struct Stages {
     GenerateReport& report;
     std::ostream& log;
     bool quiet;
+    Progress* progress = nullptr;
 };
 
 /// One fingertip through a trial: the state its frames carry from one to the next.
@@ -162,6 +165,7 @@ void run_trial(Stages& s, const TrialPlan& trial) {
         s.writer.write_labels(labels);
         s.report.write_s += seconds_since(t0);
         test_kill_point();
+        if (s.progress) s.progress->advance();
     }
     // The trial's counts go into its record: a resumed run's manifest sums the same numbers.
     TrialRecord record;
@@ -174,6 +178,7 @@ void run_trial(Stages& s, const TrialPlan& trial) {
     s.writer.end_trial(std::move(record));
     s.report.write_s += seconds_since(t0);
     test_kill_point();
+    if (s.progress) s.progress->clear();
     if (!s.quiet)
         s.log << "  trial " << trial.id + 1 << "/" << s.report.planned_trials << " (" << trial.split
               << ", " << object.name << ", mu " << trial.mu << ", grip " << trial.grip_N
@@ -345,10 +350,17 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     stages.request.inner_surface =
         render_stage && stages.settings.integrator != render::Integrator::direct;
     stages.request.strain = spec.outputs.strain;
+    std::size_t frames_to_run = 0;
+    for (const TrialPlan* trial : to_run)
+        frames_to_run += trial->frames.size();
+    Progress progress(log, frames_to_run, options.terminal, options.quiet);
+    stages.progress = &progress;
     try {
         for (const TrialPlan* trial : to_run)
             run_trial(stages, *trial);
+        progress.finish();
     } catch (const std::exception& e) {
+        progress.clear();
         if (writer.completed_trials() == 0) throw;
         throw std::runtime_error(std::string(e.what()) + "\nchromasim: the " +
                                  std::to_string(writer.completed_trials()) +

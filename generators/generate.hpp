@@ -13,7 +13,7 @@ namespace chromasim::generators {
 struct GenerateOptions {
     std::filesystem::path out_dir;
     bool overwrite = false; ///< replace an existing dataset from another spec
-    bool quiet = false;     ///< no per-trial progress lines
+    bool quiet = false;     ///< no per-trial lines, no progress (generators/progress.hpp)
     /// On-disk cache of the mechanics precomputation (empty: off). See default_cache_dir().
     std::filesystem::path cache_dir;
     /// Run only the first `max_trials` trials of the plan (0, or at least the plan's count:
@@ -24,6 +24,9 @@ struct GenerateOptions {
     /// against their SHA-256 and kept, the others run; the dataset is byte-identical to an
     /// uninterrupted run's.
     bool resume = false;
+    /// The log is a terminal: the progress line is redrawn in place; else plain lines every
+    /// 10 s.
+    bool terminal = false;
 };
 
 /// $CHROMASIM_CACHE_DIR, else $XDG_CACHE_HOME/chromasim, else $HOME/.cache/chromasim; empty

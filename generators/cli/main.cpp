@@ -10,6 +10,7 @@
 
 #include <CLI/CLI.hpp>
 #include <tbb/global_control.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
@@ -23,7 +24,9 @@ namespace {
 
 int run_generate(const std::string& spec_path, const gen::GenerateOptions& options) {
     const gen::Spec spec = gen::load_spec(spec_path); // validation before any work
-    const gen::GenerateReport r = gen::generate(spec, options, std::cerr);
+    gen::GenerateOptions with_terminal = options;
+    with_terminal.terminal = ::isatty(::fileno(stderr)) != 0;
+    const gen::GenerateReport r = gen::generate(spec, with_terminal, std::cerr);
     if (r.up_to_date || r.moved_only) return 0; // generate() said so on the log
     if (r.resumed_trials > 0)
         std::cout << "chromasim: kept " << r.resumed_trials
@@ -98,7 +101,7 @@ int main(int argc, char** argv) {
     generate->add_flag("--resume", options.resume,
                        "finish the interrupted run that left DIR.partial (same spec): its "
                        "complete trials are checked and kept");
-    generate->add_flag("-q,--quiet", options.quiet, "no per-trial progress");
+    generate->add_flag("-q,--quiet", options.quiet, "no per-trial lines, no progress");
     generate
         ->add_option("--max-trials", options.max_trials,
                      "run only the first N trials of the plan (a slice; 0: all)")
