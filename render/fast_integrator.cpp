@@ -69,10 +69,10 @@ std::vector<Vec3> coating_normals(const SurfaceMesh& mesh) {
 } // namespace
 
 template <int N> struct FastIntegrator::Lookup {
-    std::array<double, kMaxLeds> direct; ///< G_k
-    LanesN<N> indirect;       ///< E_ind / pi per unit LED emission at the coating, at the lanes
-    LanesN<N> indirect_above; ///< the same above the outer marker layer
-    double radius_mm = 0.0;   ///< the sphere model's inner radius below (0: none)
+    std::array<double, kMaxLeds> direct;     ///< G_k
+    double radius_mm = 0.0;                  ///< the sphere model's inner radius below (0: none)
+    const std::uint32_t* triangle = nullptr; ///< the hit triangle's vertices
+    double weights[3] = {0.0, 0.0, 0.0};     ///< and their barycentric weights
 };
 
 FastIntegrator::FastIntegrator(const ShadingModel& shading, const PathIntegrator& path)
@@ -329,8 +329,7 @@ void FastIntegrator::set_frame(const SensorFrame& frame, const EmbreeScene& scen
 
 template <int N>
 FastIntegrator::Lookup<N> FastIntegrator::lookup(std::uint32_t prim, double u, double v,
-                                                 const Vec3& normal,
-                                                 const LanesN<N>* lambda_nm) const {
+                                                 const Vec3& normal) const {
     const LightCache& c = *m_cache;
     const std::uint32_t* f = c.coating_triangles.data() + 3 * std::size_t(prim);
     const double w[3] = {1.0 - u - v, u, v};
@@ -346,8 +345,9 @@ FastIntegrator::Lookup<N> FastIntegrator::lookup(std::uint32_t prim, double u, d
     if (!m_radius.empty())
         for (int i = 0; i < 3; ++i)
             at.radius_mm += w[i] * m_radius[f[i]];
-    at.indirect = spectral_at(c.indirect, f, w, lambda_nm);
-    at.indirect_above = spectral_at(c.indirect_above, f, w, lambda_nm);
+    at.triangle = f;
+    for (int i = 0; i < 3; ++i)
+        at.weights[i] = w[i];
     return at;
 }
 
@@ -435,8 +435,7 @@ LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, c
         const Vec3 p = origin + hit.t_mm * d;
         const double cos_g = hit.normal.dot(d);
         if (hit.kind == SurfaceKind::coating) {
-            const Lookup<N> at =
-                lookup<N>(hit.prim_id, hit.u, hit.v, facing(hit.normal, d), lambda_nm);
+            const Lookup<N> at = lookup<N>(hit.prim_id, hit.u, hit.v, facing(hit.normal, d));
             // Below an outer marker the indirect light comes through it: the light above the
             // marker layer times the diffuse transmittance over the marker's thickness along
             // the normal. And the coating there shares its light with the marker's underside:
@@ -449,20 +448,27 @@ LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, c
                                  : hit.t_mm - outer_exit_mm < kUnderMarker_mm ? outer_chord_mm
                                                                               : 0.0;
             const double s = optics.outer_marker_scatter_fraction;
+            // The cached indirect light at the hit: the level above the markers only where a
+            // marker is involved (E_ind / pi per unit LED emission, at the lanes).
+            const auto cached = [&](const std::vector<float>& level) {
+                return spectral_at(level, at.triangle, at.weights, lambda_nm);
+            };
+            const LanesN<N> above =
+                chord > 0.0 || pending > 0 ? cached(m_cache->indirect_above) : LanesN<N>::Zero();
             LanesN<N> L = beta * lanes.coating_albedo * lanes.led;
             if (chord > 0.0) {
                 const LanesN<N> through = (1.0 - s) *
                                           diffuse_transmittance<N>(lanes.outer_absorption_per_mm *
                                                                    (chord * std::abs(cos_g))) *
-                                          at.indirect_above;
+                                          above;
                 L *= shade(scene, p, at, through, lanes, rng) /
                      (1.0 - s * lanes.outer_albedo * lanes.coating_albedo);
             } else {
-                L *= shade(scene, p, at, at.indirect, lanes, rng);
+                L *= shade(scene, p, at, cached(m_cache->indirect), lanes, rng);
             }
             for (int k = 0; k < pending; ++k)
                 L += scatters[std::size_t(k)].weight * lanes.led *
-                     shade(scene, scatters[std::size_t(k)].p, at, at.indirect_above, lanes, rng);
+                     shade(scene, scatters[std::size_t(k)].p, at, above, lanes, rng);
             return L;
         }
         if (hit.kind != SurfaceKind::inner_marker && hit.kind != SurfaceKind::outer_marker)

@@ -113,8 +113,7 @@ public:
 private:
     template <int N> struct Lookup;
     template <int N>
-    Lookup<N> lookup(std::uint32_t prim, double u, double v, const Vec3& normal,
-                     const LanesN<N>* lambda_nm) const;
+    Lookup<N> lookup(std::uint32_t prim, double u, double v, const Vec3& normal) const;
     template <int N>
     LanesN<N> shade(const EmbreeScene& scene, const Vec3& p, const Lookup<N>& at,
                     const LanesN<N>& indirect, const LaneOptics<N>& lanes, PixelRng& rng) const;
