@@ -76,8 +76,8 @@ def default_splits(d, wanted: list[str] | None, fallback: str | None) -> list[st
 def train(args) -> tuple[torch.nn.Module, list[dict]]:
     torch.manual_seed(args.seed)
     np.random.seed(args.seed)
-    if args.threads:
-        torch.set_num_threads(args.threads)
+    # Debian's torch (OpenMP) starts with one thread here; use every CPU we may run on.
+    torch.set_num_threads(args.threads or len(os.sched_getaffinity(0)))
     device = pick_device(args.device)
     data = open_dataset(args.dataset)
     train_splits = default_splits(data, args.train_splits, "train")
@@ -204,7 +204,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--width", default="1.0", choices=list(WIDTHS), help="ShuffleNetV2 width")
     p.add_argument("--size", type=int, default=224, help="each fingertip image, px")
     p.add_argument("--device", default="auto", choices=["auto", "cpu", "cuda"])
-    p.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: torch's choice)")
+    p.add_argument("--threads", type=int, default=0,
+                   help="torch CPU threads (0: every CPU this process may use)")
     p.add_argument("--workers", type=int, default=0, help="DataLoader worker processes")
     p.add_argument("--preload", action="store_true", help="decode every image once, keep in memory")
     p.add_argument("--no-augment", action="store_true")
