@@ -24,6 +24,9 @@ constexpr const char* kProgress = "_progress"; ///< trial records and shards, in
 constexpr const char* kLock = "lock";          ///< in DIR.partial: flock()ed by the running process
 constexpr const char* kManifest = "manifest.json";
 constexpr const char* kSpec = "spec.resolved.yaml";
+constexpr const char* kPart = "part.json"; ///< a completed part's seal (generate --shard)
+/// In DIR.partial/_progress of a part: "K/N", so that --resume refuses another --shard.
+constexpr const char* kShardMarker = "shard";
 constexpr const char* kMarkersHeader =
     "split,trial,frame,finger,layer,marker,x0_mm,y0_mm,z0_mm,ux_mm,uy_mm,uz_mm";
 
@@ -58,6 +61,57 @@ std::string partial_error(const fs::path& staging, const std::string& what) {
     return staging.string() + ": " + what;
 }
 
+/// The shard a partial folder was written for ("" when not sharded).
+std::string stored_shard(const fs::path& staging) {
+    const fs::path marker = staging / kProgress / kShardMarker;
+    std::error_code ec;
+    return fs::exists(marker, ec) ? read_file(marker) : std::string();
+}
+
+/// Trial `trial`'s record in `root`, whole, every file there with its SHA-256; else nothing,
+/// and `problem` says why (the path first).
+std::optional<TrialRecord> read_checked(const fs::path& root, int trial, std::string* problem) {
+    const fs::path record_path = root / kProgress / (trial_name(trial) + ".json");
+    std::error_code ec;
+    if (!fs::exists(record_path, ec)) {
+        *problem = record_path.string() + ": missing (the trial is not complete)";
+        return std::nullopt;
+    }
+    std::optional<TrialRecord> record = parse_trial_record(read_file(record_path));
+    if (!record || record->trial != trial) {
+        *problem = record_path.string() + ": not a whole trial record of " + trial_name(trial);
+        return std::nullopt;
+    }
+    for (const auto& [relative, sha] : record->files) {
+        const fs::path file = root / relative;
+        if (fs::path(relative).is_absolute() || relative.find("..") != std::string::npos) {
+            *problem = record_path.string() + ": lists a file outside its folder, " + relative;
+            return std::nullopt;
+        }
+        if (!fs::is_regular_file(file, ec)) {
+            *problem = file.string() + ": missing (listed in " + record_path.string() + ")";
+            return std::nullopt;
+        }
+        if (sha256_file(file) != sha) {
+            *problem = file.string() + ": SHA-256 differs from its record " + record_path.string() +
+                       " (the file was changed or damaged)";
+            return std::nullopt;
+        }
+    }
+    return record;
+}
+
+/// Hard-links `from` to `to`, or copies it where a link cannot be made (another filesystem);
+/// true if linked.
+bool link_or_copy(const fs::path& from, const fs::path& to) {
+    std::error_code ec;
+    fs::create_hard_link(from, to, ec);
+    if (!ec) return true;
+    fs::copy_file(from, to, fs::copy_options::overwrite_existing, ec);
+    if (ec) fail("cannot copy " + from.string() + " to", to, ec);
+    return false;
+}
+
 } // namespace
 
 std::string stored_spec_text(const Spec& spec, int max_trials) {
@@ -68,11 +122,28 @@ std::string stored_spec_text(const Spec& spec, int max_trials) {
     return text;
 }
 
+std::optional<std::string> resolved_yaml_of(const std::string& stored, int max_trials) {
+    const std::string head = stored_spec_text(Spec(), 0);
+    const std::string tail = stored_spec_text(Spec(), max_trials).substr(head.size());
+    if (!stored.starts_with(head) || !stored.ends_with(tail) ||
+        stored.size() < head.size() + tail.size())
+        return std::nullopt;
+    return stored.substr(head.size(), stored.size() - head.size() - tail.size());
+}
+
+TrialRecord checked_trial_record(const fs::path& root, int trial) {
+    std::string problem;
+    std::optional<TrialRecord> record = read_checked(root, trial, &problem);
+    if (!record) throw SpecError(problem);
+    return std::move(*record);
+}
+
 const char* finger_name(int finger) {
     return finger == 0 ? "left" : "right";
 }
 
-OutputState inspect_output(const fs::path& out_dir, const Spec& spec, int max_trials) {
+OutputState inspect_output(const fs::path& out_dir, const Spec& spec, int max_trials,
+                           const Shard& shard) {
     std::error_code ec;
     if (!fs::exists(out_dir, ec)) return OutputState::absent;
     if (!fs::is_directory(out_dir, ec))
@@ -80,17 +151,23 @@ OutputState inspect_output(const fs::path& out_dir, const Spec& spec, int max_tr
                         "a new path or an existing dataset folder");
     if (fs::is_empty(out_dir, ec)) return OutputState::absent;
     const fs::path stored = out_dir / kSpec;
-    if (fs::exists(out_dir / kManifest) && fs::exists(stored) &&
-        read_file(stored) == stored_spec_text(spec, max_trials))
-        return OutputState::up_to_date;
-    return OutputState::other_content;
+    if (!fs::exists(stored) || read_file(stored) != stored_spec_text(spec, max_trials))
+        return OutputState::other_content;
+    if (!shard.sharded())
+        return fs::exists(out_dir / kManifest) && !fs::exists(out_dir / kPart)
+                   ? OutputState::up_to_date
+                   : OutputState::other_content;
+    if (!fs::exists(out_dir / kPart)) return OutputState::other_content;
+    const std::optional<PartInfo> part = parse_part_json(read_file(out_dir / kPart));
+    return part && part->shard == shard ? OutputState::up_to_date : OutputState::other_content;
 }
 
 DatasetWriter::DatasetWriter(fs::path out_dir, const Spec& spec, const WriterOptions& options,
                              std::ostream& log)
     : m_out(std::move(out_dir)), m_spec(spec), m_overwrite(options.overwrite),
-      m_max_trials(options.max_trials) {
-    if (!m_overwrite && inspect_output(m_out, spec, m_max_trials) == OutputState::other_content)
+      m_max_trials(options.max_trials), m_shard(options.shard) {
+    if (!m_overwrite &&
+        inspect_output(m_out, spec, m_max_trials, m_shard) == OutputState::other_content)
         throw SpecError(m_out.string() + ": output folder already holds other content (a " +
                         "dataset from another spec or version, or other files); allowed: a new " +
                         "path, or --overwrite to replace it once the new dataset is complete");
@@ -107,9 +184,12 @@ DatasetWriter::DatasetWriter(fs::path out_dir, const Spec& spec, const WriterOpt
             lock();
         }
         write_pid(); // only now: a refused run leaves the folder as it found it
+        make_folder(m_staging / kProgress);
+        // The shard before the spec: a partial folder with a spec always names its shard.
+        const fs::path marker = m_staging / kProgress / kShardMarker;
+        if (m_shard.sharded() && !fs::exists(marker)) write_file_atomic(marker, m_shard.text());
         if (!fs::exists(m_staging / kSpec))
             write_file_atomic(m_staging / kSpec, stored_spec_text(spec, m_max_trials));
-        make_folder(m_staging / kProgress);
     } catch (...) { // the destructor does not run for a constructor that throws
         if (m_made_here) fs::remove_all(m_staging, ec);
         if (m_lock_fd >= 0) ::close(m_lock_fd); // a library caller may try again in-process
@@ -124,8 +204,12 @@ void DatasetWriter::take_over_partial(const WriterOptions& options, std::ostream
     lock(); // first: a running generation is not an interrupted one
     if (!options.resume && !options.overwrite)
         throw SpecError(partial_error(
-            m_staging, "holds an interrupted generation of this output; allowed: --resume to "
-                       "finish it (same spec), or --overwrite to discard it and start over"));
+            m_staging, options.can_resume
+                           ? "holds an interrupted generation of this output; allowed: --resume "
+                             "to finish it (same spec), or --overwrite to discard it and start "
+                             "over"
+                           : "holds an interrupted run writing this output; allowed: "
+                             "--overwrite to discard it, or another output path"));
     const fs::path spec_file = m_staging / kSpec;
     const bool has_spec = fs::exists(spec_file);
     if (options.resume && has_spec &&
@@ -134,6 +218,14 @@ void DatasetWriter::take_over_partial(const WriterOptions& options, std::ostream
             spec_file, "the interrupted generation was made from another resolved spec (or "
                        "chromasim version, or --max-trials); allowed: --resume with the same "
                        "spec and options, or --overwrite to discard it and start over"));
+    const std::string shard = has_spec ? stored_shard(m_staging) : std::string();
+    if (options.resume && has_spec && shard != m_shard.text())
+        throw SpecError(partial_error(
+            m_staging / kProgress / kShardMarker,
+            "the interrupted generation was made " +
+                (shard.empty() ? std::string("without --shard") : "with --shard " + shard) +
+                "; allowed: --resume with the same --shard, or --overwrite to discard it and "
+                "start over"));
     if (!options.resume || !has_spec) { // start over, keeping only the lock we hold
         for (const auto& entry : fs::directory_iterator(m_staging))
             if (entry.path().filename() != kLock) remove_path(entry.path());
@@ -142,7 +234,7 @@ void DatasetWriter::take_over_partial(const WriterOptions& options, std::ostream
                 << " holds no spec yet (killed at the start); starting over\n";
         return;
     }
-    m_assembled = fs::exists(m_staging / kManifest);
+    m_assembled = fs::exists(m_staging / (m_shard.sharded() ? kPart : kManifest));
     log << "chromasim: resuming the generation in " << m_staging.string() << '\n';
 }
 
@@ -206,15 +298,9 @@ std::string labels_header(int fingers) {
 }
 
 bool DatasetWriter::completed(int trial) {
-    const fs::path record_path = m_staging / kProgress / (trial_name(trial) + ".json");
-    std::error_code ec;
-    if (!fs::exists(record_path, ec)) return false;
-    std::optional<TrialRecord> record = parse_trial_record(read_file(record_path));
-    if (!record || record->trial != trial) return false;
-    for (const auto& [relative, sha] : record->files)
-        if (!fs::is_regular_file(m_staging / relative, ec) ||
-            sha256_file(m_staging / relative) != sha)
-            return false;
+    std::string problem;
+    std::optional<TrialRecord> record = read_checked(m_staging, trial, &problem);
+    if (!record) return false;
     m_records[trial] = std::move(*record);
     return true;
 }
@@ -371,8 +457,30 @@ void DatasetWriter::assemble(const ManifestInfo& info, int trials) {
                       manifest_json(m_spec, spec_text, m_max_trials, info, records, checksums()));
 }
 
+void DatasetWriter::seal_part(const PartInfo& part) {
+    std::vector<int> complete;
+    for (const auto& [trial, record] : m_records)
+        complete.push_back(trial);
+    if (complete != part.trials)
+        throw std::logic_error("seal_part: the part lists other trials than the complete ones");
+    write_file_atomic(m_staging / kPart, part_json(part));
+}
+
+int DatasetWriter::import_trial(const fs::path& from, const TrialRecord& record) {
+    int copied = 0;
+    for (const auto& [relative, sha] : record.files) {
+        const fs::path to = m_staging / relative;
+        make_folder(to.parent_path());
+        copied += link_or_copy(from / relative, to) ? 0 : 1;
+    }
+    write_file_atomic(m_staging / kProgress / (trial_name(record.trial) + ".json"),
+                      trial_record_json(record));
+    m_records[record.trial] = record;
+    return copied;
+}
+
 void DatasetWriter::finish() {
-    remove_path(m_staging / kProgress);
+    if (!m_shard.sharded()) remove_path(m_staging / kProgress); // a part keeps them for merge
     move_into_place();
 }
 

@@ -7,12 +7,17 @@
 /// trials' shards in plan order, manifest.json lists every file's SHA-256, and the folder is
 /// renamed into place. An existing dataset is never touched unless the user asked to overwrite
 /// it, and then only replaced once the new one is complete. docs/DATASET_FORMAT.md.
+///
+/// A part of a sharded run (`generate --shard K/N`) is written the same way, but sealed with
+/// part.json instead of being assembled: it keeps the trials' shards and records for `merge`
+/// (generators/merge.hpp), which imports them into a new writer and assembles the dataset.
 #include "generators/manifest.hpp"
 #include "generators/spec.hpp"
 
 #include <filesystem>
 #include <iosfwd>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -27,13 +32,25 @@ enum class OutputState {
 };
 
 /// Inspects `out_dir`. `max_trials` is the slice the dataset holds (0: every trial): a dataset
-/// of another slice is other content. Throws SpecError if it exists but is not a folder.
+/// of another slice is other content. With `shard` (a part of a sharded run) only a complete
+/// part (part.json) of that shard is up to date, and a dataset is other content; without it, a
+/// part is other content. Throws SpecError if it exists but is not a folder.
 OutputState inspect_output(const std::filesystem::path& out_dir, const Spec& spec,
-                           int max_trials = 0);
+                           int max_trials = 0, const Shard& shard = {});
 
 /// The resolved spec as stored in a dataset (first line names the chromasim version; a last
 /// comment line names the slice when `max_trials` > 0).
 std::string stored_spec_text(const Spec& spec, int max_trials = 0);
+
+/// The resolved YAML inside `stored` (spec.resolved.yaml's bytes), the inverse of
+/// stored_spec_text: nothing if its first line names another chromasim version or it does not
+/// end with the comment of slice `max_trials`.
+std::optional<std::string> resolved_yaml_of(const std::string& stored, int max_trials);
+
+/// The record of trial `trial` in the completed folder `root` (a part, or DIR.partial),
+/// checked: whole and well-formed, and every file it lists there with its SHA-256. Throws
+/// SpecError naming the record or the first file that is missing or differs.
+TrialRecord checked_trial_record(const std::filesystem::path& root, int trial);
 
 /// "left" (finger 0) or "right" (finger 1).
 const char* finger_name(int finger);
@@ -67,6 +84,10 @@ struct WriterOptions {
     bool overwrite = false; ///< replace `out_dir` at commit; discard a partial folder (no resume)
     bool resume = false;    ///< finish the run that left DIR.partial (same resolved spec)
     int max_trials = 0;     ///< the slice written (0: every trial)
+    Shard shard;            ///< a part of a sharded run: sealed with part.json, not assembled
+    /// The command can resume (generate); false for merge, whose refusal of a DIR.partial then
+    /// names only --overwrite.
+    bool can_resume = true;
 };
 
 class DatasetWriter {
@@ -86,10 +107,12 @@ public:
     DatasetWriter& operator=(const DatasetWriter&) = delete;
 
     /// True if a previous run was killed after assembling the whole dataset in DIR.partial
-    /// (manifest.json written), only the final rename missing: call finish() and nothing else.
+    /// (manifest.json written; part.json for a part), only the final rename missing: call
+    /// finish() and nothing else.
     bool assembled() const { return m_assembled; }
     /// Removes the run's own files (records, shards, lock) from the assembled DIR.partial and
-    /// renames it to DIR (an old DIR, with --overwrite, is removed only after that).
+    /// renames it to DIR (an old DIR, with --overwrite, is removed only after that). A part
+    /// keeps its records and shards (merge reads them); only the lock goes.
     void finish();
 
     /// True (and the record kept for the manifest) if a previous run completed `trial` and
@@ -120,6 +143,14 @@ public:
     /// writes manifest.json (last). Every trial of the plan (slice) must be complete, `trials`
     /// of them. Then call finish().
     void assemble(const ManifestInfo& info, int trials);
+    /// Seals a part instead: writes part.json (last), listing `part.trials`, which must be
+    /// exactly the complete trials. Then call finish().
+    void seal_part(const PartInfo& part);
+    /// Makes trial `record.trial`, complete in the folder `from` (a checked part, see
+    /// checked_trial_record), complete here: each of its files hard-linked into DIR.partial
+    /// (copied where a link cannot be made, another filesystem), its record written. `from` is
+    /// only read. Returns the number of files copied (0: every file linked).
+    int import_trial(const std::filesystem::path& from, const TrialRecord& record);
 
     const std::filesystem::path& staging() const { return m_staging; }
     /// Trials complete in DIR.partial (run now or resumed).
@@ -138,6 +169,7 @@ private:
     const Spec& m_spec;
     bool m_overwrite = false, m_committed = false, m_made_here = false, m_assembled = false;
     int m_max_trials = 0;
+    Shard m_shard;
     int m_lock_fd = -1;
     std::map<int, TrialRecord> m_records; ///< complete trials, by id
     // The current trial's text, written at end_trial.

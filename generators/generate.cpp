@@ -3,6 +3,7 @@
 #include "generators/progress.hpp"
 
 #include "generators/dataset_writer.hpp"
+#include "generators/file_io.hpp"
 #include "generators/image_io.hpp"
 #include "generators/plan.hpp"
 #include "generators/sensor_bridge.hpp"
@@ -205,6 +206,24 @@ GenerateReport dataset_counts(const DatasetWriter& writer, GenerateReport report
     return report;
 }
 
+/// What only the run knows, for the manifest (or a part's part.json).
+ManifestInfo manifest_info(const Spec& spec, const mechanics::DomeModel& model,
+                           int planned_trials) {
+    ManifestInfo info;
+    info.planned_trials = planned_trials;
+    const auto& st = model.stats();
+    info.mesh_level = spec.sensor.mesh_level;
+    info.mesh_nodes = st.nodes;
+    info.mesh_tets = st.tets;
+    const mechanics::StrainGridSpec& grid = model.options().strain_grid;
+    info.strain = spec.outputs.strain;
+    info.strain_nx = grid.nx;
+    info.strain_ny = grid.ny;
+    info.strain_half_width_x_mm = grid.half_width_x_mm;
+    info.strain_half_width_y_mm = grid.half_width_y_mm;
+    return info;
+}
+
 } // namespace
 
 LabelRow label_row(const FramePlan& f, const FingerLoad& load, const mechanics::FrameResult& r) {
@@ -270,11 +289,14 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
                           ? options.max_trials
                           : 0;
     if (slice > 0) plan.trials.resize(std::size_t(slice));
-    const OutputState state = inspect_output(options.out_dir, spec, slice);
+    const Shard& shard = options.shard;
+    const OutputState state = inspect_output(options.out_dir, spec, slice, shard);
     if (state == OutputState::up_to_date && !options.overwrite) {
         report.up_to_date = true;
-        log << "chromasim: " << options.out_dir.string()
-            << " already holds this dataset (same resolved spec); nothing to do.\n";
+        log << "chromasim: " << options.out_dir.string() << " already holds this "
+            << (shard.sharded() ? "part (same resolved spec and --shard)"
+                                : "dataset (same resolved spec)")
+            << "; nothing to do.\n";
         return report;
     }
     // Every object's file and the spectra are read before any work: a bad file stops here,
@@ -284,7 +306,8 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     const bool render_stage = spec.outputs.images || spec.outputs.exr;
     std::optional<render::OpticsParams> optics;
     if (render_stage) optics = optics_params(spec);
-    DatasetWriter writer(options.out_dir, spec, {options.overwrite, options.resume, slice}, log);
+    DatasetWriter writer(options.out_dir, spec,
+                         {options.overwrite, options.resume, slice, shard, true}, log);
     if (writer.assembled()) { // killed after the last write, before the rename
         writer.finish();
         report.moved_only = true;
@@ -294,11 +317,19 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     }
     // Trials an interrupted run completed, checked against their records' checksums.
     std::vector<const TrialPlan*> to_run;
-    for (const TrialPlan& trial : plan.trials)
+    std::vector<int> owned; // this shard's trials (every trial when not sharded)
+    for (const TrialPlan& trial : plan.trials) {
+        if (!shard.owns(trial.id)) continue;
+        owned.push_back(trial.id);
         if (!options.resume || !writer.completed(trial.id)) to_run.push_back(&trial);
-    report.resumed_trials = int(plan.trials.size() - to_run.size());
+    }
+    if (shard.sharded())
+        log << "chromasim: shard " << shard.text() << ": " << owned.size() << " of "
+            << plan.trials.size() << " trials (those with index mod " << shard.count << " = "
+            << shard.index - 1 << ")\n";
+    report.resumed_trials = int(owned.size() - to_run.size());
     if (report.resumed_trials > 0)
-        log << "chromasim: " << report.resumed_trials << " of " << plan.trials.size()
+        log << "chromasim: " << report.resumed_trials << " of " << owned.size()
             << " trials already complete (checksums match); running the other " << to_run.size()
             << '\n';
 
@@ -368,22 +399,16 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
                                  "; fix the cause, then run the same command with --resume");
     }
 
-    // 4. The dataset's counts, over every trial (resumed ones too), then assemble and rename.
+    // 4. The dataset's counts, over every trial (resumed ones too), then assemble (a part:
+    // seal) and rename.
     report = dataset_counts(writer, report);
-    ManifestInfo info;
-    info.planned_trials = report.planned_trials;
-    const auto& st = model.stats();
-    info.mesh_level = spec.sensor.mesh_level;
-    info.mesh_nodes = st.nodes;
-    info.mesh_tets = st.tets;
-    const mechanics::StrainGridSpec& grid = model.options().strain_grid;
-    info.strain = spec.outputs.strain;
-    info.strain_nx = grid.nx;
-    info.strain_ny = grid.ny;
-    info.strain_half_width_x_mm = grid.half_width_x_mm;
-    info.strain_half_width_y_mm = grid.half_width_y_mm;
+    const ManifestInfo info = manifest_info(spec, model, report.planned_trials);
     t0 = Clock::now();
-    writer.assemble(info, int(plan.trials.size()));
+    if (shard.sharded())
+        writer.seal_part({CHROMASIM_VERSION, shard, spec.source_path.string(),
+                          sha256_hex(stored_spec_text(spec, slice)), slice, owned, info});
+    else
+        writer.assemble(info, int(plan.trials.size()));
     test_kill_point();
     writer.finish();
     report.write_s += seconds_since(t0);

@@ -24,6 +24,10 @@ struct GenerateOptions {
     /// against their SHA-256 and kept, the others run; the dataset is byte-identical to an
     /// uninterrupted run's.
     bool resume = false;
+    /// Write only this shard's part of the dataset (generate --shard K/N): the trials t with
+    /// t mod N = K - 1 (of the slice, with max_trials), sealed with part.json instead of
+    /// assembled; `merge` joins the N parts (generators/merge.hpp). Not sharded by default.
+    Shard shard;
     /// The log is a terminal: the progress line is redrawn in place; else plain lines every
     /// 10 s.
     bool terminal = false;
@@ -35,8 +39,8 @@ std::filesystem::path default_cache_dir();
 
 struct GenerateReport {
     bool up_to_date = false; ///< nothing done: the output already holds this dataset
-    int trials = 0;          ///< trials in the dataset (run now or kept from an interrupted run)
-    int resumed_trials = 0;  ///< of those, trials an interrupted run had completed (--resume)
+    int trials = 0; ///< trials in the dataset or part (run now or kept from an interrupted run)
+    int resumed_trials = 0; ///< of those, trials an interrupted run had completed (--resume)
     /// --resume found the whole dataset assembled in DIR.partial and only renamed it (the
     /// counts are then in its manifest.json, not here).
     bool moved_only = false;
@@ -69,6 +73,8 @@ void log_dome_model(const Spec& spec, const mechanics::DomeModel& model, double 
 /// image rendered from it. Checks the output path and reads every object's file before any
 /// work; writes atomically and resumably (dataset_writer.hpp). Frames whose solver did not converge
 /// are written with converged = 0 and a status, counted in `flagged_frames`, and reported on `log`.
+/// With options.shard, only that shard's trials, written as a part (DatasetWriter::seal_part);
+/// a shard that owns no trial (more shards than trials) is a valid, empty part.
 ///
 /// Test only: CHROMASIM_TEST_KILL_AT=K makes the process kill itself (SIGKILL) at its K-th
 /// write step (each frame written, each trial's record, the assembled dataset before its

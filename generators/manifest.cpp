@@ -113,4 +113,56 @@ std::string manifest_json(const Spec& spec, const std::string& spec_text, int ma
     return j.dump(2) + "\n";
 }
 
+std::string part_json(const PartInfo& p) {
+    Json j;
+    j["format"] = "chromasim dataset part (docs/DATASET_FORMAT.md, Shards and merge)";
+    j["part_version"] = 1;
+    j["chromasim_version"] = p.chromasim_version;
+    j["shard"] = Json{{"index", p.shard.index}, {"count", p.shard.count}};
+    j["spec"] = Json{{"source", p.spec_source}, {"sha256", p.spec_sha256}};
+    j["max_trials"] = p.max_trials;
+    j["trials"] = p.trials;
+    const ManifestInfo& i = p.info;
+    j["planned_trials"] = i.planned_trials;
+    j["mesh"] = Json{{"level", i.mesh_level}, {"nodes", i.mesh_nodes}, {"tets", i.mesh_tets}};
+    j["strain_grid"] = i.strain ? Json{{"nx", i.strain_nx},
+                                       {"ny", i.strain_ny},
+                                       {"half_width_x_mm", i.strain_half_width_x_mm},
+                                       {"half_width_y_mm", i.strain_half_width_y_mm}}
+                                : Json(nullptr);
+    return j.dump(2) + "\n";
+}
+
+std::optional<PartInfo> parse_part_json(const std::string& text) {
+    const Json j = Json::parse(text, nullptr, /*allow_exceptions=*/false);
+    if (j.is_discarded() || !j.is_object()) return std::nullopt;
+    try {
+        if (j.at("part_version").get<int>() != 1) return std::nullopt;
+        PartInfo p;
+        p.chromasim_version = j.at("chromasim_version").get<std::string>();
+        p.shard.index = j.at("shard").at("index").get<int>();
+        p.shard.count = j.at("shard").at("count").get<int>();
+        p.spec_source = j.at("spec").at("source").get<std::string>();
+        p.spec_sha256 = j.at("spec").at("sha256").get<std::string>();
+        p.max_trials = j.at("max_trials").get<int>();
+        p.trials = j.at("trials").get<std::vector<int>>();
+        ManifestInfo& i = p.info;
+        i.planned_trials = j.at("planned_trials").get<int>();
+        i.mesh_level = j.at("mesh").at("level").get<std::string>();
+        i.mesh_nodes = j.at("mesh").at("nodes").get<int>();
+        i.mesh_tets = j.at("mesh").at("tets").get<int>();
+        const Json& grid = j.at("strain_grid");
+        i.strain = !grid.is_null();
+        if (i.strain) {
+            i.strain_nx = grid.at("nx").get<int>();
+            i.strain_ny = grid.at("ny").get<int>();
+            i.strain_half_width_x_mm = grid.at("half_width_x_mm").get<double>();
+            i.strain_half_width_y_mm = grid.at("half_width_y_mm").get<double>();
+        }
+        return p;
+    } catch (const Json::exception&) {
+        return std::nullopt;
+    }
+}
+
 } // namespace chromasim::generators

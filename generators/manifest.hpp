@@ -1,6 +1,7 @@
 #pragma once
 /// manifest.json (docs/DATASET_FORMAT.md) and the per-trial records a run keeps in its partial
 /// folder until the dataset is assembled. Plain data in, JSON text out: no file access here.
+#include "generators/plan.hpp"
 #include "generators/spec.hpp"
 
 #include <map>
@@ -32,6 +33,7 @@ struct ManifestInfo {
     bool strain = false;
     int strain_nx = 0, strain_ny = 0;
     double strain_half_width_x_mm = 0, strain_half_width_y_mm = 0;
+    bool operator==(const ManifestInfo&) const = default;
 };
 
 /// manifest.json's text: the resolved spec `spec_text` (spec.resolved.yaml's bytes) and its
@@ -42,5 +44,22 @@ struct ManifestInfo {
 std::string manifest_json(const Spec& spec, const std::string& spec_text, int max_trials,
                           const ManifestInfo& info, const std::vector<TrialRecord>& records,
                           const std::map<std::string, std::string>& checksums);
+
+/// part.json of a completed part (`generate --shard K/N`, docs/DATASET_FORMAT.md, "Shards and
+/// merge"): what `merge` needs besides the trials' records to write the manifest an unsharded
+/// run writes, and to check that the parts belong together.
+struct PartInfo {
+    std::string chromasim_version; ///< the version that wrote the part
+    Shard shard;
+    std::string spec_source; ///< the spec path as given to generate (manifest spec.source)
+    std::string spec_sha256; ///< of the part's spec.resolved.yaml
+    int max_trials = 0;      ///< the slice (0: every trial of the plan)
+    std::vector<int> trials; ///< the trials the part holds, ascending
+    ManifestInfo info;       ///< planned trials, mesh, strain grid
+};
+
+std::string part_json(const PartInfo& part);
+/// The part in `text`, or nothing if it is not a whole, well-formed part.json.
+std::optional<PartInfo> parse_part_json(const std::string& text);
 
 } // namespace chromasim::generators

@@ -227,6 +227,32 @@ bool FingerLoad::operator==(const FingerLoad& o) const {
            displacement_control == o.displacement_control && travel_mm == o.travel_mm && mu == o.mu;
 }
 
+std::string Shard::text() const {
+    return sharded() ? std::to_string(index) + "/" + std::to_string(count) : std::string();
+}
+
+Shard parse_shard(const std::string& text) {
+    const auto bad = [&](const std::string& problem) {
+        return SpecError("--shard: value '" + text + "' " + problem +
+                         "; allowed: K/N with integers 1 <= K <= N (shard K of N, e.g. 2/8)");
+    };
+    // Digits only: std::stoi would take "+1", " 1" or "1x".
+    const auto number = [&](const std::string& digits) {
+        if (digits.empty() || digits.size() > 9 ||
+            digits.find_first_not_of("0123456789") != std::string::npos)
+            throw bad("is not of the form K/N");
+        return std::stoi(digits);
+    };
+    const std::size_t slash = text.find('/');
+    if (slash == std::string::npos) throw bad("is not of the form K/N");
+    Shard shard;
+    shard.index = number(text.substr(0, slash));
+    shard.count = number(text.substr(slash + 1));
+    if (shard.count < 1) throw bad("has N < 1");
+    if (shard.index < 1 || shard.index > shard.count) throw bad("has K outside 1..N");
+    return shard;
+}
+
 std::size_t Plan::frame_count() const {
     std::size_t n = 0;
     for (const TrialPlan& t : trials)

@@ -88,6 +88,24 @@ struct Plan {
 /// travel / speed). Pure and deterministic: equal specs give equal plans.
 Plan make_plan(const Spec& spec);
 
+/// One part of a sharded run (`generate --shard K/N`): shard `index` of `count`. Trial t of
+/// the plan (or of its slice) belongs to shard (t mod count) + 1: round robin, so every shard
+/// holds floor(T/N) or ceil(T/N) trials whatever their lengths, and a shard's trials are
+/// spread over the whole plan (its objects, frictions and splits) rather than one block of it.
+/// `count` 0: not sharded, every trial.
+struct Shard {
+    int index = 0; ///< K, from 1
+    int count = 0; ///< N; 0: not sharded
+    bool sharded() const { return count > 0; }
+    bool owns(int trial) const { return count == 0 || trial % count == index - 1; }
+    std::string text() const; ///< "K/N" (empty when not sharded)
+    bool operator==(const Shard&) const = default;
+};
+
+/// Parses the argument of `--shard`, "K/N" with integers 1 <= K <= N. Throws SpecError naming
+/// `--shard`, the value and what is allowed.
+Shard parse_shard(const std::string& text);
+
 /// The seed of trial `trial`'s random stream `stream` (a splitmix64 mix of the three).
 std::uint64_t trial_seed(std::uint64_t seed, std::uint64_t stream, std::uint64_t trial);
 

@@ -193,6 +193,12 @@ Spec load_spec(const std::filesystem::path& path);
 /// Same, from text; `display_name` stands in for the file name in messages.
 Spec parse_spec(const std::string& yaml_text, const std::string& display_name);
 
+/// A resolved spec read back from a dataset or part (spec.resolved.yaml without its comment
+/// lines), for work that reads none of the files it names (`merge`): validated like
+/// parse_spec, except that objects' mesh files and the spectra folder need not exist.
+/// `source_path` is `source` (the path generate was given), `resolved_yaml` the exact text.
+Spec parse_stored_spec(const std::string& resolved_yaml, const std::string& source);
+
 /// The schema as a Markdown table (key, type, default, unit, allowed, doc): the user manual.
 std::string schema_markdown();
 

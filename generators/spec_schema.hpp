@@ -78,6 +78,9 @@ struct SchemaRule {
     std::function<bool(const Spec&, std::size_t item)> holds;
     std::string problem; ///< e.g. "enables no output"
     std::string allowed; ///< what would be accepted
+    /// Checks that a file the spec names exists: skipped for a spec read back from a dataset
+    /// (parse_stored_spec), which reads none of them.
+    bool reads_files = false;
 };
 
 /// Outcome of converting one scalar's text for an entry: `problem` is empty when `value` holds

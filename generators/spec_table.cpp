@@ -734,6 +734,7 @@ std::vector<SchemaRule> build_rules() {
         "is false while outputs.marker_ids or outputs.variance asks for EXR channels";
     channels.allowed = "outputs.exr: true, or outputs.marker_ids and outputs.variance false";
     SchemaRule mesh;
+    mesh.reads_files = true;
     mesh.key = "objects[].mesh_file";
     mesh.holds = [](const Spec& s, std::size_t i) {
         const Spec::Object& o = s.objects[i];
@@ -743,6 +744,7 @@ std::vector<SchemaRule> build_rules() {
                std::filesystem::is_regular_file(resolve_spec_path(s, o.mesh_file), ec);
     };
     SchemaRule spectra;
+    spectra.reads_files = true;
     spectra.key = "sensor.optics.spectra_dir";
     spectra.holds = [](const Spec& s, std::size_t) {
         if (!s.render.spectral || !(s.outputs.images || s.outputs.exr)) return true;

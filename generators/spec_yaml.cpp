@@ -373,8 +373,9 @@ YAML::Mark first_mark(const SpecReader& r, const std::vector<std::string>& keys)
     return YAML::Mark::null_mark();
 }
 
-void check_rules(const SpecReader& r, const Spec& spec) {
+void check_rules(const SpecReader& r, const Spec& spec, bool check_files) {
     for (const SchemaRule& rule : spec_rules()) {
+        if (rule.reads_files && !check_files) continue;
         const std::size_t brackets = rule.key.find("[]");
         if (brackets == std::string::npos) {
             if (rule.holds(spec, 0)) continue;
@@ -420,7 +421,9 @@ std::filesystem::path spectra_directory(const Spec& spec) {
     return resolve_spec_path(spec, spec.sensor.spectra_dir);
 }
 
-Spec parse_spec(const std::string& yaml_text, const std::string& display_name) {
+namespace {
+
+Spec parse(const std::string& yaml_text, const std::string& display_name, bool check_files) {
     detail::SpecReader reader{display_name, {}, {}, {}};
     detail::read_map(reader, detail::parse_document(reader, yaml_text), {});
     Spec spec = default_spec();
@@ -433,9 +436,22 @@ Spec parse_spec(const std::string& yaml_text, const std::string& display_name) {
         v.entry->set(spec, v.item, v.value);
     }
     spec.source_path = display_name; // relative paths in the spec start at its folder
-    detail::check_rules(reader, spec);
+    detail::check_rules(reader, spec, check_files);
     spec.source_path.clear(); // set by load_spec only
     spec.resolved_yaml = resolved_spec_yaml(spec);
+    return spec;
+}
+
+} // namespace
+
+Spec parse_spec(const std::string& yaml_text, const std::string& display_name) {
+    return parse(yaml_text, display_name, true);
+}
+
+Spec parse_stored_spec(const std::string& resolved_yaml, const std::string& source) {
+    Spec spec = parse(resolved_yaml, source, false);
+    spec.source_path = source;
+    spec.resolved_yaml = resolved_yaml; // the stored bytes, whatever a new resolve would print
     return spec;
 }
 

@@ -2,6 +2,7 @@
 #include "generators/bench.hpp"
 #include "generators/generate.hpp"
 #include "generators/image_io.hpp"
+#include "generators/merge.hpp"
 #include "generators/plan.hpp"
 #include "generators/scene_export.hpp"
 #include "generators/spec.hpp"
@@ -17,27 +18,38 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <optional>
 
 namespace gen = chromasim::generators;
 
 namespace {
 
-int run_generate(const std::string& spec_path, const gen::GenerateOptions& options) {
-    const gen::Spec spec = gen::load_spec(spec_path); // validation before any work
+int run_generate(const std::string& spec_path, const std::optional<std::string>& shard,
+                 const gen::GenerateOptions& options) {
     gen::GenerateOptions with_terminal = options;
+    if (shard) with_terminal.shard = gen::parse_shard(*shard); // before any work
+    const gen::Spec spec = gen::load_spec(spec_path);          // validation before any work
     with_terminal.terminal = ::isatty(::fileno(stderr)) != 0;
     const gen::GenerateReport r = gen::generate(spec, with_terminal, std::cerr);
     if (r.up_to_date || r.moved_only) return 0; // generate() said so on the log
     if (r.resumed_trials > 0)
         std::cout << "chromasim: kept " << r.resumed_trials
                   << " trial(s) of the interrupted run (--resume)\n";
-    std::cout << "chromasim: wrote " << r.trials << " of " << r.planned_trials << " trials, "
-              << r.frames << " frames (" << r.images << " images, " << r.renders << " rendered; "
-              << r.solves << " solves, " << r.reused_solves << " reused) to "
-              << options.out_dir.string() << " in " << r.total_s << " s (precompute "
-              << r.precompute_s << " s, mechanics " << r.mechanics_s << " s, render " << r.render_s
-              << " s, write " << r.write_s << " s)\n";
+    const gen::Shard& part = with_terminal.shard;
+    std::cout << "chromasim: wrote " << (part.sharded() ? "part " + part.text() + ", " : "")
+              << r.trials << " of " << r.planned_trials << " trials, " << r.frames << " frames ("
+              << r.images << " images, " << r.renders << " rendered; " << r.solves << " solves, "
+              << r.reused_solves << " reused) to " << options.out_dir.string() << " in "
+              << r.total_s << " s (precompute " << r.precompute_s << " s, mechanics "
+              << r.mechanics_s << " s, render " << r.render_s << " s, write " << r.write_s
+              << " s)\n";
     const auto& out = options.out_dir;
+    if (part.sharded()) { // the dataset's files come with the merge
+        std::cout << "  when all " << part.count
+                  << " parts are written: chromasim merge PART... -o "
+                  << "DIR (docs/DATASET_FORMAT.md, \"Shards and merge (clusters)\")\n";
+        return 0;
+    }
     if (spec.outputs.images)
         std::cout << "  images: " << (out / "images").string()
                   << "/<split>/trial_NNNNNN/<finger>_NNNNNN.png\n";
@@ -52,6 +64,15 @@ int run_generate(const std::string& spec_path, const gen::GenerateOptions& optio
     if (r.flagged_frames > 0)
         std::cerr << "chromasim: " << r.flagged_frames
                   << " frame(s) flagged as not converged (labels.csv: converged = 0)\n";
+    return 0;
+}
+
+int run_merge(const gen::MergeOptions& options) {
+    const gen::MergeReport r = gen::merge(options, std::cerr);
+    if (r.up_to_date) return 0; // merge() said so on the log
+    std::cout << "chromasim: merged " << r.parts << " parts, " << r.trials << " trials (" << r.files
+              << " files of trials, " << r.copied << " copied, the others hard-linked) into "
+              << options.out_dir.string() << " in " << r.total_s << " s\n";
     return 0;
 }
 
@@ -106,9 +127,31 @@ int main(int argc, char** argv) {
         ->add_option("--max-trials", options.max_trials,
                      "run only the first N trials of the plan (a slice; 0: all)")
         ->check(CLI::Range(0, 1 << 30));
+    std::string shard;
+    auto* shard_option =
+        generate->add_option("--shard", shard,
+                             "write only part K of N (K/N, 1 <= K <= N): trials t with t mod N = "
+                             "K-1, for chromasim merge; combines with --max-trials (shards of the "
+                             "slice), --resume and --overwrite");
     std::string cache_dir = gen::default_cache_dir().string();
     bool no_cache = false;
     add_cache_options(generate, cache_dir, no_cache);
+
+    gen::MergeOptions merge_options;
+    auto* merge = app.add_subcommand(
+        "merge", "join the parts of a sharded generate (--shard K/N) into the dataset an "
+                 "unsharded run writes");
+    std::vector<std::string> merge_parts;
+    merge->add_option("parts", merge_parts, "the N part folders, any order (e.g. out/part_*)")
+        ->required();
+    std::string merge_out;
+    merge
+        ->add_option("-o,--output", merge_out,
+                     "dataset folder (written as DIR.partial, renamed when complete)")
+        ->required();
+    merge->add_flag("--overwrite", merge_options.overwrite,
+                    "replace an existing dataset once the new one is complete, and discard a "
+                    "DIR.partial");
 
     auto* export_scene = app.add_subcommand(
         "export-scene", "write one frame's scene as glTF 2.0 (meshes, materials, LEDs, camera)");
@@ -254,7 +297,14 @@ int main(int argc, char** argv) {
         if (*generate) {
             options.out_dir = out_dir;
             if (!no_cache) options.cache_dir = cache_dir;
-            return run_generate(spec_path, options);
+            return run_generate(
+                spec_path, shard_option->count() ? std::optional(shard) : std::nullopt, options);
+        }
+        if (*merge) {
+            for (const std::string& p : merge_parts)
+                merge_options.parts.emplace_back(p);
+            merge_options.out_dir = merge_out;
+            return run_merge(merge_options);
         }
         if (*export_scene) {
             gen::SceneExportOptions export_options;

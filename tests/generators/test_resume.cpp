@@ -3,6 +3,7 @@
 // finishes into the dataset an uninterrupted run writes. Drives the executable as a user does.
 #include "generators/file_io.hpp"
 
+#include "run_chromasim.hpp"
 #include "scratch_dir.hpp"
 
 #include <catch2/catch.hpp>
@@ -15,7 +16,6 @@
 
 #include <fcntl.h>
 #include <sys/file.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 namespace fs = std::filesystem;
@@ -23,33 +23,6 @@ using chromasim::generators::read_file;
 using chromasim::generators::sha256_file;
 
 namespace {
-
-struct Run {
-    int code;           ///< exit status, or 128 + signal
-    std::string output; ///< stdout and stderr together
-};
-
-/// Runs `env chromasim args`, output to a log in `dir`.
-Run run_chromasim(const ScratchDir& dir, const std::string& args, const std::string& env = "") {
-    const char* exe = std::getenv("CHROMASIM_EXE");
-    REQUIRE(exe != nullptr); // set by CTest (tests/CMakeLists.txt)
-    const fs::path log = dir.path / "run.log";
-    const std::string cmd = env + " " + exe + " " + args + " >" + log.string() + " 2>&1";
-    const int status = std::system(cmd.c_str());
-    int code = -1;
-    if (WIFEXITED(status)) code = WEXITSTATUS(status);
-    if (WIFSIGNALED(status)) code = 128 + WTERMSIG(status);
-    return {code, read_file(log)};
-}
-
-/// Every file under `root`: relative path -> SHA-256.
-std::map<std::string, std::string> tree(const fs::path& root) {
-    std::map<std::string, std::string> sums;
-    for (const auto& e : fs::recursive_directory_iterator(root))
-        if (e.is_regular_file())
-            sums[fs::relative(e.path(), root).generic_string()] = sha256_file(e.path());
-    return sums;
-}
 
 /// Two tiny trials (one per split), both fingers, every kind of output: PNG, EXR, labels,
 /// markers, strain.
