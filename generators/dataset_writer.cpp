@@ -497,6 +497,23 @@ void DatasetWriter::move_into_place() {
     rename_path(m_staging, m_out);
     m_committed = true;
     if (!old.empty()) remove_path(old);
+    remove_stale_old_copies();
+}
+
+void DatasetWriter::remove_stale_old_copies() const {
+    // A run killed between its two renames above leaves DIR.old-<pid>: the dataset that
+    // --overwrite was asked to replace. Now that DIR holds the new one, it goes too. Only
+    // names of exactly that form; the lock on DIR.partial kept every other writer out.
+    const std::string prefix = m_out.filename().string() + ".old-";
+    std::error_code ec;
+    for (const auto& entry : fs::directory_iterator(fs::absolute(m_out).parent_path(), ec)) {
+        const std::string name = entry.path().filename().string();
+        if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
+        const std::string pid = name.substr(prefix.size());
+        if (pid.find_first_not_of("0123456789") != std::string::npos) continue;
+        std::error_code rm;
+        fs::remove_all(entry.path(), rm); // best effort: the dataset itself is in place
+    }
 }
 
 } // namespace chromasim::generators

@@ -164,6 +164,7 @@ private:
     void assemble_csv(const char* name, const std::string& header, const char* shard) const;
     std::map<std::string, std::string> checksums() const;
     void move_into_place();
+    void remove_stale_old_copies() const;
 
     std::filesystem::path m_out, m_staging;
     const Spec& m_spec;

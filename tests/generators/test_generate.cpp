@@ -26,6 +26,14 @@ using namespace chromasim::generators::test;
 
 namespace {
 
+/// Options of a quiet run into `out`, everything else the default.
+GenerateOptions quiet_to(const fs::path& out) {
+    GenerateOptions options;
+    options.out_dir = out;
+    options.quiet = true;
+    return options;
+}
+
 /// Pixel of a direction under the equidistant fisheye (the spec's 84 deg half field).
 std::array<int, 2> pixel_of(double theta_deg, double phi_deg, int w, int h) {
     const double r = theta_deg / 84.0 * std::min(w, h) / 2.0;
@@ -40,7 +48,7 @@ struct Quickstart {
     GenerateReport report;
     Quickstart() {
         std::ostringstream log;
-        report = generate(spec, {out, false, true, {}}, log);
+        report = generate(spec, quiet_to(out), log);
     }
     ~Quickstart() {
         std::error_code ec;
@@ -179,7 +187,7 @@ TEST_CASE("generate again: up to date, nothing rewritten", "[generators][e2e]") 
     const Quickstart& q = quickstart();
     const auto before = fs::last_write_time(q.out / "labels.csv");
     std::ostringstream log;
-    const GenerateReport again = generate(q.spec, {q.out, false, true, {}}, log);
+    const GenerateReport again = generate(q.spec, quiet_to(q.out), log);
     CHECK(again.up_to_date);
     CHECK(again.frames == 0);
     CHECK(fs::last_write_time(q.out / "labels.csv") == before);
@@ -192,7 +200,7 @@ TEST_CASE("an output folder with other content is never overwritten silently",
     std::ofstream(out / "precious.txt") << "user data";
     Spec spec = load_spec("datasets_spec/quickstart.yaml");
     std::ostringstream log;
-    CHECK_THROWS_AS(generate(spec, {out, false, true, {}}, log), SpecError);
+    CHECK_THROWS_AS(generate(spec, quiet_to(out), log), SpecError);
     CHECK(fs::is_regular_file(out / "precious.txt"));
     CHECK(std::distance(fs::directory_iterator(out), fs::directory_iterator{}) == 1);
     fs::remove_all(out);
@@ -206,7 +214,7 @@ std::vector<CsvRow> labels_only(const std::string& spec_text) {
         parse_spec(spec_text + "outputs: {images: false, markers: false}\n", "inline.yaml");
     const fs::path out = fresh_dir("labels_only");
     std::ostringstream log;
-    generate(spec, {out, false, true, {}}, log);
+    generate(spec, quiet_to(out), log);
     const auto rows = read_csv(out / "labels.csv");
     CHECK_FALSE(fs::exists(out / "images"));
     CHECK_FALSE(fs::exists(out / "markers.csv"));
@@ -275,7 +283,7 @@ TEST_CASE("a glTF mesh object from the spec presses like the analytic sphere it 
         << "name: s\nobjects: [{name: a}, {name: b, shape: mesh, mesh_file: broken.glb}]\n";
     const Spec spec = load_spec(dir / "spec.yaml"); // exists: the spec is valid
     std::ostringstream log;
-    CHECK_THROWS_WITH(generate(spec, {dir / "out", false, true, {}}, log),
+    CHECK_THROWS_WITH(generate(spec, quiet_to(dir / "out"), log),
                       Catch::Contains("broken.glb"));
     CHECK_FALSE(fs::exists(dir / "out"));
     fs::remove_all(dir);

@@ -317,3 +317,19 @@ TEST_CASE("an output path that cannot be written is refused with the path and th
         CHECK(fs::is_empty(ro));
     }
 }
+
+TEST_CASE("a run killed between moving the replaced dataset aside and moving the new one in "
+          "leaves DIR.old-<pid>, which the resumed run removes once the new dataset is in place",
+          "[generators][resume]") {
+    const Fixture f("old_copy");
+    const fs::path out = f.dir.path / "out";
+    f.kill(out, f.steps()); // assembled, not yet renamed: the state between the two renames
+    const fs::path stale = out.string() + ".old-4242", other = out.string() + ".old-x1";
+    for (const fs::path& p : {stale, other}) {
+        fs::create_directories(p / "images");
+        chromasim::generators::write_file_atomic(p / "labels.csv", "the replaced dataset\n");
+    }
+    f.resume_matches(out);
+    CHECK_FALSE(fs::exists(stale));
+    CHECK(fs::exists(other / "labels.csv")); // not of the form DIR.old-<digits>: not ours
+}
