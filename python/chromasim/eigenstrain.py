@@ -307,10 +307,13 @@ def time_classification(X, es: Eigenstrains, y, train, test, rs, repeats=5, C=1.
     first r recruitments and with the whole strain field. Rows of dicts: r ('full' for the
     field), seconds per frame for predict alone and for projection + predict (the
     projection fields @ u_i is what computing the recruitments of a new frame costs),
-    accuracy on the test rows, number of support vectors, fit seconds."""
+    accuracy on the test rows, number of support vectors, fit seconds. Timed with one BLAS
+    thread (threadpoolctl); libsvm's prediction is single-threaded anyway."""
+    from threadpoolctl import threadpool_limits
     rows = []
     Xte = X[test]
-    with warnings.catch_warnings():
+    # one BLAS thread: on a shared machine, threads only add noise to the ratios
+    with warnings.catch_warnings(), threadpool_limits(limits=1):
         warnings.simplefilter("ignore")
         for r in list(rs) + (["full"] if full else []):
             if r == "full":
@@ -319,7 +322,8 @@ def time_classification(X, es: Eigenstrains, y, train, test, rs, repeats=5, C=1.
             else:
                 F = es.recruitments(r)
                 Ftr, Fte = F[train], F[test]
-                project = lambda r=r: es.project(Xte, r)  # noqa: E731
+                P = np.ascontiguousarray(es.bases[:r].T)  # prepared once, as deployed
+                project = lambda P=P: Xte @ P  # noqa: E731
             t0 = time.perf_counter()
             clf = _fit(Ftr, y[train], C, kernel)
             fit_s = time.perf_counter() - t0
@@ -431,10 +435,14 @@ def figure_accuracy_vs_bases(acc_rows, outdir: str, classes: int = 2):
         sd = np.array([a["accuracy_std"] for a in rb]) * 100
         ax.plot(r, m, "o-", color=colour, label=SCHEME_NAMES[scheme])
         ax.fill_between(r, m - sd, m + sd, color=colour, alpha=0.2, lw=0)
+        ax.plot(r, [100 * a["balanced_accuracy_mean"] for a in rb], "--", color=colour, lw=1,
+                label=f"{SCHEME_NAMES[scheme]}, balanced accuracy")
         full = [a for a in rows if a["r"] == "full"]
         if full:
             ax.errorbar([r.max() + 1.5], [full[0]["accuracy_mean"] * 100],
                         [full[0]["accuracy_std"] * 100], fmt="s", color=colour, capsize=3)
+            ax.plot([r.max() + 1.5], [full[0]["balanced_accuracy_mean"] * 100], "x",
+                    color=colour)
         chance = rb[0]["chance"]
     if chance is not None:
         ax.axhline(chance * 100, color="grey", ls=":", lw=1, label="majority class")
@@ -769,23 +777,37 @@ def _print_summary(args, s, es, acc_rows, timing_rows, timings, figures):
     print(f"\nSVD ({es.method}): sigma_1 = {es.sigma[0]:.4g}; energy in the first "
           + ", ".join(f"{r}: {100 * frac[r - 1]:.2f} %" for r in (1, 2, 6, 10) if r <= len(frac)))
     look = {(a["scheme"], a["classes"], a["r"]): a for a in acc_rows}
-    ks = sorted({a["classes"] for a in acc_rows})
-    rs = sorted({a["r"] for a in acc_rows if a["r"] != "full"})
     schemes = [sc for sc in SCHEMES if any(a["scheme"] == sc for a in acc_rows)]
-    for scheme in schemes:
-        print(f"\naccuracy % (mean +- std over folds), {SCHEME_NAMES[scheme]}; "
-              "last row: majority class")
-        print("| r | " + " | ".join(f"{k} classes" for k in ks) + " |")
-        print("|---" * (len(ks) + 1) + "|")
-        for r in rs + (["full"] if any(a["r"] == "full" for a in acc_rows) else []):
-            cells = []
-            for k in ks:
-                a = look.get((scheme, k, r))
-                cells.append(f"{100 * a['accuracy_mean']:.1f} +- {100 * a['accuracy_std']:.1f}"
-                             if a else "")
-            print(f"| {r} | " + " | ".join(cells) + " |")
-        chance = {a["classes"]: a["chance"] for a in acc_rows}
-        print("| majority | " + " | ".join(f"{100 * chance[k]:.1f}" for k in ks) + " |")
+    chance = {a["classes"]: a["chance"] for a in acc_rows}
+
+    def cells(k, r):
+        out = []
+        for sc in schemes:
+            a = look.get((sc, k, r))
+            out += [f"{100 * a['accuracy_mean']:.1f} +- {100 * a['accuracy_std']:.1f}",
+                    f"{100 * a['balanced_accuracy_mean']:.1f} +- "
+                    f"{100 * a['balanced_accuracy_std']:.1f}"] if a else ["", ""]
+        return out
+    head = " | ".join(f"{SCHEME_NAMES[sc]}: {w}" for sc in schemes
+                      for w in ("accuracy", "balanced"))
+    if 2 in chance:
+        rs = sorted(a["r"] for a in acc_rows if a["classes"] == 2 and a["r"] != "full"
+                    and a["scheme"] == schemes[0])
+        rs += ["full"] if (schemes[0], 2, "full") in look else []
+        print(f"\n2 classes (Gamma < 0.5, >= 0.5; majority class {100 * chance[2]:.1f} % of "
+              f"the frames), % over folds (mean +- std); balanced: mean recall of the classes")
+        print(f"| r | {head} |")
+        print("|---" * (1 + 2 * len(schemes)) + "|")
+        for r in rs:
+            print(f"| {r} | " + " | ".join(cells(2, r)) + " |")
+    r6 = min(args.class_bases, max(a["r"] for a in acc_rows if a["r"] != "full"))
+    ks = sorted({a["classes"] for a in acc_rows if a["r"] == r6})
+    print(f"\nclasses of Gamma (k equal bins of [0, 1]) with r = {r6} bases, %; "
+          "all r in accuracy.csv")
+    print(f"| classes | majority class | {head} |")
+    print("|---" * (2 + 2 * len(schemes)) + "|")
+    for k in ks:
+        print(f"| {k} | {100 * chance[k]:.1f} | " + " | ".join(cells(k, r6)) + " |")
     if timing_rows and "full_over_r_predict" in timing_rows[0]:
         full = timing_rows[-1]
         print(f"\nclassification time, 2 classes, {full['test_frames']} test frames, "

@@ -278,15 +278,18 @@ def friction_extremes(ds, finger) -> list[int]:
     return [hi] if hi == lo or np.isclose(mu.max(), mu.min()) else [hi, lo]
 
 
-def loaded_frames(ds, trial, count=5) -> np.ndarray:
-    """Up to `count` frames of the trial under tangential load (load, slip or slide),
-    evenly spaced, the last included."""
+def loaded_frames(ds, trial, finger, count=5) -> np.ndarray:
+    """Up to `count` frames of the trial under tangential load (load, slip or slide) up to
+    the first frame in which the fingertip slides (the transition from stick to slip),
+    evenly spaced, first and last included."""
     rows = trial_rows(ds, trial)
     lab = ds.labels
-    ph = lab["phase"][rows]
-    loaded = rows[np.isin(ph, ("load", "slip", "slide"))]
+    loaded = rows[np.isin(lab["phase"][rows], ("load", "slip", "slide"))]
     if loaded.size == 0:
         loaded = rows
+    sliding = np.flatnonzero(lab[f"{finger}_sliding"][loaded] > 0)
+    if sliding.size:
+        loaded = loaded[: sliding[0] + 1]
     pick = np.unique(np.round(np.linspace(0, loaded.size - 1, min(count, loaded.size))).astype(int))
     return lab["frame"][loaded[pick]].astype(int)
 
@@ -299,7 +302,7 @@ def figure_slip_profile(ds, finger, outdir):
                              layout="constrained")
     for c, trial in enumerate(trials):
         theta = slip_direction(ds, trial, finger)
-        frames = loaded_frames(ds, trial)
+        frames = loaded_frames(ds, trial, finger)
         colours = plt.cm.viridis(np.linspace(0, 0.9, len(frames)))
         ax, bx = axes[0, c], axes[1, c]
         for ly, style in (("inner", "--"), ("outer", "-")):

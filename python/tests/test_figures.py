@@ -64,7 +64,12 @@ def test_selections(quickstart, sliding):
     mu = {t: sliding.labels["left_mu"][sliding.labels["trial"] == t][0] for t in (hi, lo)}
     assert mu[hi] > 1.05 and mu[lo] < 0.55
     assert F.friction_extremes(quickstart, "left") == [0]  # one mu: one trial
-    np.testing.assert_array_equal(F.loaded_frames(quickstart, 0), [4, 5, 6, 7, 8])
+    # load frames 4 to 6, the first slip frame 7; the second slip frame is left out
+    np.testing.assert_array_equal(F.loaded_frames(quickstart, 0, "left"), [4, 5, 6, 7])
+    slide = F.loaded_frames(sliding, hi, "left")  # mu 1.1: slides from the fourth frame
+    assert slide[0] == 0 and sliding.labels["left_sliding"][
+        (sliding.labels["trial"] == hi) & (sliding.labels["frame"] == slide[-1])] == 1
+    assert len(slide) == 4
 
 
 def test_meridian_along_the_slip(quickstart):
