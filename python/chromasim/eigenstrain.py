@@ -631,7 +631,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--timing-max-train", type=int, default=0,
                    help="at most this many training rows for the timing classifiers "
                         "(random, same for all; 0: the whole training fold)")
-    p.add_argument("--repeats", type=int, default=5, help="timed predictions (median)")
+    p.add_argument("--repeats", type=int, default=11, help="timed predictions (median)")
     p.add_argument("--no-figures", action="store_true", help="CSVs only")
     return p
 
