@@ -281,13 +281,16 @@ def cross_validate(features: np.ndarray, y: np.ndarray, folds_list, C=1.0, kerne
     return {r: (np.array(a), np.array(b)) for r, (a, b) in out.items()}
 
 
-def confusion(features, y, folds_list, k, C=1.0, kernel="rbf"):
-    """k x k confusion matrix (rows true, columns predicted) pooled over the test folds."""
+def confusion(features, y, folds_list, k, C=1.0, kernel="rbf", fold_features=None):
+    """k x k confusion matrix (rows true, columns predicted) pooled over the test folds,
+    on all columns of the features (or of fold_features(train, test))."""
     M = np.zeros((k, k), dtype=np.int64)
+    r = features.shape[1]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for train, test in folds_list:
-            pred = _fit(features[train], y[train], C, kernel).predict(features[test])
+            Fk = fold_features(train, test)[:, :r] if fold_features else features
+            pred = _fit(Fk[train], y[train], C, kernel).predict(Fk[test])
             np.add.at(M, (y[test], pred), 1)
     return M
 
@@ -755,7 +758,8 @@ def _classify_all(args, s: StrainSet, es: Eigenstrains, R: int, schemes):
                     "bases_from": "training fold" if args.fold_svd else "all fields"})
             if scheme == "kfold" and k == (5 if 5 in args.classes else max(args.classes)):
                 conf_k = k
-                conf = confusion(F[:, :r_class], y, folds_list, k, args.C, args.kernel)
+                conf = confusion(F[:, :r_class], y, folds_list, k, args.C, args.kernel,
+                                 fold_features)
     return acc_rows, conf, conf_k
 
 

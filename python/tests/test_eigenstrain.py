@@ -160,3 +160,16 @@ def test_cli_errors_name_the_dataset(quickstart, tmp_path, capsys):
     with pytest.raises(SystemExit):
         E.main([quickstart.root, "-o", str(tmp_path / "o"), "--classes", "1-3"])
     assert not os.path.exists(tmp_path / "o" / "accuracy.csv")
+
+
+def test_cli_bases_per_training_fold(sliding, tmp_path):
+    out = tmp_path / "fold"
+    assert E.main([sliding.root, "-o", str(out), "--bases", "3", "--classes", "2",
+                   "--schemes", "lofo", "--fold-svd", "--full-field", "none", "--no-figures",
+                   "--repeats", "1"]) == 0
+    acc = _read_csv(out / "accuracy.csv")
+    assert [a["r"] for a in acc] == ["1", "2", "3"]
+    assert {a["bases_from"] for a in acc} == {"training fold"}
+    assert all(float(a["balanced_accuracy_mean"]) > 0.5 for a in acc)
+    assert [t["r"] for t in _read_csv(out / "timing.csv")] == ["1", "2", "3"]
+    assert not list(out.glob("*.png"))
