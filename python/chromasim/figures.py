@@ -359,21 +359,22 @@ def figure_force_gamma(ds, trial, outdir):
     t, tlabel = time_axis(ds, rows)
     fig, (ax, bx) = plt.subplots(2, 1, figsize=(7, 5.6), sharex=True, layout="constrained")
     _shade_phases(ax, t, lab["phase"][rows])
-    _shade_phases(bx, t, [""] * len(rows))
     colours = {"left": "tab:blue", "right": "tab:orange"}
+    widths = {"left": 2.6, "right": 1.2}  # the right fingertip's lines on top, thinner
     for f in ds.fingers:
-        c = colours[f]
-        ax.plot(t, lab[f"{f}_normal_force_N"][rows], "-", color=c, label=f"{f}: grip f_n")
-        ax.plot(t, lab[f"{f}_tangential_force_N"][rows], "--", color=c, label=f"{f}: f_t")
-        ax.plot(t, lab[f"{f}_frictional_strength_N"][rows], ":", color=c,
+        c, w = colours[f], widths[f]
+        ax.plot(t, lab[f"{f}_normal_force_N"][rows], "-", color=c, lw=w, label=f"{f}: grip f_n")
+        ax.plot(t, lab[f"{f}_tangential_force_N"][rows], "--", color=c, lw=w,
+                label=f"{f}: f_t")
+        ax.plot(t, lab[f"{f}_frictional_strength_N"][rows], ":", color=c, lw=w,
                 label=f"{f}: strength mu f_n")
-        bx.plot(t, lab[f"{f}_gamma"][rows], "-o", ms=3, color=c, label=f"{f} Gamma")
+        bx.plot(t, lab[f"{f}_gamma"][rows], "-o", ms=2 + w, lw=w, color=c, label=f"{f} Gamma")
     if "load_N" in lab and np.ptp(lab["load_N"][rows]) > 0:
         ax.plot(t, lab["load_N"][rows], "-", color="k", lw=1.5, label="load (total)")
     if len(ds.fingers) > 1:
         bx.plot(t, ds.grasp_gamma()[rows], "-", color="k", lw=1.5, label="grasp Gamma")
     ax.set_ylabel("force (N)")
-    ax.legend(fontsize=7, ncol=2, loc="upper left")
+    ax.legend(fontsize=7, ncol=2, loc="best")
     bx.set_ylabel("safety margin Gamma (-)")
     bx.set_ylim(-0.05, 1.05)
     bx.set_xlabel(tlabel)
@@ -476,8 +477,11 @@ def figure_stickslip_trial(ds, trial, outdir):
         if sl.any():
             ax.plot(t[sl], np.zeros(sl.sum()) - 0.04 * (1 + ds.fingers.index(f)), "x",
                     color=c, label=f"{f}: whole contact slips")
-        bx.plot(t, lab[f"{f}_contact_area_mm2"][rows], "-", color=c, label=f"{f} contact area")
-        bx.plot(t, lab[f"{f}_stick_area_mm2"][rows], "--", color=c, label=f"{f} stick area")
+        w = 2.6 if f == "left" else 1.2  # the right fingertip's lines on top, thinner
+        bx.plot(t, lab[f"{f}_contact_area_mm2"][rows], "-", color=c, lw=w,
+                label=f"{f} contact area")
+        bx.plot(t, lab[f"{f}_stick_area_mm2"][rows], "--", color=c, lw=w,
+                label=f"{f} stick area")
     ax.set_ylabel("stick ratio (-)")
     ax.set_ylim(-0.12, 1.05)
     ax.legend(fontsize=7)
