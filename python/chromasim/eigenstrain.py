@@ -654,7 +654,7 @@ def main(argv: list[str] | None = None) -> int:
         if s.n < 2:
             raise DatasetError(f"{s.n} strain rows left (--max-travel {args.max_travel})")
     except DatasetError as e:
-        sys.exit(f"eigenstrain: {args.dataset}: {e}")
+        sys.exit(f"eigenstrain: {_named(e, args.dataset)}")
     os.makedirs(args.out, exist_ok=True)
     timings = {"load_s": time.perf_counter() - t_start}
     print(f"eigenstrain: {ds.root}: {s.n} strain fields of {s.fields.shape[1]} points "
@@ -829,6 +829,12 @@ def _print_summary(args, s, es, acc_rows, timing_rows, timings, figures):
     print("\nrun time: " + ", ".join(f"{k[:-2]} {v:.1f} s" for k, v in timings.items()))
     print(f"wrote {args.out}: singular_values.csv, accuracy.csv, timing.csv, recruitments.csv, "
           f"bases.npz and {len(figures)} figure files")
+
+
+def _named(error: Exception, path: str) -> str:
+    """The error's message, prefixed with the path unless it names the folder already."""
+    text = str(error)
+    return text if (path in text or os.path.abspath(path) in text) else f"{path}: {text}"
 
 
 if __name__ == "__main__":

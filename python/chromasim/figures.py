@@ -324,7 +324,7 @@ def figure_slip_profile(ds, finger, outdir):
                     bx.plot(s0, uz, ":", color=col, lw=1.2)
         mu = ds.labels[f"{finger}_mu"][ds.labels["trial"] == trial][0]
         ax.set_title(f"trial {trial}, mu = {mu:.2f}: meridian along the slip direction "
-                     f"({np.degrees(theta):.0f} deg), true scale")
+                     f"({int(round(np.degrees(theta)))} deg), true scale")
         ax.set_xlabel("s, position along the slip direction (mm)")
         ax.set_ylabel("z (mm)")
         ax.set_aspect("equal")
@@ -765,7 +765,7 @@ def main(argv: list[str] | None = None) -> int:
             trial = default_trial(ds) if args.trial is None else args.trial
             trial_rows(ds, trial)
         except DatasetError as e:
-            sys.exit(f"figures: {args.dataset}: {e}")
+            sys.exit(f"figures: {_named(e, args.dataset)}")
         _dataset_figures(ds, trial, args, attempt, report)
     for path in args.bench:
         try:
@@ -798,6 +798,12 @@ def _dataset_figures(ds, trial, args, attempt, report):
         attempt(f"markers_{f}", figure_marker_maps, ds, m, trial, frame, f, out)
         attempt(f"markers_quiver_{f}", figure_marker_quiver, ds, m, trial, frame, f, out)
         attempt(f"slip_profile_{f}", figure_slip_profile, ds, f, out)
+
+
+def _named(error: Exception, path: str) -> str:
+    """The error's message, prefixed with the path unless it names the folder already."""
+    text = str(error)
+    return text if (path in text or os.path.abspath(path) in text) else f"{path}: {text}"
 
 
 if __name__ == "__main__":
