@@ -448,9 +448,11 @@ def figure_stickslip_map(ds, outdir):
         else:
             xe = np.array([xs[0] - 0.5, xs[0] + 0.5])
         ye = np.arange(len(trials) + 1) - 0.5
-        pm = ax.pcolormesh(xe, ye, np.ma.masked_invalid(S), cmap="viridis", vmin=0, vmax=1)
+        pm = ax.pcolormesh(xe, ye, np.ma.masked_invalid(S), cmap="viridis", vmin=0, vmax=1,
+                           rasterized=True)  # a raster in the SVG: thousands of cells
         slide = np.ma.masked_where(~(L > 0), np.ones_like(S))
-        ax.pcolormesh(xe, ye, slide, cmap=ListedColormap(["#d62728"]), vmin=0, vmax=1)
+        ax.pcolormesh(xe, ye, slide, cmap=ListedColormap(["#d62728"]), vmin=0, vmax=1,
+                      rasterized=True)
         ax.set_xlabel(tlabel)
         ax.set_ylabel("trial (sorted by mu)")
         step = max(1, len(trials) // 12)
