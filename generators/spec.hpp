@@ -1,7 +1,7 @@
 #pragma once
 /// The typed, validated contents of a dataset spec file (YAML). Every field has a schema
 /// entry (generators/spec_table.cpp) with its type, default, unit, allowed range and doc
-/// line; `chromasim schema` prints that table, docs/SPEC_REFERENCE.md holds a copy.
+/// line; `chromasim spec-doc` prints that table, docs/SPEC.md holds a copy.
 #include <array>
 #include <cstdint>
 #include <filesystem>

@@ -208,7 +208,7 @@ Reading rules (an error names the file, line:column, key, value and what is allo
 - [G] marks an assumption: a default to override when better data exist.
 
 This file is generated from the schema table in `generators/spec_table.cpp`; regenerate it with
-`chromasim schema > docs/SPEC_REFERENCE.md`. A test (`tests/generators/test_spec.cpp`) fails
+`chromasim spec-doc > docs/SPEC.md`. A test (`tests/generators/test_spec.cpp`) fails
 when it no longer matches the schema.
 
 | key | type | default | unit | allowed | doc |

@@ -177,7 +177,9 @@ int main(int argc, char** argv) {
     auto* validate = app.add_subcommand("validate", "check spec files; do no work");
     validate->add_option("spec", validate_paths, "spec file(s)")->required();
 
-    auto* schema = app.add_subcommand("schema", "print every spec key (Markdown table)");
+    auto* schema = app.add_subcommand(
+        "spec-doc", "print every spec key: the user manual of spec files (Markdown table)");
+    schema->alias("schema"); // its name before docs/SPEC.md
 
     auto* bench = app.add_subcommand("bench", "print speed and accuracy tables (medians)");
     bench->require_subcommand(1);

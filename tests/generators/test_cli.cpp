@@ -88,10 +88,15 @@ TEST_CASE("bad command lines are refused with usage help", "[generators][cli]") 
     CHECK(nofile.output.find("/nonexistent/spec.yaml") != std::string::npos);
 }
 
-TEST_CASE("schema prints the documented key table", "[generators][cli]") {
-    const Run r = run_chromasim("schema");
+TEST_CASE("spec-doc (and its old name schema) prints the documented key table",
+          "[generators][cli]") {
+    const Run r = run_chromasim("spec-doc");
     CHECK(r.code == 0);
     CHECK(r.output.find("`render.samples_per_pixel`") != std::string::npos);
+    CHECK(r.output.find("chromasim spec-doc > docs/SPEC.md") != std::string::npos);
+    const Run old = run_chromasim("schema");
+    CHECK(old.code == 0);
+    CHECK(old.output == r.output);
 }
 
 TEST_CASE("export-scene writes any frame as glTF, reuses the cache, and refuses a frame out of "

@@ -523,12 +523,12 @@ TEST_CASE("edit distance counts a swap of neighbours as one edit", "[generators]
     CHECK(closest_match("colour", {"count", "z_mm"}).empty());
 }
 
-TEST_CASE("docs/SPEC_REFERENCE.md holds the current schema table", "[generators][spec]") {
-    std::ifstream in(repo_file("docs/SPEC_REFERENCE.md"));
+TEST_CASE("docs/SPEC.md holds the current schema table", "[generators][spec]") {
+    std::ifstream in(repo_file("docs/SPEC.md"));
     REQUIRE(in);
     std::ostringstream doc;
     doc << in.rdbuf();
-    // On failure: chromasim schema > docs/SPEC_REFERENCE.md
+    // On failure: chromasim spec-doc > docs/SPEC.md
     CHECK_THAT(doc.str(), Contains(schema_markdown()));
 }
 
