@@ -170,9 +170,7 @@ def _binned(x, err, edges):
 
 
 def write_report(result: dict, d: Dataset, rows: np.ndarray, out: str) -> list[str]:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from .plots import plt, save
 
     os.makedirs(out, exist_ok=True)
     pf = result["_per_frame"]
@@ -217,9 +215,7 @@ def write_report(result: dict, d: Dataset, rows: np.ndarray, out: str) -> list[s
         ax.set_title(f"{name} ({int(sel.sum())} frames)")
         fig.colorbar(im, ax=ax, label="share of the true bin")
     fig.tight_layout()
-    for ext in ("png", "svg"):
-        fig.savefig(path(f"confusion.{ext}"))
-    plt.close(fig)
+    written += save(fig, out, "confusion")
 
     err = pf["estimate"] - pf["truth"]
     for xname, x, edges, xlabel in (
@@ -240,9 +236,7 @@ def write_report(result: dict, d: Dataset, rows: np.ndarray, out: str) -> list[s
         ax.set_title(f"Gamma error against {xname}")
         ax.legend(fontsize=8)
         fig.tight_layout()
-        for ext in ("png", "svg"):
-            fig.savefig(path(f"error_vs_{xname}.{ext}"))
-        plt.close(fig)
+        written += save(fig, out, f"error_vs_{xname}")
     return written
 
 
