@@ -424,6 +424,16 @@ def figure_recruitments(es: Eigenstrains, s: StrainSet, outdir: str, count: int 
     return save(fig, outdir, "fig4a_recruitments")
 
 
+def _accuracy_band(ax, rows, x_key: str, colour, label: str) -> np.ndarray:
+    """Mean accuracy (%) of `rows` against rows[x_key], with a +- std band; returns x."""
+    x = np.array([a[x_key] for a in rows])
+    m = np.array([a["accuracy_mean"] for a in rows]) * 100
+    sd = np.array([a["accuracy_std"] for a in rows]) * 100
+    ax.plot(x, m, "o-", color=colour, label=label)
+    ax.fill_between(x, m - sd, m + sd, color=colour, alpha=0.2, lw=0)
+    return x
+
+
 def figure_accuracy_vs_bases(acc_rows, outdir: str, classes: int = 2):
     from .plots import plt, save
     fig, ax = plt.subplots(figsize=(5, 3.4))
@@ -433,11 +443,7 @@ def figure_accuracy_vs_bases(acc_rows, outdir: str, classes: int = 2):
         rb = sorted((a for a in rows if a["r"] != "full"), key=lambda a: a["r"])
         if not rb:
             continue
-        r = np.array([a["r"] for a in rb])
-        m = np.array([a["accuracy_mean"] for a in rb]) * 100
-        sd = np.array([a["accuracy_std"] for a in rb]) * 100
-        ax.plot(r, m, "o-", color=colour, label=SCHEME_NAMES[scheme])
-        ax.fill_between(r, m - sd, m + sd, color=colour, alpha=0.2, lw=0)
+        r = _accuracy_band(ax, rb, "r", colour, SCHEME_NAMES[scheme])
         ax.plot(r, [100 * a["balanced_accuracy_mean"] for a in rb], "--", color=colour, lw=1,
                 label=f"{SCHEME_NAMES[scheme]}, balanced accuracy")
         full = [a for a in rows if a["r"] == "full"]
@@ -484,11 +490,7 @@ def figure_accuracy_vs_classes(acc_rows, r: int, conf, conf_k: int, outdir: str)
                     key=lambda a: a["classes"])
         if not rb:
             continue
-        k = np.array([a["classes"] for a in rb])
-        m = np.array([a["accuracy_mean"] for a in rb]) * 100
-        sd = np.array([a["accuracy_std"] for a in rb]) * 100
-        ax.plot(k, m, "o-", color=colour, label=SCHEME_NAMES[scheme])
-        ax.fill_between(k, m - sd, m + sd, color=colour, alpha=0.2, lw=0)
+        k = _accuracy_band(ax, rb, "classes", colour, SCHEME_NAMES[scheme])
         ax.plot(k, [100 * a["chance"] for a in rb], ":", color="grey", lw=1)
     ax.set_xlabel("number of classes of Gamma")
     ax.set_ylabel("classification rate (%)")
