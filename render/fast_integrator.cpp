@@ -382,14 +382,15 @@ LanesN<N> FastIntegrator::spectral_at(const std::vector<float>& values, const st
 template <int N>
 LanesN<N> FastIntegrator::shade(const EmbreeScene& scene, const Vec3& p, const Lookup<N>& at,
                                 const LanesN<N>& indirect, const LaneOptics<N>& lanes,
-                                PixelRng& rng) const {
+                                PixelRng& rng, double u_led) const {
     // E / pi per unit LED emission: the cached indirect term, plus the direct term with the
     // markers' shadows, sum_k G_k T_k, estimated by one LED k drawn with probability
     // G_k / sum G (one shadow ray; exact where the LEDs' shadows agree).
     double total = 0.0;
     for (int k = 0; k < m_cache->leds; ++k)
         total += at.direct[std::size_t(k)];
-    const double u = rng.uniform() * total, u1 = rng.uniform(), u2 = rng.uniform();
+    const double u_draw = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
+    const double u = (u_led >= 0.0 ? u_led : u_draw) * total;
     if (!(total > 0.0)) return indirect;
     int k = 0;
     for (double acc = at.direct[0]; acc <= u && k + 1 < m_cache->leds;)
@@ -412,7 +413,7 @@ LanesN<N> FastIntegrator::shade(const EmbreeScene& scene, const Vec3& p, const L
 template <int N>
 LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, const Vec3& d,
                                  double tnear, const LaneOptics<N>& lanes,
-                                 const LanesN<N>* lambda_nm, PixelRng& rng) const {
+                                 const LanesN<N>* lambda_nm, PixelRng& rng, double u_led) const {
     constexpr double inf = std::numeric_limits<double>::infinity();
     const OpticsParams& optics = m_shading.optics();
     LanesN<N> beta = LanesN<N>::Ones();
@@ -461,10 +462,10 @@ LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, c
                                           diffuse_transmittance<N>(lanes.outer_absorption_per_mm *
                                                                    (chord * std::abs(cos_g))) *
                                           above;
-                L *= shade(scene, p, at, through, lanes, rng) /
+                L *= shade(scene, p, at, through, lanes, rng, u_led) /
                      (1.0 - s * lanes.outer_albedo * lanes.coating_albedo);
             } else {
-                L *= shade(scene, p, at, cached(m_cache->indirect), lanes, rng);
+                L *= shade(scene, p, at, cached(m_cache->indirect), lanes, rng, u_led);
             }
             for (int k = 0; k < pending; ++k)
                 L += scatters[std::size_t(k)].weight * lanes.led *
@@ -492,7 +493,7 @@ LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, c
 template <int N>
 LanesN<N> FastIntegrator::radiance(const EmbreeScene& scene, const Vec3& origin,
                                    const Vec3& direction, const LaneOptics<N>& lanes,
-                                   const LanesN<N>* lambda_nm, PixelRng& rng) const {
+                                   const LanesN<N>* lambda_nm, PixelRng& rng, double u_led) const {
     if (!m_cache || m_direct.empty())
         throw std::logic_error("FastIntegrator::radiance called before build_cache/set_frame");
     constexpr double inf = std::numeric_limits<double>::infinity();
@@ -510,7 +511,7 @@ LanesN<N> FastIntegrator::radiance(const EmbreeScene& scene, const Vec3& origin,
             return led->second ? led_radiance : LanesN<N>::Zero();
         if (!hit.hit()) return LanesN<N>::Zero();
         if (hit.kind != SurfaceKind::inner_surface) // no inner surface: straight into the layers
-            return inside(scene, o, d, tnear, lanes, lambda_nm, rng);
+            return inside(scene, o, d, tnear, lanes, lambda_nm, rng, u_led);
         const double cos_g = hit.normal.dot(d);
         if (!(cos_g < 0.0)) return LanesN<N>::Zero(); // the back of the surface: not from air
         const Vec3 p = o + hit.t_mm * d;
@@ -520,7 +521,7 @@ LanesN<N> FastIntegrator::radiance(const EmbreeScene& scene, const Vec3& origin,
         LanesN<N> L = LanesN<N>::Zero();
         Vec3 refracted;
         if (refract(d, n, 1.0 / eta, refracted) && refracted.dot(hit.normal) < 0.0)
-            L += (1.0 - F) * inside(scene, p, refracted, kHitGap_mm, lanes, lambda_nm, rng);
+            L += (1.0 - F) * inside(scene, p, refracted, kHitGap_mm, lanes, lambda_nm, rng, u_led);
         const Vec3 reflected = (d + 2.0 * cos_i * n).normalized();
         if (reflect && F > 0.0 && reflected.dot(hit.normal) > 0.0)
             L += F * self(self, p, reflected, kHitGap_mm, false);
@@ -531,11 +532,12 @@ LanesN<N> FastIntegrator::radiance(const EmbreeScene& scene, const Vec3& origin,
 
 template LanesN<kRgbLanes> FastIntegrator::radiance(const EmbreeScene&, const Vec3&, const Vec3&,
                                                     const LaneOptics<kRgbLanes>&,
-                                                    const LanesN<kRgbLanes>*, PixelRng&) const;
+                                                    const LanesN<kRgbLanes>*, PixelRng&,
+                                                    double) const;
 template LanesN<kSpectralLanes> FastIntegrator::radiance(const EmbreeScene&, const Vec3&,
                                                          const Vec3&,
                                                          const LaneOptics<kSpectralLanes>&,
-                                                         const LanesN<kSpectralLanes>*,
-                                                         PixelRng&) const;
+                                                         const LanesN<kSpectralLanes>*, PixelRng&,
+                                                         double) const;
 
 } // namespace chromasim::render::detail

@@ -105,10 +105,13 @@ public:
     void check_topology(const SensorFrame& frame) const;
 
     /// Radiance along the camera ray, per lane, in the path integrator's units. `lambda_nm`:
-    /// the lanes' wavelengths (spectral), nullptr in RGB mode.
+    /// the lanes' wavelengths (spectral), nullptr in RGB mode. `u_led` in [0, 1): the uniform
+    /// that picks the LED of the coating hit's shadow ray (the renderer stratifies it over a
+    /// pixel's samples); negative: drawn from `rng`.
     template <int N>
     LanesN<N> radiance(const EmbreeScene& scene, const Vec3& origin_mm, const Vec3& direction,
-                       const LaneOptics<N>& lanes, const LanesN<N>* lambda_nm, PixelRng& rng) const;
+                       const LaneOptics<N>& lanes, const LanesN<N>* lambda_nm, PixelRng& rng,
+                       double u_led = -1.0) const;
 
 private:
     template <int N> struct Lookup;
@@ -116,14 +119,15 @@ private:
     Lookup<N> lookup(std::uint32_t prim, double u, double v, const Vec3& normal) const;
     template <int N>
     LanesN<N> shade(const EmbreeScene& scene, const Vec3& p, const Lookup<N>& at,
-                    const LanesN<N>& indirect, const LaneOptics<N>& lanes, PixelRng& rng) const;
+                    const LanesN<N>& indirect, const LaneOptics<N>& lanes, PixelRng& rng,
+                    double u_led = -1.0) const;
     template <int N>
     LanesN<N> spectral_at(const std::vector<float>& values, const std::uint32_t* triangle,
                           const double* weights, const LanesN<N>* lambda_nm) const;
     template <int N>
     LanesN<N> inside(const EmbreeScene& scene, const Vec3& origin, const Vec3& direction,
                      double tnear_mm, const LaneOptics<N>& lanes, const LanesN<N>* lambda_nm,
-                     PixelRng& rng) const;
+                     PixelRng& rng, double u_led) const;
 
     const ShadingModel& m_shading;
     const PathIntegrator& m_path;

@@ -119,39 +119,70 @@ constexpr int kMirrorScan = 64;
 
 /// The refraction of p -> l by the sphere about the origin of radius R: the direction from p
 /// to the point x where the tangential components of the unit directions obey Snell's law,
-/// n (w_in . tau) = w_out . tau, found by bisection on x's angle in the plane of O, p and l.
-Vec3 sphere_refraction(const Vec3& p, const Vec3& l, double R, double eta) {
+/// n (w_in . tau) = w_out . tau, found by regula falsi on x's position on the circle in the
+/// plane of O, p and l, parametrised without trigonometry by t = tan(psi / 2), psi the angle
+/// from p's foot. `tolerance`: the Snell mismatch (a difference of sines) at which to stop.
+Vec3 sphere_refraction(const Vec3& p, const Vec3& l, double R, double eta,
+                       double tolerance = 1e-13) {
     const Vec3 e1 = p.normalized();
     Vec3 e2 = l - l.dot(e1) * e1;
     if (!(e2.norm() > 1e-9)) return (l - p).normalized(); // l on p's axis: straight down
     e2.normalize();
-    const double psi_l = std::atan2(l.dot(e2), l.dot(e1)); // p is at angle 0
-    auto mismatch = [&](double psi) {
-        const auto [x, tau] = on_circle(e1, e2, R, psi);
+    // The point of the circle at t and the circle's unit tangent there: cos psi = (1 - t^2) /
+    // (1 + t^2), sin psi = 2 t / (1 + t^2).
+    auto at = [&](double t) {
+        const double d = 1.0 / (1.0 + t * t);
+        return on_circle(e1, e2, R, (1.0 - t * t) * d, 2.0 * t * d);
+    };
+    // t of the direction of a point q of the plane: tan(psi / 2) = sin / (1 + cos).
+    auto t_of = [&](const Vec3& q) {
+        const double c = q.dot(e1), s = q.dot(e2), r = std::hypot(c, s);
+        return s / (r + c);
+    };
+    auto mismatch = [&](double t) {
+        const auto [x, tau] = at(t);
         return eta * (x - p).normalized().dot(tau) - (l - x).normalized().dot(tau);
     };
-    // Regula falsi with the Illinois modification: keeps the bracket of bisection and
-    // converges superlinearly (about 6 evaluations where bisection takes 30).
-    double lo = 0.0, hi = psi_l;
-    double f_lo = mismatch(lo), f_hi = mismatch(hi);
+    // The bracket: from p's foot (t = 0) to where the straight segment p -> l crosses the
+    // sphere (the refracted path in the denser layer is steeper than the straight one, so x
+    // lies between), else to l's own direction.
+    const double t_l = t_of(l);
+    double lo = 0.0, hi = t_l;
+    double f_lo = mismatch(lo), f_hi = 0.0;
+    bool bracketed = false;
+    {
+        const Vec3 d = l - p;
+        const double a = d.squaredNorm(), b = p.dot(d), c = p.squaredNorm() - R * R;
+        const double disc = b * b - a * c;
+        const double u = disc >= 0.0 ? (-b - std::sqrt(disc)) / a : -1.0;
+        if (u > 0.0 && u < 1.0) {
+            const double t_s = t_of(p + u * d);
+            const double f_s = mismatch(t_s);
+            if (f_lo * f_s <= 0.0 && std::abs(t_s) < std::abs(t_l))
+                hi = t_s, f_hi = f_s, bracketed = true;
+        }
+        if (!bracketed) f_hi = mismatch(hi);
+    }
     if (f_lo * f_hi > 0.0) return (l - p).normalized();
-    double psi = 0.5 * (lo + hi);
+    // Regula falsi with the Illinois modification: keeps the bracket of bisection and
+    // converges superlinearly (a few evaluations where bisection takes 30).
+    double t = 0.5 * (lo + hi);
     int side = 0;
     for (int i = 0; i < kBisections && f_hi != f_lo; ++i) {
-        psi = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
-        const double f = mismatch(psi);
-        if (std::abs(f) < 1e-13 || std::abs(hi - lo) < 1e-10) break;
+        t = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
+        const double f = mismatch(t);
+        if (std::abs(f) < tolerance || std::abs(hi - lo) < 1e-10) break;
         if ((f > 0.0) == (f_hi > 0.0)) {
-            hi = psi, f_hi = f;
+            hi = t, f_hi = f;
             if (side == -1) f_lo *= 0.5;
             side = -1;
         } else {
-            lo = psi, f_lo = f;
+            lo = t, f_lo = f;
             if (side == 1) f_hi *= 0.5;
             side = 1;
         }
     }
-    return (on_circle(e1, e2, R, psi).first - p).normalized();
+    return (at(t).first - p).normalized();
 }
 
 /// The reflections of a -> l off the inside of the sphere about the origin of radius R (a on
@@ -494,7 +525,8 @@ Vec3 PathIntegrator::led_flux_point(const EmbreeScene& scene, const Vec3& p, con
 
 Vec3 PathIntegrator::refracted_direction(const Vec3& p_mm, const Vec3& led_point_mm,
                                          double radius_mm) const {
-    return sphere_refraction(p_mm, led_point_mm, radius_mm, m_eta);
+    // 1e-9 in the sines: the direction to within about 1e-9 rad, 1e-8 mm across the layers.
+    return sphere_refraction(p_mm, led_point_mm, radius_mm, m_eta, 1e-9);
 }
 
 template <int N>

@@ -45,6 +45,36 @@ inline std::pair<int, int> strata_grid(int samples) {
     return {nx, samples / nx};
 }
 
+/// The image of i under a pseudo-random permutation of [0, n) chosen by `seed`, without
+/// storing the permutation: Kensler's hash-based permutation ("Correlated Multi-Jittered
+/// Sampling", Pixar Technical Memo 13-01, 2013), cycle-walking over the next power of two.
+/// Pairs the strata of one sampling dimension with another's at random, per pixel.
+inline int permute(std::uint32_t i, std::uint32_t n, std::uint32_t seed) {
+    std::uint32_t w = n - 1;
+    w |= w >> 1, w |= w >> 2, w |= w >> 4, w |= w >> 8, w |= w >> 16;
+    do {
+        i ^= seed;
+        i *= 0xe170893du;
+        i ^= seed >> 16;
+        i ^= (i & w) >> 4;
+        i ^= seed >> 8;
+        i *= 0x0929eb3fu;
+        i ^= seed >> 23;
+        i ^= (i & w) >> 1;
+        i *= 1u | seed >> 27;
+        i *= 0x6935fa69u;
+        i ^= (i & w) >> 11;
+        i *= 0x74dcb303u;
+        i ^= (i & w) >> 2;
+        i *= 0x9e501cc3u;
+        i ^= (i & w) >> 2;
+        i *= 0xc860a3dfu;
+        i &= w;
+        i ^= i >> 5;
+    } while (i >= n);
+    return int((i + seed) % n);
+}
+
 /// Two unit vectors completing the unit vector `n` to a right-handed orthonormal basis
 /// (Duff et al. 2017, "Building an orthonormal basis, revisited").
 inline void orthonormal_basis(const Eigen::Vector3d& n, Eigen::Vector3d& b1, Eigen::Vector3d& b2) {

@@ -140,8 +140,10 @@ struct LightCacheSettings {
 };
 
 struct RenderSettings {
-    int samples_per_pixel = 4; ///< stratified jittered samples for anti-aliasing
-    std::uint64_t seed = 1;    ///< same seed, same frame -> identical image
+    /// Stratified jittered samples per pixel (positions, wavelengths, the LED of the shadow
+    /// ray, fast integrator).
+    int samples_per_pixel = 4;
+    std::uint64_t seed = 1; ///< same seed, same frame -> identical image
     /// Extra channels, computed only when asked for (Image).
     bool marker_ids = false; ///< the marker seen through each pixel's centre, per layer
     bool variance = false;   ///< per-pixel variance estimate of the mean

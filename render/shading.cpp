@@ -159,9 +159,12 @@ LanesN<N> ShadingModel::transmittance(const EmbreeScene& scene, const Vec3& from
         switch (hit.kind) {
         case SurfaceKind::inner_surface: // the direct model does not refract: see through
             break;
-        case SurfaceKind::none: // the end of the segment, maybe still inside a marker
-            return result * marker_absorption(lanes, false, path.open_path(false, tfar_mm)) *
-                   marker_absorption(lanes, true, path.open_path(true, tfar_mm));
+        case SurfaceKind::none: { // the end of the segment, maybe still inside a marker
+            for (const bool outer : {false, true})
+                if (const double open = path.open_path(outer, tfar_mm); open > 0.0)
+                    result *= marker_absorption(lanes, outer, open);
+            return result;
+        }
         case SurfaceKind::coating:
             return LanesN<N>::Zero();
         case SurfaceKind::inner_marker:

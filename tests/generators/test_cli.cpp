@@ -30,9 +30,9 @@ Run run_chromasim(const std::string& args) {
         fs::temp_directory_path() / ("chromasim_cli_test_" + std::to_string(::getpid()) + ".log");
     const std::string cmd = std::string(exe) + " " + args + " >" + log.string() + " 2>&1";
     const int status = std::system(cmd.c_str());
-    std::ifstream in(log);
     std::stringstream s;
-    s << in.rdbuf();
+    s << std::ifstream(log).rdbuf();
+    fs::remove(log);
     return {WEXITSTATUS(status), s.str()};
 }
 
@@ -64,6 +64,7 @@ TEST_CASE("a bad spec stops generate before any work and writes nothing", "[gene
     CHECK(r.output.find("[16, 4096]") != std::string::npos);
     CHECK_FALSE(fs::exists(out));
     CHECK(r.output.find("dome mesh") == std::string::npos); // no meshing was started
+    fs::remove(spec);
 }
 
 TEST_CASE("validate reports a typo with its position and a suggestion", "[generators][cli]") {
@@ -73,6 +74,7 @@ TEST_CASE("validate reports a typo with its position and a suggestion", "[genera
     CHECK(r.code == 2);
     CHECK(r.output.find("chromasim_typo.yaml:2:5") != std::string::npos);
     CHECK(r.output.find("did you mean 'mu'") != std::string::npos);
+    fs::remove(spec);
 }
 
 TEST_CASE("bad command lines are refused with usage help", "[generators][cli]") {

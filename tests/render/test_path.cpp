@@ -126,6 +126,41 @@ TEST_CASE("refracted connections obey Snell's law and their Jacobian matches fin
     }
 }
 
+TEST_CASE("the fast integrator's shadow-ray refraction through the sphere model obeys Snell's "
+          "law, up to grazing exits at the rim",
+          "[render][path][fast]") {
+    const ShadingModel shading(OpticsParams{});
+    const PathIntegrator integrator(shading);
+    const double eta = shading.optics().refractive_index;
+    const double R = 11.7; // the inner surface below a coating point at 12.7 mm
+    int checked = 0;
+    for (double polar : {0.0, 20.0, 45.0, 70.0, 85.0, 89.5}) {
+        for (double azimuth : {0.0, 75.0, 200.0}) {
+            const Vec3 p = 12.7 * unit_from_angles(polar, azimuth);
+            for (int k = 0; k < integrator.led_count(); ++k) {
+                const Vec3 l = integrator.led_point(k, 0.8, 0.1);
+                const Vec3 w = integrator.refracted_direction(p, l, R);
+                INFO("polar " << polar << ", azimuth " << azimuth << ", LED " << k);
+                REQUIRE(std::abs(w.norm() - 1.0) < 1e-12);
+                // Where the direction leaves the layers, towards the centre.
+                const double b = p.dot(w), c = p.squaredNorm() - R * R, disc = b * b - c;
+                REQUIRE(disc >= 0.0);
+                const Vec3 x = p + (-b - std::sqrt(disc)) * w;
+                const Vec3 n = x / R;
+                const Vec3 in = (x - p).normalized(), out = (l - x).normalized();
+                // Snell in vector form: the tangential parts, eta sin = sin, and p, x, l and
+                // the centre in one plane.
+                const Vec3 mismatch = eta * (in - in.dot(n) * n) - (out - out.dot(n) * n);
+                if (eta * (in - in.dot(n) * n).norm() >= 1.0) continue; // beyond the critical
+                ++checked;
+                CHECK(mismatch.norm() < 1e-8);
+                CHECK(std::abs(p.cross(l).normalized().dot(x / R)) < 1e-9);
+            }
+        }
+    }
+    CHECK(checked >= 90); // of 108: exits past the critical angle have no refraction
+}
+
 TEST_CASE("through the inner surface, next-event estimation with MIS agrees with BSDF "
           "sampling alone",
           "[render][path]") {
