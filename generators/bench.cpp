@@ -21,6 +21,7 @@
 #include <numbers>
 #include <ostream>
 #include <random>
+#include <sstream>
 
 namespace chromasim::generators {
 
@@ -150,9 +151,18 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
     const mechanics::DomeModel model(options);
     mechanics::FrameRequest request{true, true, false};
     request.inner_surface = true; // the path integrator's refraction
-    const mechanics::FrameResult frame = model.solve({1.5, {0.6, 0.0}, 0.8}, request);
     render::SensorFrame sensor;
-    fill_sensor_frame(model, frame, sensor);
+    std::string frame_name = "the dome at rest";
+    if (o.normal_N > 0.0) {
+        const mechanics::FrameResult frame =
+            model.solve({o.normal_N, {o.shear_N, 0.0}, o.mu}, request);
+        fill_sensor_frame(model, frame, sensor);
+        std::ostringstream name;
+        name << "coarse dome at " << o.normal_N << " N + " << o.shear_N << " N pull, mu " << o.mu;
+        frame_name = name.str();
+    } else {
+        sensor = undeformed_sensor_frame(model);
+    }
     // Spectral: the shipped spectra. RGB: the same sensor reduced to camera RGB (albedos as
     // seen under the LED, absorption coefficients at the markers' median thickness), so the
     // difference is the RGB approximation itself, not a different parameter set.
@@ -230,8 +240,8 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
         ref_var += v;
     if (!ref.variance.empty()) ref_var /= double(ref.variance.size());
     constexpr double kWhite = 0.8; // the undeformed apex's image value
-    out << "render " << o.size_px << " x " << o.size_px << ", coarse dome at 1.5 N + 0.6 N "
-        << "pull, error against " << reference_source << ", in % of the white level "
+    out << "render " << o.size_px << " x " << o.size_px << ", " << frame_name << ", error against "
+        << reference_source << ", in % of the white level "
         << "(0.8, the undeformed apex); RGB mode: the spectra "
         << "reduced to camera RGB (absorption at " << path_mm << " mm); times are medians of "
         << o.repeats << "; 'less ref noise': sqrt(RMS^2 - the reference's mean variance), the "

@@ -38,6 +38,9 @@ struct RenderBenchOptions {
     /// row's error includes the direct model's own bias.
     std::string reference_integrator = "direct";
     int repeats = 5;
+    /// The frame: the object presses with normal_N and pulls with shear_N along x, friction
+    /// mu (the default: the quickstart's loaded frame). normal_N 0: the dome at rest.
+    double normal_N = 1.5, shear_N = 0.6, mu = 0.8;
     /// The fast integrator's light cache.
     render::LightCacheSettings light_cache;
     /// Read the reference from this EXR (R, G, B and variance.*, as written by
@@ -47,7 +50,7 @@ struct RenderBenchOptions {
     std::filesystem::path reference_out;
 };
 
-/// Samples per pixel vs image error and time on the quickstart's loaded frame (coarse mesh,
+/// Samples per pixel vs image error and time on a loaded frame (coarse mesh; by default
 /// 1.5 N, 0.6 N pull): median render time, RMS and max error against the spectral render of
 /// `reference_integrator` at `reference_spp`, per integrator and mode.
 void bench_render(const RenderBenchOptions& options, std::ostream& out);

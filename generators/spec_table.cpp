@@ -542,10 +542,11 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
     out.push_back(integer("render.height_px", 256, closed(16, 4096), "px", "Image height.",
                           CHROMASIM_FIELD(render.height_px)));
     out.push_back(integer("render.samples_per_pixel", 4, closed(1, 1024), "",
-                          "Samples per pixel (stratified positions and wavelengths). Direct "
-                          "integrator at 224 px: 4 spp gives 3.1 % RMS of the white level in "
-                          "0.34 s, 16 spp 1.2 % in 1.3 s (docs/VALIDATION.md); the path "
-                          "integrator needs thousands for 1 %.",
+                          "Samples per pixel (stratified positions, wavelengths and, for the "
+                          "fast integrator, the LED of the shadow ray). Fast integrator at "
+                          "224 px on 2 cores: 4 spp gives 2.8 % RMS of the white level in "
+                          "0.17 s, 16 spp 1.1 % in 0.64 s (its own noise; docs/VALIDATION.md); "
+                          "the path integrator needs thousands for 1 %.",
                           CHROMASIM_FIELD(render.samples_per_pixel)));
     out.push_back(number("render.exposure", 1, left_open(0, 100), "",
                          "Linear scale applied to the rendered radiance before writing.",
@@ -557,13 +558,17 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                           CHROMASIM_FIELD(render.spectral)));
     out.push_back(choice("render.integrator", "direct", {"direct", "path", "fast"},
                          "Light transport. direct: LED light straight to the coating and the "
-                         "markers, one bounce, no refraction (cheapest, an approximation). "
+                         "markers, one bounce, no refraction (no light cache to build, but 44 % "
+                         "RMS of the white level off the path reference). "
                          "path: unbiased path tracing with refraction and Fresnel at the inner "
                          "surface, diffuse interreflection and area LEDs (the reference). "
                          "fast: the path integrator's light with the smooth indirect light and "
                          "the LEDs' unshadowed light cached once per sensor on the coating "
                          "(render.fast.*); marker transmittance and coloured shadows traced "
-                         "per frame. docs/VALIDATION.md has each one's error and cost.",
+                         "per frame: about 3 % RMS off the path reference at the cost per "
+                         "sample of direct, plus about 6 s once per run for the cache (the "
+                         "shipped dataset specs use it). docs/VALIDATION.md has each one's "
+                         "error and cost.",
                          CHROMASIM_FIELD(render.integrator)));
     out.push_back(integer("render.fast.paths_per_vertex", 256, closed(1, 65536), "",
                           "Fast integrator: paths traced per coating vertex (at the coating "

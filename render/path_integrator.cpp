@@ -204,28 +204,40 @@ std::vector<Vec3> sphere_reflections(const Vec3& a, const Vec3& l, double R) {
     const double cos_step = std::cos(step), sin_step = std::sin(step);
     std::vector<Vec3> points;
     double c = std::cos(kEdge), s = std::sin(kEdge); // the scan turns (c, s) by step
-    double prev_psi = kEdge, prev = mismatch_at(c, s);
+    double prev_psi = kEdge, prev = mismatch_at(c, s), prev_z = c * e1.z() + s * e2.z();
     for (int i = 1; i <= kMirrorScan; ++i) {
         const double psi = kEdge + step * i;
         const double c_next = c * cos_step - s * sin_step;
         s = s * cos_step + c * sin_step;
         c = c_next;
-        const double f = mismatch_at(c, s);
+        const double f = mismatch_at(c, s), z = c * e1.z() + s * e2.z();
         // Mirror points below the rim plane are no use (the dome is a hemisphere): skip arcs
         // whose ends both lie there (an arc of 2 pi / kMirrorScan rises at most 0.02 mm).
-        const bool below = (c * e1.z() + s * e2.z()) <= 0.0 &&
-                           (std::cos(prev_psi) * e1.z() + std::sin(prev_psi) * e2.z()) <= 0.0;
+        const bool below = z <= 0.0 && prev_z <= 0.0;
         if (!below && (f > 0.0) != (prev > 0.0)) {
-            double lo = prev_psi, hi = psi;
-            for (int j = 0; j < kBisections; ++j) {
-                const double mid = 0.5 * (lo + hi);
-                ((mismatch(mid) > 0.0) == (prev > 0.0) ? lo : hi) = mid;
+            // Regula falsi with the Illinois modification inside the arc (as in
+            // sphere_refraction): a few evaluations where bisection takes 30.
+            double lo = prev_psi, hi = psi, f_lo = prev, f_hi = f;
+            double mid = 0.5 * (lo + hi), f_mid = mismatch(mid);
+            int side = 0;
+            for (int j = 0; j < kBisections && f_hi != f_lo; ++j) {
+                mid = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
+                f_mid = mismatch(mid);
+                if (std::abs(f_mid) < 1e-13 || hi - lo < 1e-10) break;
+                if ((f_mid > 0.0) == (f_hi > 0.0)) {
+                    hi = mid, f_hi = f_mid;
+                    if (side == -1) f_lo *= 0.5;
+                    side = -1;
+                } else {
+                    lo = mid, f_lo = f_mid;
+                    if (side == 1) f_hi *= 0.5;
+                    side = 1;
+                }
             }
-            const auto [x, tau] = on_circle(e1, e2, R, 0.5 * (lo + hi));
             // A sign change across the pole of (x - a)^ is a jump, not a root.
-            if (std::abs(mismatch(0.5 * (lo + hi))) < 1e-6) points.push_back(x);
+            if (std::abs(f_mid) < 1e-6) points.push_back(on_circle(e1, e2, R, mid).first);
         }
-        prev_psi = psi, prev = f;
+        prev_psi = psi, prev = f, prev_z = z;
     }
     return points;
 }

@@ -111,7 +111,7 @@ struct OpticsParams {
     double refractive_index = 1.4;
     Vec3 led_rgb{1.0, 1.0, 1.0}; ///< relative emission per LED (white)
     double exposure = 1.0;       ///< multiplies the auto exposure (undeformed apex -> 0.8)
-    /// Spectral mode when set: every camera sample carries four hero wavelengths; the coating,
+    /// Spectral mode when set: every camera sample carries 16 hero wavelengths; the coating,
     /// marker and LED spectra replace the RGB values above (the LED's relative intensity is
     /// the mean of led_rgb), and the camera's sensitivities turn radiance into white-balanced
     /// RGB. Unset: the RGB mode (a product per channel, an approximation of the spectral one).

@@ -213,6 +213,14 @@ int main(int argc, char** argv) {
         ->check(CLI::Range(16, 4096));
     bench_render->add_option("--repeat", render_bench.repeats, "timed renders per setting")
         ->check(CLI::Range(1, 1000));
+    bench_render
+        ->add_option("--normal-N", render_bench.normal_N,
+                     "the frame's normal force, N (0: the dome at rest)")
+        ->check(CLI::Range(0.0, 20.0));
+    bench_render->add_option("--shear-N", render_bench.shear_N, "the frame's pull along x, N")
+        ->check(CLI::Range(0.0, 20.0));
+    bench_render->add_option("--mu", render_bench.mu, "the frame's friction coefficient")
+        ->check(CLI::Range(0.0, 10.0));
     bench_render->add_option("--modes", render_bench.modes, "spectral and/or rgb")
         ->delimiter(',')
         ->check(CLI::IsMember({"spectral", "rgb"}));

@@ -4,7 +4,9 @@ Usage: python3 make_datasets.py CHROMASIM_EXE OUT_DIR
 Writes OUT_DIR/quickstart (datasets_spec/quickstart.yaml: 2 trials, both fingertips, images)
 and OUT_DIR/tiny_sliding (specs/tiny_sliding.yaml: strain fields). `chromasim generate`
 does nothing for a folder that already holds the dataset of the same spec, so a second run
-is cheap. CTest runs this once as the fixture of every python.* test.
+is cheap; a folder left by another spec or chromasim version (an earlier build in the same
+build tree) is regenerated with --overwrite. CTest runs this once as the fixture of every
+python.* test.
 """
 
 import os
@@ -27,7 +29,11 @@ def make(exe: str, out: str) -> dict[str, str]:
         cmd = [exe, "generate", spec, "-o", target, "-q"]
         if os.path.exists(target + ".partial"):
             cmd.append("--resume")
-        subprocess.run(cmd, check=True)
+        if subprocess.run(cmd).returncode != 0:
+            if not os.path.isdir(target):
+                sys.exit(f"make_datasets: {' '.join(cmd)} failed")
+            # Refused: the folder holds another spec's or version's dataset.
+            subprocess.run(cmd + ["--overwrite"], check=True)
         paths[name] = target
     return paths
 
