@@ -339,6 +339,7 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     model_options.cache_dir = options.cache_dir;
     const mechanics::DomeModel model(model_options);
     std::unique_ptr<render::Renderer> renderer;
+    std::string light_cache_note;
     if (render_stage) {
         renderer = std::make_unique<render::Renderer>(camera_params(spec), *optics);
         // The path integrator's auto exposure: its own undeformed apex (render/renderer.hpp).
@@ -347,9 +348,11 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
             const render::SensorFrame rest = undeformed_sensor_frame(model);
             renderer->set_exposure_reference(rest);
             if (spec.render.integrator == "fast") {
-                const auto t_cache = Clock::now();
-                renderer->set_light_cache(rest, light_cache_settings(spec));
-                report.light_cache_s = seconds_since(t_cache);
+                const render::Renderer::LightCacheReport cache =
+                    renderer->set_light_cache(rest, light_cache_settings(spec), options.cache_dir);
+                report.light_cache_s = cache.seconds;
+                report.light_cache_from_file = cache.from_file;
+                light_cache_note = cache.note;
             }
         }
     }
@@ -361,7 +364,14 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     log_dome_model(spec, model, report.precompute_s, options.cache_dir, log);
     if (report.light_cache_s > 0.0)
         log << "chromasim: the fast integrator's light cache took " << report.light_cache_s
-            << " s of that (once per sensor; render.fast.*)\n";
+            << " s of that ("
+            << (report.light_cache_from_file
+                    ? "read from " + options.cache_dir.string()
+                    : "built once per sensor; render.fast.*" +
+                          (options.cache_dir.empty() ? std::string()
+                                                     : ", saved to " + options.cache_dir.string()))
+            << ")\n";
+    if (!light_cache_note.empty()) log << "chromasim: light cache: " << light_cache_note << '\n';
 
     // 3. Trials, one after the other; in each, frames: mechanics, render (only if images are
     // asked for), writers.

@@ -14,7 +14,8 @@ struct GenerateOptions {
     std::filesystem::path out_dir;
     bool overwrite = false; ///< replace an existing dataset from another spec
     bool quiet = false;     ///< no per-trial lines, no progress (generators/progress.hpp)
-    /// On-disk cache of the mechanics precomputation (empty: off). See default_cache_dir().
+    /// On-disk cache of the mechanics precomputation and of the fast integrator's light
+    /// cache (empty: off). See default_cache_dir().
     std::filesystem::path cache_dir;
     /// Run only the first `max_trials` trials of the plan (0, or at least the plan's count:
     /// all): a slice of a big spec. Trial k of the slice is trial k of the whole plan (same
@@ -52,7 +53,8 @@ struct GenerateReport {
     int solves = 0, reused_solves = 0;
     int renders = 0; ///< images rendered (a reused result of an unmoved scene reuses its image)
     double precompute_s = 0, mechanics_s = 0, render_s = 0, write_s = 0, total_s = 0;
-    double light_cache_s = 0; ///< the fast integrator's light cache, part of precompute_s
+    double light_cache_s = 0;           ///< the fast integrator's light cache, part of precompute_s
+    bool light_cache_from_file = false; ///< read from GenerateOptions::cache_dir
 };
 
 /// One fingertip's labels of a solved frame: `load` is the finger's load in frame `f` (image

@@ -283,6 +283,15 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
     m_direct.clear(); // set_frame brings the frame's data up to date
 }
 
+void FastIntegrator::adopt_cache(LightCache cache) {
+    if (cache.leds != m_path.led_count())
+        throw std::invalid_argument("FastIntegrator::adopt_cache: a cache for " +
+                                    std::to_string(cache.leds) + " LEDs; allowed: one for " +
+                                    std::to_string(m_path.led_count()));
+    m_cache = std::make_shared<const LightCache>(std::move(cache));
+    m_direct.clear(); // set_frame brings the frame's data up to date
+}
+
 void FastIntegrator::check_topology(const SensorFrame& frame) const {
     if (!m_cache) throw std::logic_error("FastIntegrator: no light cache built");
     const LightCache& c = *m_cache;

@@ -94,6 +94,9 @@ public:
     /// (a stream per vertex).
     void build_cache(const SensorFrame& undeformed, const render::LightCacheSettings& settings,
                      const SensorSpectra* spectra, double led_scale);
+    /// Uses a cache built before (read from disk: render/light_cache_file.hpp) instead of
+    /// building one; frames must then match its coating (check_topology).
+    void adopt_cache(LightCache cache);
     bool has_cache() const { return m_cache != nullptr; }
     const LightCache& cache() const { return *m_cache; }
 
