@@ -146,10 +146,17 @@ Eigen::Array3d pixel_at(const Renderer& renderer, const Image& image, const Vec3
     return pixel(image, int(std::floor(xy->x())), int(std::floor(xy->y())));
 }
 
+/// `rest`: the fast integrator's light cache is built on it (a quick one: 8 paths per vertex).
 Image render_frame(const CameraParams& camera, const OpticsParams& optics, const SensorFrame& frame,
                    int spp = 2, std::uint64_t seed = 1,
-                   Integrator integrator = Integrator::direct) {
+                   Integrator integrator = Integrator::direct, const SensorFrame* rest = nullptr) {
     Renderer renderer(camera, optics);
+    if (integrator == Integrator::fast) {
+        LightCacheSettings cache;
+        cache.paths_per_vertex = 8;
+        cache.direct_samples = 4;
+        renderer.set_light_cache(rest ? *rest : frame, cache);
+    }
     renderer.set_frame(frame);
     RenderSettings settings{spp, seed};
     settings.integrator = integrator;
@@ -575,6 +582,8 @@ TEST_CASE("degenerate deformation: zero-area triangles and rays at the image cir
           "finite",
           "[render][extreme]") {
     SensorFrame frame = marker_frame();
+    frame.inner_surface = hemisphere(10.5, 24, 48);
+    const SensorFrame rest = frame; // the fast integrator's light cache is built at rest
     // Collapse the first coating triangle and a whole marker face onto a point, and flatten
     // the outer marker onto a line: zero-area triangles with zero normals.
     const Eigen::RowVector3f p = frame.coating.V.row(frame.coating.F(0, 0));
@@ -589,21 +598,20 @@ TEST_CASE("degenerate deformation: zero-area triangles and rays at the image cir
     OpticsParams spectral;
     spectral.spectra = load_sensor_spectra(SensorSpectraFiles::in_directory(
         std::filesystem::path(CHROMASIM_SOURCE_DIR) / "assets" / "spectra"));
-    // The path integrator also refracts at an inner surface with a collapsed triangle.
-    frame.inner_surface = hemisphere(10.5, 24, 48);
+    // The path and fast integrators also refract at an inner surface with a collapsed triangle.
     const Eigen::RowVector3f q = frame.inner_surface.V.row(frame.inner_surface.F(7, 0));
     for (int k = 0; k < 3; ++k)
         frame.inner_surface.V.row(frame.inner_surface.F(7, k)) = q;
-    for (const Integrator integrator : {Integrator::direct, Integrator::path})
+    for (const Integrator integrator : {Integrator::direct, Integrator::path, Integrator::fast})
         for (const OpticsParams& optics : {OpticsParams{}, spectral}) {
             INFO("integrator " << int(integrator) << ", spectral " << bool(optics.spectra));
             // 84 deg: the rim pixels' rays run almost along the rim plane, grazing the coating.
             const Image image =
-                render_frame(CameraParams{96, 96, 84.0}, optics, frame, 4, 9, integrator);
+                render_frame(CameraParams{96, 96, 84.0}, optics, frame, 4, 9, integrator, &rest);
             CHECK(all_finite(image));
             CHECK(*std::max_element(image.rgb.begin(), image.rgb.end()) < 100.0f);
             // A camera wider than the dome (100 deg): rays below the rim plane see nothing.
-            CHECK(all_finite(
-                render_frame(CameraParams{64, 64, 100.0}, optics, frame, 2, 9, integrator)));
+            CHECK(all_finite(render_frame(CameraParams{64, 64, 100.0}, optics, frame, 2, 9,
+                                          integrator, &rest)));
         }
 }
