@@ -260,7 +260,7 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
             renderer.set_frame(frame);
             renderer.set_exposure_reference(rest); // used by the path integrator only
             if (integrator == "fast") {
-                const double build_s = renderer.set_light_cache(rest, o.light_cache).seconds;
+                const double build_s = renderer.set_light_cache(rest, o.light_cache);
                 out << "| fast | " << mode << " | light cache | " << std::setprecision(0)
                     << 1e3 * build_s << " (once per sensor) | | | |\n";
             }

@@ -5,6 +5,7 @@
 #include "generators/dataset_writer.hpp"
 #include "generators/file_io.hpp"
 #include "generators/image_io.hpp"
+#include "generators/light_cache_store.hpp"
 #include "generators/plan.hpp"
 #include "generators/sensor_bridge.hpp"
 #include "mechanics/stopwatch.hpp"
@@ -348,8 +349,8 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
             const render::SensorFrame rest = undeformed_sensor_frame(model);
             renderer->set_exposure_reference(rest);
             if (spec.render.integrator == "fast") {
-                const render::Renderer::LightCacheReport cache =
-                    renderer->set_light_cache(rest, light_cache_settings(spec), options.cache_dir);
+                const LightCacheOutcome cache = provide_light_cache(
+                    *renderer, rest, *optics, light_cache_settings(spec), options.cache_dir);
                 report.light_cache_s = cache.seconds;
                 report.light_cache_from_file = cache.from_file;
                 light_cache_note = cache.note;

@@ -12,7 +12,7 @@ namespace chromasim::mechanics {
 
 namespace {
 
-constexpr char kMagic[8] = {'C', 'S', 'M', 'C', 'A', 'C', 'H', '1'};
+constexpr std::string_view kMagic = "CSMCACH1";
 
 /// Appends a dense matrix (rows, cols, raw storage) to a byte buffer.
 template <class M> void put(std::string& out, const M& m) {
@@ -52,51 +52,38 @@ fs::path cache_file(const fs::path& dir, std::uint64_t key) {
     return dir / name;
 }
 
-std::optional<CachedModel> load_cached_model(const fs::path& dir, std::uint64_t key,
-                                             std::string* problem) {
-    const fs::path path = cache_file(dir, key);
+std::optional<std::string> read_cache_file(const fs::path& path, std::string_view magic,
+                                           std::uint64_t key, std::string* problem) {
     std::ifstream file(path, std::ios::binary);
     if (!file) return std::nullopt;
     std::ostringstream buffer;
     buffer << file.rdbuf();
-    const std::string bytes = buffer.str();
-    auto fail = [&](const char* why) -> std::optional<CachedModel> {
+    std::string bytes = buffer.str();
+    auto fail = [&](const char* why) -> std::optional<std::string> {
         if (problem) *problem = path.string() + ": " + why;
         return std::nullopt;
     };
-    constexpr std::size_t kHeader = sizeof kMagic + 2 * sizeof(std::uint64_t);
-    if (bytes.size() < kHeader || std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0)
+    const std::size_t header = magic.size() + 2 * sizeof(std::uint64_t);
+    if (bytes.size() < header || std::string_view(bytes).substr(0, magic.size()) != magic)
         return fail("not a chromasim cache file");
     std::uint64_t stored_key = 0, checksum = 0;
-    std::memcpy(&stored_key, bytes.data() + sizeof kMagic, sizeof stored_key);
-    std::memcpy(&checksum, bytes.data() + sizeof kMagic + 8, sizeof checksum);
-    std::string_view payload(bytes.data() + kHeader, bytes.size() - kHeader);
+    std::memcpy(&stored_key, bytes.data() + magic.size(), sizeof stored_key);
+    std::memcpy(&checksum, bytes.data() + magic.size() + 8, sizeof checksum);
     if (stored_key != key) return fail("written for another key");
-    if (fnv1a64(payload) != checksum) return fail("checksum mismatch (torn or corrupt file)");
-    CachedModel m;
-    if (!get(payload, m.mesh.V) || !get(payload, m.mesh.T) || !get(payload, m.mesh.region) ||
-        !get(payload, m.responses.compliance) || !get(payload, m.responses.observed) ||
-        !payload.empty())
-        return fail("truncated payload");
-    return m;
+    bytes.erase(0, header);
+    if (fnv1a64(bytes) != checksum) return fail("checksum mismatch (torn or corrupt file)");
+    return bytes;
 }
 
-bool save_cached_model(const fs::path& dir, std::uint64_t key, const TetMesh& mesh,
-                       const ElasticBodyResponses& responses, std::string* problem) {
-    std::string payload;
-    put(payload, mesh.V);
-    put(payload, mesh.T);
-    put(payload, mesh.region);
-    put(payload, responses.compliance);
-    put(payload, responses.observed);
+bool write_cache_file(const fs::path& path, std::string_view magic, std::uint64_t key,
+                      std::string_view payload, std::string* problem) {
     const std::uint64_t checksum = fnv1a64(payload);
     std::error_code ec;
-    fs::create_directories(dir, ec);
-    const fs::path path = cache_file(dir, key);
+    fs::create_directories(path.parent_path(), ec);
     const fs::path tmp = path.string() + ".tmp-" + std::to_string(::getpid());
     {
         std::ofstream out(tmp, std::ios::binary);
-        out.write(kMagic, sizeof kMagic);
+        out.write(magic.data(), std::streamsize(magic.size()));
         out.write(reinterpret_cast<const char*>(&key), sizeof key);
         out.write(reinterpret_cast<const char*>(&checksum), sizeof checksum);
         out.write(payload.data(), std::streamsize(payload.size()));
@@ -113,6 +100,33 @@ bool save_cached_model(const fs::path& dir, std::uint64_t key, const TetMesh& me
         return false;
     }
     return true;
+}
+
+std::optional<CachedModel> load_cached_model(const fs::path& dir, std::uint64_t key,
+                                             std::string* problem) {
+    const fs::path path = cache_file(dir, key);
+    std::optional<std::string> bytes = read_cache_file(path, kMagic, key, problem);
+    if (!bytes) return std::nullopt;
+    std::string_view payload(*bytes);
+    CachedModel m;
+    if (!get(payload, m.mesh.V) || !get(payload, m.mesh.T) || !get(payload, m.mesh.region) ||
+        !get(payload, m.responses.compliance) || !get(payload, m.responses.observed) ||
+        !payload.empty()) {
+        if (problem) *problem = path.string() + ": truncated payload";
+        return std::nullopt;
+    }
+    return m;
+}
+
+bool save_cached_model(const fs::path& dir, std::uint64_t key, const TetMesh& mesh,
+                       const ElasticBodyResponses& responses, std::string* problem) {
+    std::string payload;
+    put(payload, mesh.V);
+    put(payload, mesh.T);
+    put(payload, mesh.region);
+    put(payload, responses.compliance);
+    put(payload, responses.observed);
+    return write_cache_file(cache_file(dir, key), kMagic, key, payload, problem);
 }
 
 } // namespace chromasim::mechanics

@@ -16,6 +16,17 @@ namespace chromasim::mechanics {
 /// 64-bit FNV-1a of a byte string (stable across platforms and runs).
 std::uint64_t fnv1a64(std::string_view bytes, std::uint64_t seed = 0xcbf29ce484222325ull);
 
+/// One cache file: 8 magic bytes, the key, an FNV-1a checksum of the payload, the payload.
+/// Reads the payload at `path`: nullopt if absent, or (with `problem` naming the file and
+/// why) not of this magic, for another key, or torn or corrupt.
+std::optional<std::string> read_cache_file(const std::filesystem::path& path,
+                                           std::string_view magic, std::uint64_t key,
+                                           std::string* problem = nullptr);
+/// Writes one to a temporary name and renames it into place. Returns false (with `problem`)
+/// if the folder cannot be written: a cache is an optimisation, never a reason to fail.
+bool write_cache_file(const std::filesystem::path& path, std::string_view magic, std::uint64_t key,
+                      std::string_view payload, std::string* problem = nullptr);
+
 struct CachedModel {
     TetMesh mesh;
     ElasticBodyResponses responses;

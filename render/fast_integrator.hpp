@@ -67,24 +67,6 @@ inline constexpr int kCacheLambdas = 16;
 inline constexpr double kCacheLambdaMin_nm = 400.0;
 inline constexpr double kCacheLambdaStep_nm = 20.0;
 
-/// The per-sensor light cache on the coating vertices (plain data, structure of arrays).
-struct LightCache {
-    int vertices = 0;
-    int leds = 0;
-    int lanes = 0;             ///< kCacheLambdas (spectral) or kRgbLanes
-    std::vector<float> direct; ///< G_k per unit LED emission, [vertex * leds + k], 1/mm^2
-    /// E_ind / pi per unit LED emission at the coating, [vertex * lanes + j] (under an outer
-    /// marker: above it, unfiltered).
-    std::vector<float> indirect;
-    /// The same above the outer marker layer (where its markers' inner faces are).
-    std::vector<float> indirect_above;
-    /// The same for a point LED at each LED's centre, at rest (led_flux_point): a frame's G_k
-    /// is its point-LED flux through the deformed inner surface times |direct| / |point_rest|.
-    std::vector<float> point_rest;
-    std::vector<std::uint32_t> coating_triangles; ///< the coating's triangles (3 per), for checks
-    double build_s = 0.0;                         ///< wall time of the build
-};
-
 class FastIntegrator {
 public:
     FastIntegrator(const ShadingModel& shading, const PathIntegrator& path);
@@ -94,8 +76,8 @@ public:
     /// (a stream per vertex).
     void build_cache(const SensorFrame& undeformed, const render::LightCacheSettings& settings,
                      const SensorSpectra* spectra, double led_scale);
-    /// Uses a cache built before (read from disk: render/light_cache_file.hpp) instead of
-    /// building one; frames must then match its coating (check_topology).
+    /// Uses a cache built before (read from disk: generators/light_cache_store.hpp) instead
+    /// of building one; frames must then match its coating (check_topology).
     void adopt_cache(LightCache cache);
     bool has_cache() const { return m_cache != nullptr; }
     const LightCache& cache() const { return *m_cache; }

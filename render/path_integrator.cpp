@@ -111,11 +111,37 @@ std::pair<Vec3, Vec3> on_circle(const Vec3& e1, const Vec3& e2, double R, double
     return on_circle(e1, e2, R, std::cos(psi), std::sin(psi));
 }
 
-/// Bisection steps of the sphere model's angles: 2^-30 of the bracket (below 1e-8 rad), far
-/// finer than the Newton solve on the mesh that starts from them needs.
+/// Most iterations of the sphere model's root finding (illinois below): as many as bisection
+/// would need for 2^-30 of the bracket; regula falsi stops far earlier.
 constexpr int kBisections = 30;
 /// Samples of the circle when looking for the sphere model's mirror points.
 constexpr int kMirrorScan = 64;
+
+/// A root of f in [lo, hi] (f_lo = f(lo) and f_hi = f(hi) of opposite signs) by regula falsi
+/// with the Illinois modification: it keeps a bracket like bisection and converges
+/// superlinearly (a few evaluations where bisection takes 30). Stops at |f| < tolerance or a
+/// bracket below 1e-10. Returns the last point and its f.
+template <class F>
+std::pair<double, double> illinois(F&& f, double lo, double hi, double f_lo, double f_hi,
+                                   double tolerance) {
+    double x = 0.5 * (lo + hi), fx = f_lo;
+    int side = 0;
+    for (int i = 0; i < kBisections && f_hi != f_lo; ++i) {
+        x = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
+        fx = f(x);
+        if (std::abs(fx) < tolerance || std::abs(hi - lo) < 1e-10) break;
+        if ((fx > 0.0) == (f_hi > 0.0)) {
+            hi = x, f_hi = fx;
+            if (side == -1) f_lo *= 0.5;
+            side = -1;
+        } else {
+            lo = x, f_lo = fx;
+            if (side == 1) f_hi *= 0.5;
+            side = 1;
+        }
+    }
+    return {x, fx};
+}
 
 /// The refraction of p -> l by the sphere about the origin of radius R: the direction from p
 /// to the point x where the tangential components of the unit directions obey Snell's law,
@@ -164,24 +190,7 @@ Vec3 sphere_refraction(const Vec3& p, const Vec3& l, double R, double eta,
         if (!bracketed) f_hi = mismatch(hi);
     }
     if (f_lo * f_hi > 0.0) return (l - p).normalized();
-    // Regula falsi with the Illinois modification: keeps the bracket of bisection and
-    // converges superlinearly (a few evaluations where bisection takes 30).
-    double t = 0.5 * (lo + hi);
-    int side = 0;
-    for (int i = 0; i < kBisections && f_hi != f_lo; ++i) {
-        t = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
-        const double f = mismatch(t);
-        if (std::abs(f) < tolerance || std::abs(hi - lo) < 1e-10) break;
-        if ((f > 0.0) == (f_hi > 0.0)) {
-            hi = t, f_hi = f;
-            if (side == -1) f_lo *= 0.5;
-            side = -1;
-        } else {
-            lo = t, f_lo = f;
-            if (side == 1) f_hi *= 0.5;
-            side = 1;
-        }
-    }
+    const double t = illinois(mismatch, lo, hi, f_lo, f_hi, tolerance).first;
     return (at(t).first - p).normalized();
 }
 
@@ -215,25 +224,7 @@ std::vector<Vec3> sphere_reflections(const Vec3& a, const Vec3& l, double R) {
         // whose ends both lie there (an arc of 2 pi / kMirrorScan rises at most 0.02 mm).
         const bool below = z <= 0.0 && prev_z <= 0.0;
         if (!below && (f > 0.0) != (prev > 0.0)) {
-            // Regula falsi with the Illinois modification inside the arc (as in
-            // sphere_refraction): a few evaluations where bisection takes 30.
-            double lo = prev_psi, hi = psi, f_lo = prev, f_hi = f;
-            double mid = 0.5 * (lo + hi), f_mid = mismatch(mid);
-            int side = 0;
-            for (int j = 0; j < kBisections && f_hi != f_lo; ++j) {
-                mid = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
-                f_mid = mismatch(mid);
-                if (std::abs(f_mid) < 1e-13 || hi - lo < 1e-10) break;
-                if ((f_mid > 0.0) == (f_hi > 0.0)) {
-                    hi = mid, f_hi = f_mid;
-                    if (side == -1) f_lo *= 0.5;
-                    side = -1;
-                } else {
-                    lo = mid, f_lo = f_mid;
-                    if (side == 1) f_hi *= 0.5;
-                    side = 1;
-                }
-            }
+            const auto [mid, f_mid] = illinois(mismatch, prev_psi, psi, prev, f, 1e-13);
             // A sign change across the pole of (x - a)^ is a jump, not a root.
             if (std::abs(f_mid) < 1e-6) points.push_back(on_circle(e1, e2, R, mid).first);
         }

@@ -44,7 +44,6 @@
 #include "render/embree_scene.hpp"
 #include "render/fast_integrator.hpp"
 #include "render/fisheye_camera.hpp"
-#include "render/light_cache_file.hpp"
 #include "render/path_integrator.hpp"
 #include "render/sampling.hpp"
 #include "render/shading.hpp"
@@ -53,7 +52,6 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -264,6 +262,14 @@ struct Renderer::Impl {
     }
 
     int triangles_per_marker = 0;
+
+    /// After a new light cache: the loaded frame's data for it (if a frame is loaded).
+    void refresh_fast_frame() {
+        if (!scene.has_frame()) return;
+        SensorFrame current;
+        current.coating = coating;
+        fast.set_frame(current, scene);
+    }
 };
 
 Renderer::Renderer(const CameraParams& camera, const OpticsParams& optics)
@@ -302,40 +308,23 @@ void Renderer::set_exposure_reference(const SensorFrame& undeformed) {
     m_impl->path_scale = m.shading.optics().exposure * detail::kApexImageValue / reference;
 }
 
-Renderer::LightCacheReport Renderer::set_light_cache(const SensorFrame& undeformed,
-                                                     const LightCacheSettings& settings,
-                                                     const std::filesystem::path& cache_dir) {
+double Renderer::set_light_cache(const SensorFrame& undeformed,
+                                 const LightCacheSettings& settings) {
     detail::validate_marker_layout(undeformed);
-    const auto start = std::chrono::steady_clock::now();
-    const OpticsParams& optics = m_impl->shading.optics();
-    const std::optional<SensorSpectra>& spectra = optics.spectra;
-    LightCacheReport report;
-    const std::uint64_t key =
-        cache_dir.empty()
-            ? 0
-            : detail::light_cache_key(undeformed, optics, settings, m_impl->led_scale);
-    std::optional<detail::LightCache> stored;
-    if (!cache_dir.empty()) stored = detail::load_light_cache(cache_dir, key, &report.note);
-    if (stored && stored->vertices == undeformed.coating.V.rows()) {
-        m_impl->fast.adopt_cache(std::move(*stored));
-        report.from_file = true;
-    } else {
-        m_impl->fast.build_cache(undeformed, settings, spectra ? &*spectra : nullptr,
-                                 m_impl->led_scale);
-        if (!cache_dir.empty()) {
-            std::string problem;
-            if (!detail::save_light_cache(cache_dir, key, m_impl->fast.cache(), &problem))
-                report.note += (report.note.empty() ? "" : "; ") + problem;
-        }
-    }
-    if (m_impl->scene.has_frame()) {
-        SensorFrame current;
-        current.coating = m_impl->coating;
-        m_impl->fast.set_frame(current, m_impl->scene);
-    }
-    report.seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    return report;
+    const std::optional<SensorSpectra>& spectra = m_impl->shading.optics().spectra;
+    m_impl->fast.build_cache(undeformed, settings, spectra ? &*spectra : nullptr,
+                             m_impl->led_scale);
+    m_impl->refresh_fast_frame();
+    return m_impl->fast.cache().build_s;
+}
+
+void Renderer::set_light_cache(LightCache cache) {
+    m_impl->fast.adopt_cache(std::move(cache));
+    m_impl->refresh_fast_frame();
+}
+
+const LightCache* Renderer::light_cache() const {
+    return m_impl->fast.has_cache() ? &m_impl->fast.cache() : nullptr;
 }
 
 void Renderer::set_frame(const SensorFrame& frame) {

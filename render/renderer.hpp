@@ -3,10 +3,8 @@
 #include "render/scene_data.hpp"
 
 #include <cstdint>
-#include <filesystem>
 #include <memory>
 #include <optional>
-#include <string>
 
 namespace chromasim::render {
 
@@ -33,17 +31,14 @@ public:
     /// The fast integrator's light cache (render/fast_integrator.hpp), built on `undeformed`
     /// (the sensor at rest with its markers and inner surface): once per sensor, before
     /// rendering with Integrator::fast. Frames must then have the same coating topology.
-    /// With `cache_dir`, read from there when a file of the same key exists (same version,
-    /// optics, settings and rest geometry: render/light_cache_file.hpp), else built and
-    /// saved there.
-    struct LightCacheReport {
-        double seconds = 0.0;   ///< wall time of the build or the read
-        bool from_file = false; ///< read from cache_dir
-        std::string note;       ///< why a file was refused or could not be written
-    };
-    LightCacheReport set_light_cache(const SensorFrame& undeformed,
-                                     const LightCacheSettings& settings,
-                                     const std::filesystem::path& cache_dir = {});
+    /// Returns the build's wall time in seconds.
+    double set_light_cache(const SensorFrame& undeformed, const LightCacheSettings& settings);
+    /// Uses a light cache built before for this sensor and optics (generators/
+    /// light_cache_store.hpp reads them from disk). Throws std::invalid_argument when it is for
+    /// another LED count, or when a frame is loaded and its coating differs from the cache's.
+    void set_light_cache(LightCache cache);
+    /// The light cache in use, or nullptr.
+    const LightCache* light_cache() const;
 
     /// Renders the current frame. Linear RGB, auto-exposed so that the undeformed apex of a
     /// white coating maps to about 0.8 (times OpticsParams::exposure).

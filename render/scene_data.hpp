@@ -139,6 +139,26 @@ struct LightCacheSettings {
     double smoothing_mm = 0.75;
 };
 
+/// The fast integrator's per-sensor light cache on the coating vertices (plain data, structure
+/// of arrays; render/fast_integrator.hpp has the model). Built by Renderer::set_light_cache;
+/// generators/light_cache_store.hpp keeps it on disk.
+struct LightCache {
+    int vertices = 0;
+    int leds = 0;
+    int lanes = 0;             ///< 16 fixed wavelengths, 400 to 700 nm (spectral), or 4 (RGB)
+    std::vector<float> direct; ///< G_k per unit LED emission, [vertex * leds + k], 1/mm^2
+    /// E_ind / pi per unit LED emission at the coating, [vertex * lanes + j] (under an outer
+    /// marker: above it, unfiltered).
+    std::vector<float> indirect;
+    /// The same above the outer marker layer (where its markers' inner faces are).
+    std::vector<float> indirect_above;
+    /// The same for a point LED at each LED's centre, at rest (led_flux_point): a frame's G_k
+    /// is its point-LED flux through the deformed inner surface times |direct| / |point_rest|.
+    std::vector<float> point_rest;
+    std::vector<std::uint32_t> coating_triangles; ///< the coating's triangles (3 per), for checks
+    double build_s = 0.0;                         ///< wall time of the build
+};
+
 struct RenderSettings {
     /// Stratified jittered samples per pixel (positions, wavelengths, the LED of the shadow
     /// ray, fast integrator).
