@@ -340,7 +340,8 @@ std::optional<InterfaceConnection> PathIntegrator::connect(const EmbreeScene& sc
 
 std::optional<InterfaceConnection> PathIntegrator::connect(const EmbreeScene& scene, const Vec3& p,
                                                            const Vec3& l, Chain chain, double u,
-                                                           double radius_mm) const {
+                                                           double radius_mm,
+                                                           const std::vector<Vec3>* known) const {
     constexpr double inf = std::numeric_limits<double>::infinity();
     const int n = chain_length(chain);
     // Start: the same chain on the sphere through the surface below p.
@@ -350,7 +351,9 @@ std::optional<InterfaceConnection> PathIntegrator::connect(const EmbreeScene& sc
         w = sphere_refraction(p, l, radius_mm, m_eta);
     } else {
         // Leave the layers at the point below p, bounce off one of the sphere's mirror points.
-        const std::vector<Vec3> mirrors = sphere_mirrors(p, l, radius_mm, m_eta);
+        std::vector<Vec3> computed;
+        if (!known) computed = sphere_mirrors(p, l, radius_mm, m_eta);
+        const std::vector<Vec3>& mirrors = known ? *known : computed;
         if (mirrors.empty()) return std::nullopt;
         candidates = int(mirrors.size());
         const Vec3& mirror = mirrors[std::min(std::size_t(u * candidates), mirrors.size() - 1)];
@@ -421,10 +424,11 @@ std::optional<InterfaceConnection> PathIntegrator::connect(const EmbreeScene& sc
 template <class Visit>
 void PathIntegrator::for_each_connection(const EmbreeScene& scene, const Vec3& p, const Vec3& n,
                                          const Vec3& l, double u_choice, double radius_mm,
-                                         Visit&& visit, int chains) const {
+                                         Visit&& visit, int chains,
+                                         const std::vector<Vec3>* mirrors) const {
     for (Chain chain : {Chain::refracted, Chain::refracted_reflected}) {
         if (!(chains & int(chain))) continue;
-        const auto c = connect(scene, p, l, chain, u_choice, radius_mm);
+        const auto c = connect(scene, p, l, chain, u_choice, radius_mm, mirrors);
         if (!c) continue;
         const double cos_p = n.dot(c->direction);
         if (!(cos_p > 0.0)) continue;
@@ -519,10 +523,13 @@ Vec3 PathIntegrator::led_flux_point(const EmbreeScene& scene, const Vec3& p, con
         sum += (c.fresnel / c.jacobian_mm2_per_sr) * c.direction;
     };
     for_each_connection(scene, p, n, l, 0.5, *radius, add, int(Chain::refracted));
-    const int candidates = sphere_candidates(scene, p, l, Chain::refracted_reflected);
+    // The sphere model's mirror points once (sphere_candidates and each connect would
+    // otherwise scan the circle again).
+    const std::vector<Vec3> mirrors = sphere_mirrors(p, l, *radius, m_eta);
+    const int candidates = int(mirrors.size());
     for (int i = 0; i < candidates; ++i)
         for_each_connection(scene, p, n, l, (i + 0.5) / candidates, *radius, add,
-                            int(Chain::refracted_reflected));
+                            int(Chain::refracted_reflected), &mirrors);
     return sum;
 }
 

@@ -122,10 +122,12 @@ public:
     std::optional<InterfaceConnection> connect(const EmbreeScene& scene, const Vec3& p_mm,
                                                const Vec3& led_point_mm, Chain chain,
                                                double u = 0.5) const;
-    /// The same with the sphere model's radius below p already known (radius_below).
+    /// The same with the sphere model's radius below p already known (radius_below), and
+    /// optionally its mirror points for p and l (a reflected chain; computed when null).
     std::optional<InterfaceConnection> connect(const EmbreeScene& scene, const Vec3& p_mm,
                                                const Vec3& led_point_mm, Chain chain, double u,
-                                               double radius_mm) const;
+                                               double radius_mm,
+                                               const std::vector<Vec3>* mirrors = nullptr) const;
 
     /// The chain followed from `p_mm` along `direction` on the planes of the given triangles
     /// (normals interpolated, and extrapolated linearly off the triangle) down to the LED plane,
@@ -163,10 +165,11 @@ private:
     /// Calls visit(connection, cos_p) for each Chain that connects p to l with nothing in the
     /// way in the cavity.
     /// `chains`: a mask of the Chain values to try.
+    /// `mirrors`: the sphere model's mirror points for p and l, when already known.
     template <class Visit>
     void for_each_connection(const EmbreeScene& scene, const Vec3& p, const Vec3& n, const Vec3& l,
-                             double u_choice, double radius_mm, Visit&& visit,
-                             int chains = 3) const;
+                             double u_choice, double radius_mm, Visit&& visit, int chains = 3,
+                             const std::vector<Vec3>* mirrors = nullptr) const;
 
     const ShadingModel& m_shading;
     bool m_next_event;
