@@ -174,17 +174,18 @@ struct Renderer::Impl {
         }
     }
 
-    /// Sums over `count` samples of the pixel (x, y), from the stream (stream, pixel index):
-    /// one per stratum of the pixel's grid, the wavelength set's and the shadow ray LED's
-    /// strata paired with them by fixed or per-pixel permutations. Unscaled camera RGB;
-    /// `sum2` gets the squares of the scaled samples (samples outside the image circle are
-    /// black).
-    void sample_pixel(int x, int y, int count, std::uint64_t stream, const RenderSettings& settings,
-                      double scale, detail::Rgb& sum, detail::Rgb* sum2) const {
+    /// The sum over the pixel's samples (unscaled camera RGB; samples outside the image
+    /// circle are black), from the stream (seed, pixel index): one per stratum of the pixel's
+    /// grid, the wavelength set's and the shadow-ray LED's strata paired with them by a fixed
+    /// and a per-pixel permutation. `sum2` gets the squares of the scaled samples.
+    detail::Rgb sample_pixel(int x, int y, const RenderSettings& settings, double scale,
+                             detail::Rgb* sum2) const {
+        const int count = settings.samples_per_pixel;
         const auto [nx, ny] = detail::strata_grid(count);
         const std::uint64_t index = std::uint64_t(y) * std::uint64_t(camera.width_px()) + x;
-        detail::PixelRng rng(stream, index);
-        const auto led_seed = std::uint32_t(detail::mix64(stream ^ (index << 1)));
+        detail::PixelRng rng(settings.seed, index);
+        const auto led_seed = std::uint32_t(detail::mix64(settings.seed ^ (index << 1)));
+        detail::Rgb sum = detail::Rgb::Zero();
         for (int sy = 0; sy < ny; ++sy) {
             for (int sx = 0; sx < nx; ++sx) {
                 const double u = (sx + rng.uniform()) / nx;
@@ -208,6 +209,7 @@ struct Renderer::Impl {
                 if (sum2) *sum2 += (value * scale).square();
             }
         }
+        return sum;
     }
 
     /// Image value per unit radiance for this integrator.
@@ -365,10 +367,10 @@ Image Renderer::render(const RenderSettings& settings) const {
         for (int y = rows.begin(); y != rows.end(); ++y) {
             for (int x = 0; x < image.width; ++x) {
                 const std::size_t p = std::size_t(y) * image.width + x;
-                detail::Rgb sum = detail::Rgb::Zero(), sum2 = detail::Rgb::Zero();
-                m.sample_pixel(x, y, n, settings.seed, settings, scale, sum,
-                               settings.variance ? &sum2 : nullptr);
-                const detail::Rgb value = sum * (scale / n);
+                detail::Rgb sum2 = detail::Rgb::Zero();
+                const detail::Rgb value =
+                    m.sample_pixel(x, y, settings, scale, settings.variance ? &sum2 : nullptr) *
+                    (scale / n);
                 float* out = image.pixel(x, y);
                 for (int c = 0; c < 3; ++c)
                     out[c] = float(value[c]);
