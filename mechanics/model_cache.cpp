@@ -3,7 +3,6 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
-#include <sstream>
 #include <unistd.h>
 
 namespace fs = std::filesystem;
@@ -54,25 +53,29 @@ fs::path cache_file(const fs::path& dir, std::uint64_t key) {
 
 std::optional<std::string> read_cache_file(const fs::path& path, std::string_view magic,
                                            std::uint64_t key, std::string* problem) {
-    std::ifstream file(path, std::ios::binary);
+    std::ifstream file(path, std::ios::binary | std::ios::ate);
     if (!file) return std::nullopt;
-    std::ostringstream buffer;
-    buffer << file.rdbuf();
-    std::string bytes = buffer.str();
     auto fail = [&](const char* why) -> std::optional<std::string> {
         if (problem) *problem = path.string() + ": " + why;
         return std::nullopt;
     };
+    // The header, then the payload read straight into its own buffer (a fine mesh's file is
+    // hundreds of MB: no second copy).
+    const std::streamoff size = file.tellg();
+    file.seekg(0);
     const std::size_t header = magic.size() + 2 * sizeof(std::uint64_t);
-    if (bytes.size() < header || std::string_view(bytes).substr(0, magic.size()) != magic)
+    std::string head(header, '\0');
+    if (size < std::streamoff(header) || !file.read(head.data(), std::streamsize(header)) ||
+        std::string_view(head).substr(0, magic.size()) != magic)
         return fail("not a chromasim cache file");
     std::uint64_t stored_key = 0, checksum = 0;
-    std::memcpy(&stored_key, bytes.data() + magic.size(), sizeof stored_key);
-    std::memcpy(&checksum, bytes.data() + magic.size() + 8, sizeof checksum);
+    std::memcpy(&stored_key, head.data() + magic.size(), sizeof stored_key);
+    std::memcpy(&checksum, head.data() + magic.size() + 8, sizeof checksum);
     if (stored_key != key) return fail("written for another key");
-    bytes.erase(0, header);
-    if (fnv1a64(bytes) != checksum) return fail("checksum mismatch (torn or corrupt file)");
-    return bytes;
+    std::string payload(std::size_t(size) - header, '\0');
+    if (!file.read(payload.data(), std::streamsize(payload.size())) || fnv1a64(payload) != checksum)
+        return fail("checksum mismatch (torn or corrupt file)");
+    return payload;
 }
 
 bool write_cache_file(const fs::path& path, std::string_view magic, std::uint64_t key,
