@@ -284,10 +284,22 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
 }
 
 void FastIntegrator::adopt_cache(LightCache cache) {
-    if (cache.leds != m_path.led_count())
-        throw std::invalid_argument("FastIntegrator::adopt_cache: a cache for " +
-                                    std::to_string(cache.leds) + " LEDs; allowed: one for " +
-                                    std::to_string(m_path.led_count()));
+    const int lanes = m_shading.optics().spectra ? kCacheLambdas : kRgbLanes;
+    const auto nv = std::size_t(std::max(cache.vertices, 0));
+    const bool sized = cache.vertices >= 0 &&
+                       cache.direct.size() == nv * std::size_t(m_path.led_count()) * 3 &&
+                       cache.point_rest.size() == cache.direct.size() &&
+                       cache.indirect.size() == nv * std::size_t(lanes) &&
+                       cache.indirect_above.size() == cache.indirect.size() &&
+                       cache.coating_triangles.size() % 3 == 0;
+    if (cache.leds != m_path.led_count() || cache.lanes != lanes || !sized)
+        throw std::invalid_argument(
+            "FastIntegrator::adopt_cache: a cache for " + std::to_string(cache.leds) +
+            " LEDs and " + std::to_string(cache.lanes) +
+            " lanes, or with arrays of other sizes; "
+            "allowed: one built for this sensor's " +
+            std::to_string(m_path.led_count()) + " LEDs and " + std::to_string(lanes) + " lanes (" +
+            (m_shading.optics().spectra ? "spectral" : "RGB") + " mode)");
     m_cache = std::make_shared<const LightCache>(std::move(cache));
     m_direct.clear(); // set_frame brings the frame's data up to date
 }

@@ -35,7 +35,8 @@ public:
     double set_light_cache(const SensorFrame& undeformed, const LightCacheSettings& settings);
     /// Uses a light cache built before for this sensor and optics (generators/
     /// light_cache_store.hpp reads them from disk). Throws std::invalid_argument when it is for
-    /// another LED count, or when a frame is loaded and its coating differs from the cache's.
+    /// another LED count or mode (spectral or RGB lanes), its arrays do not match, or a frame
+    /// is loaded and its coating differs from the cache's.
     void set_light_cache(LightCache cache);
     /// The light cache in use, or nullptr.
     const LightCache* light_cache() const;

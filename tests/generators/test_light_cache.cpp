@@ -90,5 +90,15 @@ TEST_CASE("fast integrator: the light cache saved to disk is read back by the ne
     render_with(OpticsParams{}, &wrong_key);
     CHECK_FALSE(wrong_key.from_file);
     CHECK_THAT(wrong_key.note, Catch::Contains("another key"));
+
+    // A cache of the other mode (RGB lanes into a spectral renderer) is refused, not read.
+    OpticsParams spectral;
+    spectral.spectra = load_sensor_spectra(SensorSpectraFiles::in_directory(
+        std::filesystem::path(CHROMASIM_SOURCE_DIR) / "assets" / "spectra"));
+    Renderer rgb_renderer(CameraParams{24, 24, 84.0}, OpticsParams{});
+    rgb_renderer.set_light_cache(frame, cache);
+    Renderer spectral_renderer(CameraParams{24, 24, 84.0}, spectral);
+    CHECK_THROWS_WITH(spectral_renderer.set_light_cache(*rgb_renderer.light_cache()),
+                      Catch::Contains("16 lanes") && Catch::Contains("allowed:"));
     fs::remove_all(dir);
 }
