@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <stdexcept>
 #include <string_view>
 
 namespace fs = std::filesystem;
@@ -116,16 +117,12 @@ std::optional<render::LightCache> load_light_cache(const fs::path& dir, std::uin
     if (!bytes) return std::nullopt;
     std::string_view in(*bytes);
     render::LightCache c;
-    const bool read = get(in, c.vertices) && get(in, c.leds) && get(in, c.lanes) &&
-                      get(in, c.build_s) && get(in, c.direct) && get(in, c.indirect) &&
-                      get(in, c.indirect_above) && get(in, c.point_rest) &&
-                      get(in, c.coating_triangles) && in.empty();
-    const auto nv = std::size_t(c.vertices), leds = std::size_t(c.leds),
-               lanes = std::size_t(c.lanes);
-    if (!read || c.vertices < 0 || c.leds < 0 || c.lanes < 0 || c.direct.size() != nv * leds * 3 ||
-        c.point_rest.size() != c.direct.size() || c.indirect.size() != nv * lanes ||
-        c.indirect_above.size() != c.indirect.size() || c.coating_triangles.size() % 3 != 0) {
-        if (problem) *problem = path.string() + ": truncated or inconsistent payload";
+    // Only the layout here; whether the arrays fit this renderer is Renderer::set_light_cache's
+    // check (provide_light_cache rebuilds when it refuses).
+    if (!(get(in, c.vertices) && get(in, c.leds) && get(in, c.lanes) && get(in, c.build_s) &&
+          get(in, c.direct) && get(in, c.indirect) && get(in, c.indirect_above) &&
+          get(in, c.point_rest) && get(in, c.coating_triangles) && in.empty())) {
+        if (problem) *problem = path.string() + ": truncated payload";
         return std::nullopt;
     }
     return c;
@@ -155,10 +152,15 @@ LightCacheOutcome provide_light_cache(render::Renderer& renderer, const render::
     const std::uint64_t key = dir.empty() ? 0 : light_cache_key(rest, optics, settings);
     std::optional<render::LightCache> stored;
     if (!dir.empty()) stored = load_light_cache(dir, key, &out.note);
-    if (stored && stored->vertices == rest.coating.V.rows()) {
-        renderer.set_light_cache(std::move(*stored));
-        out.from_file = true;
-    } else {
+    if (stored) {
+        try { // the key covers the sensor, so a refusal means a damaged file
+            renderer.set_light_cache(std::move(*stored));
+            out.from_file = true;
+        } catch (const std::invalid_argument& e) {
+            out.note = light_cache_file(dir, key).string() + ": " + e.what();
+        }
+    }
+    if (!out.from_file) {
         renderer.set_light_cache(rest, settings);
         std::string problem;
         if (!dir.empty() && !save_light_cache(dir, key, *renderer.light_cache(), &problem))

@@ -27,7 +27,7 @@ std::uint64_t light_cache_key(const render::SensorFrame& rest, const render::Opt
 std::filesystem::path light_cache_file(const std::filesystem::path& dir, std::uint64_t key);
 
 /// Reads the entry for `key`; nullopt if absent, or (with `problem` saying why) unreadable,
-/// for another key, corrupt or inconsistent.
+/// for another key, corrupt or truncated.
 std::optional<render::LightCache> load_light_cache(const std::filesystem::path& dir,
                                                    std::uint64_t key,
                                                    std::string* problem = nullptr);
@@ -43,7 +43,8 @@ struct LightCacheOutcome {
 };
 
 /// Gives `renderer` the light cache of `rest`: read from `dir` when a file of its key is
-/// there, else built (Renderer::set_light_cache) and, with a `dir`, saved there.
+/// there and the renderer accepts it, else built (Renderer::set_light_cache) and, with a
+/// `dir`, saved there.
 LightCacheOutcome provide_light_cache(render::Renderer& renderer, const render::SensorFrame& rest,
                                       const render::OpticsParams& optics,
                                       const render::LightCacheSettings& settings,
