@@ -33,8 +33,9 @@
 /// points). V_k is the point LED's vector irradiance through this frame's inner surface times
 /// |V_k| / |point V_k| at rest (the deformation changes the refraction a lot near the rim: a
 /// straight-line correction left 5 % RMS in G_k there), one Newton solve per LED, Chain and
-/// vertex; the radius of the inner surface below each vertex (one ray). The indirect light is
-/// used as cached.
+/// vertex; the radius of the inner surface below each vertex (one ray); per vertex and LED,
+/// the refracted solve's direction less the sphere model's (the shadow rays' correction). The
+/// indirect light is used as cached.
 ///
 /// Per camera sample: the camera ray meets the inner surface and splits deterministically:
 /// (1 - F) refracts into the layers, F reflects into the cavity and is followed to the LED it
@@ -47,7 +48,9 @@
 /// (1 - scatter fraction) times the marker's diffuse transmittance 2 E_3(a t), t its thickness
 /// along the normal. T_k: one shadow ray to a random point on one LED drawn with probability
 /// G_k / sum G, along the sphere model's refraction through the inner surface below the point
-/// (PathIntegrator::refracted_direction).
+/// (PathIntegrator::refracted_direction) plus the frame's correction, interpolated over the
+/// hit triangle: the sphere model alone is 0.08 rad off near a flattened contact, 0.008 rad
+/// with the correction (tests/render/test_fast.cpp).
 ///
 /// What it leaves out or approximates, each part of its measured error against the path
 /// integrator (docs/VALIDATION.md): the indirect light's change with the deformation and with
@@ -98,6 +101,12 @@ public:
                        const LaneOptics<N>& lanes, const LanesN<N>* lambda_nm, PixelRng& rng,
                        double u_led = -1.0) const;
 
+    /// The shadow ray's direction from `p_mm`, the point of coating triangle `prim` at
+    /// barycentric coordinates (u, v), towards `led_point_mm` on LED k, as the samples take it
+    /// (for tests and diagnostics). Pre-condition: set_frame with an inner surface.
+    Vec3 shadow_direction(std::uint32_t prim, double u, double v, const Vec3& p_mm, int k,
+                          const Vec3& led_point_mm) const;
+
 private:
     template <int N> struct Lookup;
     template <int N>
@@ -106,6 +115,11 @@ private:
     LanesN<N> shade(const EmbreeScene& scene, const Vec3& p, const Lookup<N>& at,
                     const LanesN<N>& indirect, const LaneOptics<N>& lanes, PixelRng& rng,
                     double u_led = -1.0) const;
+    /// The shadow ray's direction from the coating hit `p` towards `led_point` of LED k: the
+    /// sphere model's refraction, plus the frame's correction to it interpolated over the
+    /// hit triangle (m_shadow).
+    template <int N>
+    Vec3 shadow_direction(const Lookup<N>& at, const Vec3& p, int k, const Vec3& led_point) const;
     template <int N>
     LanesN<N> spectral_at(const std::vector<float>& values, const std::uint32_t* triangle,
                           const double* weights, const LanesN<N>* lambda_nm) const;
@@ -119,6 +133,10 @@ private:
     std::shared_ptr<const LightCache> m_cache;
     std::vector<float> m_direct; ///< the frame's G_k, [vertex * leds + k]
     std::vector<float> m_radius; ///< the sphere model's inner radius below each vertex, mm
+    /// Per vertex and LED k, [(vertex * leds + k) * 3]: the frame's refracted connection to
+    /// the LED's centre (the Newton solve on the deformed inner surface) less the sphere
+    /// model's direction from the same point; zero where the solve found none.
+    std::vector<float> m_shadow;
 };
 
 } // namespace chromasim::render::detail

@@ -85,19 +85,21 @@ std::optional<PlanePoint> to_led_plane(const EmbreeScene::Triangle* tris, Chain 
 }
 
 /// 2 x 2 Jacobian of the LED-plane point (x, y) with respect to the direction w, in the
-/// tangent coordinates (b1, b2) of w (an isometry to first order: |det| is per steradian).
+/// tangent coordinates (b1, b2) of w (an isometry to first order: |det| is per steradian), by
+/// forward differences from `at_w`, the point of w itself (two evaluations where central
+/// differences take four; the step's truncation error, about 1e-6 relative, is far below
+/// what the Newton steps and the flux need).
 bool led_plane_jacobian(const EmbreeScene::Triangle* tris, Chain chain, const Vec3& p,
-                        const Vec3& w, double eta, double led_z, Eigen::Matrix2d& J) {
+                        const Vec3& w, const Vec3& at_w, double eta, double led_z,
+                        Eigen::Matrix2d& J) {
     Vec3 b1, b2;
     orthonormal_basis(w, b1, b2);
     const Vec3 tangents[2] = {b1, b2};
     for (int c = 0; c < 2; ++c) {
         const auto plus = to_led_plane(tris, chain, p,
                                        (w + kJacobianStep * tangents[c]).normalized(), eta, led_z);
-        const auto minus = to_led_plane(tris, chain, p,
-                                        (w - kJacobianStep * tangents[c]).normalized(), eta, led_z);
-        if (!plus || !minus) return false;
-        J.col(c) = (plus->l - minus->l).head<2>() / (2.0 * kJacobianStep);
+        if (!plus) return false;
+        J.col(c) = (plus->l - at_w).head<2>() / kJacobianStep;
     }
     return J.allFinite();
 }
@@ -303,7 +305,8 @@ std::optional<InterfaceConnection> PathIntegrator::along(const EmbreeScene& scen
     const double led_z = m_shading.optics().led_z_mm;
     const auto point = to_led_plane(tris, chain, p, w, m_eta, led_z);
     Eigen::Matrix2d J;
-    if (!point || !led_plane_jacobian(tris, chain, p, w, m_eta, led_z, J)) return std::nullopt;
+    if (!point || !led_plane_jacobian(tris, chain, p, w, point->l, m_eta, led_z, J))
+        return std::nullopt;
     if (landed) *landed = point->l;
     InterfaceConnection c;
     c.direction = w;
@@ -387,7 +390,7 @@ std::optional<InterfaceConnection> PathIntegrator::connect(const EmbreeScene& sc
         }
         const auto point = to_led_plane(tris, chain, p, dir, m_eta, led_z);
         Eigen::Matrix2d J;
-        if (!point || !led_plane_jacobian(tris, chain, p, dir, m_eta, led_z, J))
+        if (!point || !led_plane_jacobian(tris, chain, p, dir, point->l, m_eta, led_z, J))
             return std::nullopt;
         Iterate it;
         it.c.direction = dir;
@@ -512,17 +515,24 @@ Vec3 PathIntegrator::led_flux_sample(const EmbreeScene& scene, const Vec3& p, co
     return sum;
 }
 
-Vec3 PathIntegrator::led_flux_point(const EmbreeScene& scene, const Vec3& p, const Vec3& n,
-                                    int k) const {
+Vec3 PathIntegrator::led_flux_point(const EmbreeScene& scene, const Vec3& p, const Vec3& n, int k,
+                                    std::optional<double> radius_mm,
+                                    InterfaceConnection* refracted) const {
     const Vec3 l = led_point(k, 0.5, 0.5);
     if (!scene.has_interface()) return led_flux_sample(scene, p, n, k, 0.5, 0.5, 0.5, 0.0);
-    const auto radius = radius_below(scene, p);
+    const auto radius = radius_mm ? radius_mm : radius_below(scene, p);
     if (!radius) return Vec3::Zero();
     Vec3 sum = Vec3::Zero();
     auto add = [&](const InterfaceConnection& c, double) {
         sum += (c.fresnel / c.jacobian_mm2_per_sr) * c.direction;
     };
-    for_each_connection(scene, p, n, l, 0.5, *radius, add, int(Chain::refracted));
+    for_each_connection(
+        scene, p, n, l, 0.5, *radius,
+        [&](const InterfaceConnection& c, double cos_p) {
+            add(c, cos_p);
+            if (refracted) *refracted = c;
+        },
+        int(Chain::refracted));
     // The sphere model's mirror points once (sphere_candidates and each connect would
     // otherwise scan the circle again).
     const std::vector<Vec3> mirrors = sphere_mirrors(p, l, *radius, m_eta);

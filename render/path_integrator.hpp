@@ -105,8 +105,13 @@ public:
 
     /// The same for a point LED at the centre of LED `k`, deterministic: every connection of
     /// both Chains (each of the sphere model's reflections), fresnel / J times the direction.
-    Vec3 led_flux_point(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& normal,
-                        int k) const;
+    /// `radius_mm`: radius_below(scene, p_mm) when the caller has it (a frame update asks for
+    /// every LED at the same point); looked up when absent.
+    /// `refracted`: when given, receives the refracted chain's connection (unchanged when it
+    /// has none or it does not count: blocked, or from behind the normal).
+    Vec3 led_flux_point(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& normal, int k,
+                        std::optional<double> radius_mm = std::nullopt,
+                        InterfaceConnection* refracted = nullptr) const;
 
     /// The sphere model's refraction from `p_mm` towards `led_point_mm` through the sphere of
     /// radius `radius_mm` about the origin: the unit direction leaving p.

@@ -11,7 +11,9 @@
 #include <catch2/catch.hpp>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <cmath>
+#include <numbers>
 
 using namespace chromasim::render;
 using namespace chromasim::render::detail;
@@ -101,4 +103,62 @@ TEST_CASE("fast integrator: the same image with 1 and 2 threads, a light cache o
     other.coating = hemisphere(12.7, 12, 48);
     CHECK_THROWS_WITH(renderer.set_frame(other),
                       Catch::Contains("the light cache's") && Catch::Contains("allowed:"));
+}
+
+TEST_CASE("fast integrator: shadow rays follow the deformed inner surface's refraction, where "
+          "the sphere model alone is far off",
+          "[render][fast]") {
+    const SensorFrame rest = clear_dome(16, 64, 24, 96);
+    EmbreeScene scene;
+    scene.set_frame(rest);
+    const ShadingModel shading(OpticsParams{});
+    const PathIntegrator path(shading);
+    FastIntegrator fast(shading, path);
+    LightCacheSettings settings;
+    settings.paths_per_vertex = 8;
+    settings.direct_samples = 4;
+    fast.build_cache(rest, settings, nullptr, 1.0);
+    // A contact: both surfaces pressed flat at the apex (z <= 9 mm inside, 11.2 mm outside),
+    // where the sphere through the point below has the wrong normal.
+    SensorFrame pressed = rest;
+    for (Eigen::Index v = 0; v < pressed.inner_surface.V.rows(); ++v)
+        pressed.inner_surface.V(v, 2) = std::min(pressed.inner_surface.V(v, 2), 9.0f);
+    for (Eigen::Index v = 0; v < pressed.coating.V.rows(); ++v)
+        pressed.coating.V(v, 2) = std::min(pressed.coating.V(v, 2), 11.2f);
+    scene.set_frame(pressed);
+    fast.set_frame(pressed, scene);
+
+    double sum2_fast = 0.0, sum2_sphere = 0.0, max_fast = 0.0;
+    int n = 0;
+    const auto& F = pressed.coating.F;
+    for (Eigen::Index t = 0; t < F.rows(); ++t) {
+        Vec3 p = Vec3::Zero();
+        for (int i = 0; i < 3; ++i)
+            p += pressed.coating.V.row(F(t, i)).cast<double>().transpose() / 3.0;
+        if (p.normalized().z() < std::cos(50.0 * std::numbers::pi / 180.0)) continue;
+        const auto radius = path.radius_below(scene, p);
+        REQUIRE(radius);
+        for (int k = 0; k < path.led_count(); ++k) {
+            const Vec3 l = path.led_point(k, 0.2, 0.7); // off the LED's centre
+            const auto exact = path.connect(scene, p, l, Chain::refracted, 0.5, *radius);
+            if (!exact) continue;
+            const auto angle = [&](const Vec3& w) {
+                return std::acos(std::clamp(w.dot(exact->direction), -1.0, 1.0));
+            };
+            const double a_fast =
+                angle(fast.shadow_direction(std::uint32_t(t), 1.0 / 3.0, 1.0 / 3.0, p, k, l));
+            const double a_sphere = angle(path.refracted_direction(p, l, *radius));
+            sum2_fast += a_fast * a_fast;
+            sum2_sphere += a_sphere * a_sphere;
+            max_fast = std::max(max_fast, a_fast);
+            ++n;
+        }
+    }
+    const double rms_fast = std::sqrt(sum2_fast / n), rms_sphere = std::sqrt(sum2_sphere / n);
+    INFO(n << " shadow rays: RMS angle to the Newton solve " << rms_fast << " rad (max " << max_fast
+           << "), the sphere model alone " << rms_sphere << " rad");
+    CHECK(n > 500);
+    CHECK(rms_sphere > 0.02);
+    CHECK(rms_fast < 0.25 * rms_sphere);
+    CHECK(max_fast < 0.05);
 }
