@@ -164,7 +164,7 @@ Vec3 sphere_refraction(const Vec3& p, const Vec3& l, double R, double eta,
     };
     // t of the direction of a point q of the plane: tan(psi / 2) = sin / (1 + cos).
     auto t_of = [&](const Vec3& q) {
-        const double c = q.dot(e1), s = q.dot(e2), r = std::hypot(c, s);
+        const double c = q.dot(e1), s = q.dot(e2), r = std::sqrt(c * c + s * s);
         return s / (r + c);
     };
     auto mismatch = [&](double t) {
