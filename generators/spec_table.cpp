@@ -566,8 +566,9 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                          "the LEDs' unshadowed light cached once per sensor on the coating "
                          "(render.fast.*); marker transmittance and coloured shadows traced "
                          "per frame: about 3 % RMS off the path reference at the cost per "
-                         "sample of direct, plus about 6 s once per run for the cache (the "
-                         "shipped dataset specs use it). docs/VALIDATION.md has each one's "
+                         "sample of direct, plus about 5 s once per sensor for the cache, "
+                         "which --cache-dir keeps between runs (the shipped dataset specs "
+                         "use it). docs/VALIDATION.md has each one's "
                          "error and cost.",
                          CHROMASIM_FIELD(render.integrator)));
     out.push_back(integer("render.fast.paths_per_vertex", 256, closed(1, 65536), "",
