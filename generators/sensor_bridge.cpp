@@ -167,6 +167,8 @@ render::LightCacheSettings light_cache_settings(const Spec& spec) {
     s.paths_per_vertex = spec.render.fast.paths_per_vertex;
     s.direct_samples = spec.render.fast.direct_samples;
     s.smoothing_mm = spec.render.fast.smoothing_mm;
+    s.refresh_direct = spec.render.fast.refresh_direct;
+    s.refresh_threshold = spec.render.fast.refresh_threshold;
     return s;
 }
 

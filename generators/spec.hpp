@@ -146,6 +146,8 @@ struct Spec {
             int paths_per_vertex = 256;
             int direct_samples = 16;
             double smoothing_mm = 0.75;
+            bool refresh_direct = true;
+            double refresh_threshold = 0.5;
         } fast;
         /// The camera sensor model (render/sensor_model.hpp); the PNG only, the EXR stays the
         /// noise-free render.

@@ -125,7 +125,7 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
         spectral_optics = spectral_lanes(*spectra, lambda, led_scale);
         spectral_optics.led = Lanes::Ones();
     }
-    const auto [gx, gy] = strata_grid(settings.direct_samples);
+    m_settings = settings; // area_flux's sample count and MIS ratio
     // The direct and indirect estimates share the LED light through the inner surface by MIS.
     const double bsdf_per_nee = double(settings.paths_per_vertex) / settings.direct_samples;
     // The outer markers' inner face above each vertex they cover (its distance along the
@@ -157,18 +157,13 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
         const Vec3 n = normals[std::size_t(v)];
         // A hair off the coating, on the cavity side (below an outer marker's face).
         const Vec3 p = rest.coating.V.row(v).cast<double>().transpose() + kHitGap_mm * n;
+        const auto radius = m_path.radius_below(bare, p);
         for (int k = 0; k < leds; ++k) {
-            Vec3 flux = Vec3::Zero();
-            for (int sy = 0; sy < gy; ++sy)
-                for (int sx = 0; sx < gx; ++sx) {
-                    const double u1 = (sx + rng.uniform()) / gx, u2 = (sy + rng.uniform()) / gy;
-                    flux +=
-                        m_path.led_flux_sample(bare, p, n, k, u1, u2, rng.uniform(), bsdf_per_nee);
-                }
+            // A stream per vertex and LED, which set_frame's refresh repeats on a frame.
+            const Vec3 flux = area_flux(bare, p, n, k, radius, std::uint64_t(v) * leds + k);
             for (int a = 0; a < 3; ++a)
-                cache->direct[(std::size_t(v) * leds + k) * 3 + a] =
-                    float(flux[a] / settings.direct_samples);
-            const Vec3 point = m_path.led_flux_point(bare, p, n, k);
+                cache->direct[(std::size_t(v) * leds + k) * 3 + a] = float(flux[a]);
+            const Vec3 point = m_path.led_flux_point(bare, p, n, k, radius);
             for (int a = 0; a < 3; ++a)
                 cache->point_rest[(std::size_t(v) * leds + k) * 3 + a] = float(point[a]);
         }
@@ -283,7 +278,7 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
     m_direct.clear(); // set_frame brings the frame's data up to date
 }
 
-void FastIntegrator::adopt_cache(LightCache cache) {
+void FastIntegrator::adopt_cache(LightCache cache, const render::LightCacheSettings& settings) {
     const int lanes = m_shading.optics().spectra ? kCacheLambdas : kRgbLanes;
     const auto nv = std::size_t(std::max(cache.vertices, 0));
     const bool sized = cache.vertices >= 0 &&
@@ -301,6 +296,7 @@ void FastIntegrator::adopt_cache(LightCache cache) {
             std::to_string(m_path.led_count()) + " LEDs and " + std::to_string(lanes) + " lanes (" +
             (m_shading.optics().spectra ? "spectral" : "RGB") + " mode)");
     m_cache = std::make_shared<const LightCache>(std::move(cache));
+    m_settings = settings;
     m_direct.clear(); // set_frame brings the frame's data up to date
 }
 
@@ -319,6 +315,25 @@ void FastIntegrator::check_topology(const SensorFrame& frame) const {
     }
 }
 
+Vec3 FastIntegrator::area_flux(const EmbreeScene& scene, const Vec3& p, const Vec3& n, int k,
+                               std::optional<double> radius_mm, std::uint64_t stream) const {
+    if (scene.has_interface() && !radius_mm) return Vec3::Zero();
+    // The cache's own estimate (build_cache): jittered strata of the LED, the chains' MIS
+    // weights against the indirect paths' share, here on the frame's inner surface.
+    const auto [gx, gy] = strata_grid(m_settings.direct_samples);
+    const double bsdf_per_nee =
+        double(m_settings.paths_per_vertex) / double(m_settings.direct_samples);
+    PixelRng rng(0xD1EC7, stream);
+    Vec3 flux = Vec3::Zero();
+    for (int sy = 0; sy < gy; ++sy)
+        for (int sx = 0; sx < gx; ++sx) {
+            const double u1 = (sx + rng.uniform()) / gx, u2 = (sy + rng.uniform()) / gy;
+            flux += m_path.led_flux_sample(scene, p, n, k, u1, u2, rng.uniform(), bsdf_per_nee,
+                                           radius_mm);
+        }
+    return flux / double(m_settings.direct_samples);
+}
+
 void FastIntegrator::set_frame(const SensorFrame& frame, const EmbreeScene& scene) {
     check_topology(frame);
     const LightCache& c = *m_cache;
@@ -331,6 +346,7 @@ void FastIntegrator::set_frame(const SensorFrame& frame, const EmbreeScene& scen
         const Vec3 p = frame.coating.V.row(v).cast<double>().transpose() + kHitGap_mm * n;
         const auto radius =
             scene.has_interface() ? m_path.radius_below(scene, p) : std::optional<double>();
+        const bool refresh = m_settings.refresh_direct && radius.has_value();
         for (int k = 0; k < c.leds; ++k) {
             // The point LED's light through this frame's inner surface, scaled by the area
             // LED's to the point LED's at rest; the rest value where this frame's solve fails.
@@ -351,10 +367,14 @@ void FastIntegrator::set_frame(const SensorFrame& frame, const EmbreeScene& scen
                 for (int a = 0; a < 3; ++a)
                     out[a] = float(refracted.direction[a] - model[a]);
             }
-            const Eigen::Vector3f flux =
+            Eigen::Vector3f flux =
                 rest.norm() > 0.0f && now.norm() > 0.0
                     ? Eigen::Vector3f(now.cast<float>() * (area.norm() / rest.norm()))
                     : area;
+            if (refresh && rest.norm() > 0.0f &&
+                (now - rest.cast<double>()).norm() > m_settings.refresh_threshold * rest.norm())
+                flux =
+                    area_flux(scene, p, n, k, radius, std::uint64_t(v) * c.leds + k).cast<float>();
             for (int a = 0; a < 3; ++a)
                 m_direct[i + std::size_t(a)] = flux[a];
         }

@@ -485,8 +485,8 @@ LanesN<N> PathIntegrator::next_event(const EmbreeScene& scene, const Vec3& p, co
 }
 
 Vec3 PathIntegrator::led_flux_sample(const EmbreeScene& scene, const Vec3& p, const Vec3& n, int k,
-                                     double u1, double u2, double u_choice,
-                                     double bsdf_per_nee) const {
+                                     double u1, double u2, double u_choice, double bsdf_per_nee,
+                                     std::optional<double> radius_mm) const {
     const Vec3 l = led_point(k, u1, u2);
     if (!scene.has_interface()) {
         const Vec3 to_led = l - p;
@@ -499,7 +499,7 @@ Vec3 PathIntegrator::led_flux_sample(const EmbreeScene& scene, const Vec3& p, co
             return Vec3::Zero();
         return (cos_l / d2) * w;
     }
-    const auto radius = radius_below(scene, p);
+    const auto radius = radius_mm ? radius_mm : radius_below(scene, p);
     if (!radius) return Vec3::Zero();
     Vec3 sum = Vec3::Zero();
     for_each_connection(

@@ -100,8 +100,10 @@ public:
     /// weighted by MIS against indirect()'s cosine samples (`bsdf_per_nee`: their count over
     /// this function's per LED; 0: weight 1). Its mean over uniform (u1, u2, u_choice),
     /// dotted with a normal near `normal`, is that share of the irradiance (1/mm^2).
+    /// `radius_mm`: radius_below(scene, p_mm) when the caller has it; looked up when absent.
     Vec3 led_flux_sample(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& normal, int k,
-                         double u1, double u2, double u_choice, double bsdf_per_nee) const;
+                         double u1, double u2, double u_choice, double bsdf_per_nee,
+                         std::optional<double> radius_mm = std::nullopt) const;
 
     /// The same for a point LED at the centre of LED `k`, deterministic: every connection of
     /// both Chains (each of the sphere model's reflections), fresnel / J times the direction.

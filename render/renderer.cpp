@@ -320,8 +320,8 @@ double Renderer::set_light_cache(const SensorFrame& undeformed,
     return m_impl->fast.cache().build_s;
 }
 
-void Renderer::set_light_cache(LightCache cache) {
-    m_impl->fast.adopt_cache(std::move(cache));
+void Renderer::set_light_cache(LightCache cache, const LightCacheSettings& settings) {
+    m_impl->fast.adopt_cache(std::move(cache), settings);
     m_impl->refresh_fast_frame();
 }
 

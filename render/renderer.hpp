@@ -36,8 +36,10 @@ public:
     /// Uses a light cache built before for this sensor and optics (generators/
     /// light_cache_store.hpp reads them from disk). Throws std::invalid_argument when it is for
     /// another LED count or mode (spectral or RGB lanes), its arrays do not match, or a frame
-    /// is loaded and its coating differs from the cache's.
-    void set_light_cache(LightCache cache);
+    /// is loaded and its coating differs from the cache's. `settings`: those the cache was
+    /// built with (generators/light_cache_store.hpp keys files by them), and the per-frame
+    /// refresh.
+    void set_light_cache(LightCache cache, const LightCacheSettings& settings);
     /// The light cache in use, or nullptr.
     const LightCache* light_cache() const;
 

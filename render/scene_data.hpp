@@ -137,6 +137,13 @@ struct LightCacheSettings {
     /// Indirect light: standard deviation of the Gaussian that smooths it over the coating,
     /// mm (0: none).
     double smoothing_mm = 0.75;
+    /// Per frame, not part of the stored cache: re-estimate a vertex's unshadowed light from
+    /// LED k on the frame's own geometry (`direct_samples` points on the LED, as the cache
+    /// does at rest) where the point LED's light there changed by more than
+    /// `refresh_threshold` (relative) from rest. Elsewhere the point LED's light is scaled by
+    /// the area LED's ratio to it at rest, which goes stale where the surface bends.
+    bool refresh_direct = true;
+    double refresh_threshold = 0.5;
 };
 
 /// The fast integrator's per-sensor light cache on the coating vertices (plain data, structure

@@ -244,6 +244,14 @@ int main(int argc, char** argv) {
                      "fast integrator: light-cache smoothing, mm")
         ->check(CLI::Range(0.0, 10.0));
     bench_render
+        ->add_option("--refresh-threshold", render_bench.light_cache.refresh_threshold,
+                     "fast integrator: re-estimate a vertex's LED light per frame where the "
+                     "point LED's changed by more than this fraction")
+        ->check(CLI::Range(0.0, 10.0));
+    bench_render->add_flag(
+        "!--no-refresh", render_bench.light_cache.refresh_direct,
+        "fast integrator: keep the rest ratio of area to point LED light on every vertex");
+    bench_render
         ->add_option("--reference-in", render_bench.reference_in,
                      "read the reference from this EXR (written by --reference-out)")
         ->check(CLI::ExistingFile);

@@ -98,7 +98,7 @@ TEST_CASE("fast integrator: the light cache saved to disk is read back by the ne
     Renderer rgb_renderer(CameraParams{24, 24, 84.0}, OpticsParams{});
     rgb_renderer.set_light_cache(frame, cache);
     Renderer spectral_renderer(CameraParams{24, 24, 84.0}, spectral);
-    CHECK_THROWS_WITH(spectral_renderer.set_light_cache(*rgb_renderer.light_cache()),
+    CHECK_THROWS_WITH(spectral_renderer.set_light_cache(*rgb_renderer.light_cache(), cache),
                       Catch::Contains("16 lanes") && Catch::Contains("allowed:"));
     fs::remove_all(dir);
 }

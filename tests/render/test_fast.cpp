@@ -162,3 +162,65 @@ TEST_CASE("fast integrator: shadow rays follow the deformed inner surface's refr
     CHECK(rms_fast < 0.25 * rms_sphere);
     CHECK(max_fast < 0.05);
 }
+
+TEST_CASE("fast integrator: where a contact bends the coating, the frame re-estimates the LEDs' "
+          "light as a cache built on that frame holds it",
+          "[render][fast]") {
+    const SensorFrame rest = clear_dome(16, 64, 24, 96);
+    SensorFrame pressed = rest; // both surfaces pressed flat at the apex, as above
+    for (Eigen::Index v = 0; v < pressed.inner_surface.V.rows(); ++v)
+        pressed.inner_surface.V(v, 2) = std::min(pressed.inner_surface.V(v, 2), 9.0f);
+    for (Eigen::Index v = 0; v < pressed.coating.V.rows(); ++v)
+        pressed.coating.V(v, 2) = std::min(pressed.coating.V(v, 2), 11.2f);
+    EmbreeScene scene;
+    scene.set_frame(pressed);
+    const ShadingModel shading(OpticsParams{});
+    const PathIntegrator path(shading);
+    LightCacheSettings settings;
+    settings.paths_per_vertex = 8;
+    settings.direct_samples = 16;
+    const auto frame_light = [&](const SensorFrame& cache_on, bool refresh) {
+        FastIntegrator fast(shading, path);
+        LightCacheSettings s = settings;
+        s.refresh_direct = refresh;
+        s.refresh_threshold = 0.0; // every vertex and LED
+        fast.build_cache(cache_on, s, nullptr, 1.0);
+        fast.set_frame(pressed, scene);
+        std::vector<Vec3> g;
+        for (int v = 0; v < int(pressed.coating.V.rows()); ++v)
+            for (int k = 0; k < path.led_count(); ++k)
+                g.push_back(fast.frame_direct(v, k));
+        return g;
+    };
+    std::vector<Vec3> truth; // the area LEDs' light in a cache built on the frame itself
+    {
+        FastIntegrator fast(shading, path);
+        fast.build_cache(pressed, settings, nullptr, 1.0);
+        const std::vector<float>& d = fast.cache().direct;
+        for (std::size_t i = 0; i + 2 < d.size(); i += 3)
+            truth.emplace_back(d[i], d[i + 1], d[i + 2]);
+    }
+    const std::vector<Vec3> refreshed = frame_light(rest, true);
+    const std::vector<Vec3> stale = frame_light(rest, false);
+    // Over the flattened cap (the vertices the press moved) and every LED.
+    double e_refreshed = 0.0, e_stale = 0.0, norm = 0.0;
+    int pairs = 0;
+    for (int v = 0; v < int(pressed.coating.V.rows()); ++v) {
+        if (!(rest.coating.V(v, 2) > 11.2f)) continue;
+        for (int k = 0; k < path.led_count(); ++k) {
+            const std::size_t i = std::size_t(v) * path.led_count() + k;
+            e_refreshed += (refreshed[i] - truth[i]).squaredNorm();
+            e_stale += (stale[i] - truth[i]).squaredNorm();
+            norm += truth[i].squaredNorm();
+            ++pairs;
+        }
+    }
+    const double rms_refreshed = std::sqrt(e_refreshed / norm),
+                 rms_stale = std::sqrt(e_stale / norm);
+    INFO(pairs << " vertex-LED pairs on the cap: RMS off the frame's own cache " << rms_refreshed
+               << " refreshed, " << rms_stale << " with the rest ratio");
+    CHECK(pairs > 100);
+    CHECK(rms_stale > 0.05);
+    // The same streams on the same geometry: the cache's values to rounding.
+    CHECK(rms_refreshed < 1e-5);
+}
