@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <limits>
+#include <map>
 #include <numbers>
 #include <stdexcept>
 #include <string>
@@ -64,6 +65,25 @@ std::vector<Vec3> coating_normals(const SurfaceMesh& mesh) {
         if (n[v].dot(p) > 0.0) n[v] = -n[v];
     }
     return n;
+}
+
+/// The coating's edges, each once, in the order the triangles first name them, and each
+/// triangle's three (edge i from corner i to corner i + 1 mod 3).
+void coating_edges(const std::vector<std::uint32_t>& triangles,
+                   std::vector<std::array<std::uint32_t, 2>>& edges,
+                   std::vector<std::uint32_t>& triangle_edges) {
+    std::map<std::pair<std::uint32_t, std::uint32_t>, std::uint32_t> index;
+    edges.clear();
+    triangle_edges.assign(triangles.size(), 0);
+    for (std::size_t t = 0; t + 2 < triangles.size(); t += 3)
+        for (int i = 0; i < 3; ++i) {
+            const std::uint32_t a = triangles[t + std::size_t(i)],
+                                b = triangles[t + std::size_t((i + 1) % 3)];
+            const auto [it, added] =
+                index.try_emplace({std::min(a, b), std::max(a, b)}, std::uint32_t(edges.size()));
+            if (added) edges.push_back({a, b});
+            triangle_edges[t + std::size_t(i)] = it->second;
+        }
 }
 
 } // namespace
@@ -193,6 +213,28 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
         else
             mean_indirect(p, coating);
     });
+    // The direct light's quadratic term along each edge: at the midpoint, less the mean of the
+    // ends (the LEDs near the rim make G_k curve within a triangle: linear interpolation
+    // left the rim about 2 % dark at rest; docs/VALIDATION.md).
+    coating_edges(cache->coating_triangles, m_edges, m_triangle_edges);
+    cache->direct_edge.assign(m_edges.size() * std::size_t(leds) * 3, 0.0f);
+    tbb::parallel_for(0, int(m_edges.size()), [&](int e) {
+        const auto [a, b] = m_edges[std::size_t(e)];
+        const Vec3 n = (normals[a] + normals[b]).normalized();
+        const Vec3 mid =
+            0.5 * (rest.coating.V.row(a) + rest.coating.V.row(b)).transpose().cast<double>();
+        const Vec3 p = mid + kHitGap_mm * n;
+        const auto radius = m_path.radius_below(bare, p);
+        for (int k = 0; k < leds; ++k) {
+            const Vec3 flux =
+                area_flux(bare, p, n, k, radius, (std::uint64_t(nv) + std::uint64_t(e)) * leds + k);
+            const float* ga = cache->direct.data() + (std::size_t(a) * leds + k) * 3;
+            const float* gb = cache->direct.data() + (std::size_t(b) * leds + k) * 3;
+            float* out = cache->direct_edge.data() + (std::size_t(e) * leds + k) * 3;
+            for (int i = 0; i < 3; ++i)
+                out[i] = float(flux[i] - 0.5 * (double(ga[i]) + double(gb[i])));
+        }
+    });
     // Smoothing: the indirect light is smooth over millimetres, the estimate of each vertex
     // heavy-tailed (rare long paths that reach an LED). A Gaussian of settings.smoothing_mm
     // (3D distance at rest, cut at 3 sigma), weighted by the vertices' tributary areas,
@@ -287,7 +329,12 @@ void FastIntegrator::adopt_cache(LightCache cache, const render::LightCacheSetti
                        cache.indirect.size() == nv * std::size_t(lanes) &&
                        cache.indirect_above.size() == cache.indirect.size() &&
                        cache.coating_triangles.size() % 3 == 0;
-    if (cache.leds != m_path.led_count() || cache.lanes != lanes || !sized)
+    std::vector<std::array<std::uint32_t, 2>> edges;
+    std::vector<std::uint32_t> triangle_edges;
+    if (sized) coating_edges(cache.coating_triangles, edges, triangle_edges);
+    const bool edges_sized =
+        cache.direct_edge.size() == edges.size() * std::size_t(m_path.led_count()) * 3;
+    if (cache.leds != m_path.led_count() || cache.lanes != lanes || !sized || !edges_sized)
         throw std::invalid_argument(
             "FastIntegrator::adopt_cache: a cache for " + std::to_string(cache.leds) +
             " LEDs and " + std::to_string(cache.lanes) +
@@ -297,6 +344,8 @@ void FastIntegrator::adopt_cache(LightCache cache, const render::LightCacheSetti
             (m_shading.optics().spectra ? "spectral" : "RGB") + " mode)");
     m_cache = std::make_shared<const LightCache>(std::move(cache));
     m_settings = settings;
+    m_edges = std::move(edges);
+    m_triangle_edges = std::move(triangle_edges);
     m_direct.clear(); // set_frame brings the frame's data up to date
 }
 
@@ -380,6 +429,20 @@ void FastIntegrator::set_frame(const SensorFrame& frame, const EmbreeScene& scen
         }
         if (!m_radius.empty()) m_radius[std::size_t(v)] = radius ? float(*radius) : 0.0f;
     });
+    // The quadratic terms, scaled as their edge's ends changed from rest.
+    m_direct_edge.assign(c.direct_edge.size(), 0.0f);
+    for (std::size_t e = 0; e < m_edges.size(); ++e)
+        for (int k = 0; k < c.leds; ++k) {
+            const auto norm = [&](const std::vector<float>& g, std::uint32_t v) {
+                return Eigen::Vector3f(g.data() + (std::size_t(v) * c.leds + k) * 3).norm();
+            };
+            const auto [a, b] = m_edges[e];
+            const float rest = norm(c.direct, a) + norm(c.direct, b);
+            const float scale = rest > 0.0f ? (norm(m_direct, a) + norm(m_direct, b)) / rest : 0.0f;
+            const std::size_t i = (e * std::size_t(c.leds) + std::size_t(k)) * 3;
+            for (int x = 0; x < 3; ++x)
+                m_direct_edge[i + std::size_t(x)] = scale * c.direct_edge[i + std::size_t(x)];
+        }
 }
 
 template <int N>
@@ -389,11 +452,17 @@ FastIntegrator::Lookup<N> FastIntegrator::lookup(std::uint32_t prim, double u, d
     const std::uint32_t* f = c.coating_triangles.data() + 3 * std::size_t(prim);
     const double w[3] = {1.0 - u - v, u, v};
     Lookup<N> at;
+    // Quadratic Lagrange interpolation: the corners' values linearly, plus each edge's
+    // midpoint term times its bubble 4 w_i w_(i+1).
+    const std::uint32_t* edges = m_triangle_edges.data() + 3 * std::size_t(prim);
+    const double bubble[3] = {4.0 * w[0] * w[1], 4.0 * w[1] * w[2], 4.0 * w[2] * w[0]};
     for (int k = 0; k < c.leds; ++k) {
         double g = 0.0; // the vector irradiance interpolated, on the triangle's normal
         for (int i = 0; i < 3; ++i) {
             const float* flux = m_direct.data() + (std::size_t(f[i]) * c.leds + k) * 3;
-            g += w[i] * (normal.x() * flux[0] + normal.y() * flux[1] + normal.z() * flux[2]);
+            const float* edge = m_direct_edge.data() + (std::size_t(edges[i]) * c.leds + k) * 3;
+            g += w[i] * (normal.x() * flux[0] + normal.y() * flux[1] + normal.z() * flux[2]) +
+                 bubble[i] * (normal.x() * edge[0] + normal.y() * edge[1] + normal.z() * edge[2]);
         }
         at.direct[std::size_t(k)] = std::max(0.0, g);
     }
@@ -417,6 +486,11 @@ Vec3 FastIntegrator::shadow_direction(const Lookup<N>& at, const Vec3& p, int k,
             w[a] += at.weights[i] * correction[a];
     }
     return w.normalized();
+}
+
+double FastIntegrator::direct_at(std::uint32_t prim, double u, double v, const Vec3& normal,
+                                 int k) const {
+    return lookup<kRgbLanes>(prim, u, v, normal).direct[std::size_t(k)];
 }
 
 Vec3 FastIntegrator::shadow_direction(std::uint32_t prim, double u, double v, const Vec3& p, int k,

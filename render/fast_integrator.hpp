@@ -64,6 +64,7 @@
 /// against 1 mm markers) and smoothing; F F' and higher cavity reflections of camera rays.
 #include "render/path_integrator.hpp"
 
+#include <array>
 #include <memory>
 #include <vector>
 
@@ -120,6 +121,10 @@ public:
         return Vec3(g[0], g[1], g[2]);
     }
 
+    /// G_k as a sample at barycentric (u, v) of coating triangle `prim` takes it (on `normal`):
+    /// the corners' frame_direct linearly plus the edges' quadratic terms (for tests).
+    double direct_at(std::uint32_t prim, double u, double v, const Vec3& normal, int k) const;
+
 private:
     template <int N> struct Lookup;
     /// LED k's unshadowed light at p (normal n) through the scene's inner surface (radius_mm:
@@ -152,6 +157,10 @@ private:
     std::shared_ptr<const LightCache> m_cache;
     render::LightCacheSettings m_settings; ///< the cache's, and the per-frame refresh
     std::vector<float> m_direct;           ///< the frame's G_k, [vertex * leds + k]
+    /// The frame's quadratic terms of G_k, [edge * leds + k] (LightCache::direct_edge).
+    std::vector<float> m_direct_edge;
+    std::vector<std::array<std::uint32_t, 2>> m_edges; ///< the coating's edges (their ends)
+    std::vector<std::uint32_t> m_triangle_edges;       ///< each triangle's three edges
     std::vector<float> m_radius; ///< the sphere model's inner radius below each vertex, mm
     /// Per vertex and LED k, [(vertex * leds + k) * 3]: the frame's refracted connection to
     /// the LED's centre (the Newton solve on the deformed inner surface) less the sphere

@@ -162,6 +162,10 @@ struct LightCache {
     /// The same for a point LED at each LED's centre, at rest (led_flux_point): a frame's G_k
     /// is its point-LED flux through the deformed inner surface times |direct| / |point_rest|.
     std::vector<float> point_rest;
+    /// The quadratic term of G_k along each coating edge, [edge * leds + k] * 3: the area
+    /// LED's light at the edge's midpoint less the mean of its two ends' (edges numbered as
+    /// coating_edges finds them). A sample adds it with the edge's quadratic bubble function.
+    std::vector<float> direct_edge;
     std::vector<std::uint32_t> coating_triangles; ///< the coating's triangles (3 per), for checks
     double build_s = 0.0;                         ///< wall time of the build
 };

@@ -8,6 +8,7 @@
 #include "render/shading.hpp"
 #include "test_meshes.hpp"
 
+#include <Eigen/Geometry>
 #include <catch2/catch.hpp>
 #include <tbb/global_control.h>
 
@@ -223,4 +224,57 @@ TEST_CASE("fast integrator: where a contact bends the coating, the frame re-esti
     CHECK(rms_stale > 0.05);
     // The same streams on the same geometry: the cache's values to rounding.
     CHECK(rms_refreshed < 1e-5);
+}
+
+TEST_CASE("fast integrator: the LEDs' light is interpolated quadratically over a coating "
+          "triangle, closer to the light there than the corners' linear interpolation",
+          "[render][fast]") {
+    const SensorFrame rest = clear_dome(8, 32, 24, 96); // coarse triangles, about 2.5 mm
+    EmbreeScene scene;
+    scene.set_frame(rest);
+    const ShadingModel shading(OpticsParams{});
+    const PathIntegrator path(shading);
+    FastIntegrator fast(shading, path);
+    LightCacheSettings settings;
+    settings.paths_per_vertex = 16;
+    settings.direct_samples = 16;
+    fast.build_cache(rest, settings, nullptr, 1.0);
+    fast.set_frame(rest, scene);
+    const double nee_ratio = double(settings.paths_per_vertex) / settings.direct_samples;
+    const auto& V = rest.coating.V;
+    const auto& F = rest.coating.F;
+    double e_quadratic = 0.0, e_linear = 0.0, norm = 0.0;
+    int points = 0;
+    for (Eigen::Index t = 0; t < F.rows(); t += 3) {
+        const Vec3 a = V.row(F(t, 0)).cast<double>().transpose();
+        const Vec3 b = V.row(F(t, 1)).cast<double>().transpose();
+        const Vec3 c = V.row(F(t, 2)).cast<double>().transpose();
+        Vec3 n = (b - a).cross(c - a).normalized();
+        if (n.dot(a) > 0.0) n = -n;            // towards the dome centre
+        const double w[3] = {0.5, 0.25, 0.25}; // off the corners and the midpoints
+        const Vec3 p = w[0] * a + w[1] * b + w[2] * c + kHitGap_mm * n;
+        for (int k = 0; k < path.led_count(); ++k) {
+            // The light itself: 64 stratified LED points, the cache's MIS weights.
+            Vec3 g = Vec3::Zero();
+            for (int i = 0; i < 64; ++i)
+                g += path.led_flux_sample(scene, p, n, k, (i % 8 + 0.5) / 8, (i / 8 + 0.5) / 8,
+                                          (i + 0.5) / 64, nee_ratio) /
+                     64.0;
+            const double truth = std::max(0.0, g.dot(n));
+            double linear = 0.0;
+            for (int i = 0; i < 3; ++i)
+                linear += w[i] * fast.frame_direct(int(F(t, i)), k).dot(n);
+            const double quadratic = fast.direct_at(std::uint32_t(t), w[1], w[2], n, k);
+            e_quadratic += (quadratic - truth) * (quadratic - truth);
+            e_linear += (std::max(0.0, linear) - truth) * (std::max(0.0, linear) - truth);
+            norm += truth * truth;
+            ++points;
+        }
+    }
+    const double rms_quadratic = std::sqrt(e_quadratic / norm),
+                 rms_linear = std::sqrt(e_linear / norm);
+    INFO(points << " points: RMS off the light " << rms_quadratic << " quadratic, " << rms_linear
+                << " linear");
+    CHECK(points > 300);
+    CHECK(rms_quadratic < 0.6 * rms_linear);
 }
