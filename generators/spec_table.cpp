@@ -565,8 +565,9 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                          "fast: the path integrator's light with the smooth indirect light and "
                          "the LEDs' unshadowed light cached once per sensor on the coating "
                          "(render.fast.*); marker transmittance and coloured shadows traced "
-                         "per frame: about 3 % RMS off the path reference at the cost per "
-                         "sample of direct, plus about 5 s once per sensor for the cache, "
+                         "per frame: about 2.7 % RMS off the path reference (4 % at 5 N) at "
+                         "the cost per sample of direct, plus about 6 s once per sensor for "
+                         "the cache, "
                          "which --cache-dir keeps between runs (the shipped dataset specs "
                          "use it). docs/VALIDATION.md has each one's "
                          "error and cost.",
