@@ -598,7 +598,7 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
     out.push_back(number("render.fast.refresh_threshold", 0.5, closed(0, 10), "",
                          "Fast integrator: the relative change of a vertex's point-LED light "
                          "from rest above which render.fast.refresh_direct re-estimates it; "
-                         "0: every vertex, every frame.",
+                         "0: every vertex whose point-LED light changed at all.",
                          CHROMASIM_FIELD(render.fast.refresh_threshold)));
     add_render_sensor(out);
     out.push_back(boolean("outputs.images", true,

@@ -420,7 +420,9 @@ void FastIntegrator::set_frame(const SensorFrame& frame, const EmbreeScene& scen
                 rest.norm() > 0.0f && now.norm() > 0.0
                     ? Eigen::Vector3f(now.cast<float>() * (area.norm() / rest.norm()))
                     : area;
-            if (refresh && rest.norm() > 0.0f &&
+            // A relative change, or light where there was none at rest (a vertex the press
+            // turned towards an LED).
+            if (refresh &&
                 (now - rest.cast<double>()).norm() > m_settings.refresh_threshold * rest.norm())
                 flux =
                     area_flux(scene, p, n, k, radius, std::uint64_t(v) * c.leds + k).cast<float>();
