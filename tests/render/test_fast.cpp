@@ -20,6 +20,21 @@ using namespace chromasim::render;
 using namespace chromasim::render::detail;
 using namespace chromasim::render::test;
 
+namespace {
+
+/// A contact: both surfaces of `rest` pressed flat at the apex (z <= 9 mm inside, 11.2 mm
+/// outside), where the sphere through the point below has the wrong normal.
+SensorFrame pressed_flat(const SensorFrame& rest) {
+    SensorFrame pressed = rest;
+    for (Eigen::Index v = 0; v < pressed.inner_surface.V.rows(); ++v)
+        pressed.inner_surface.V(v, 2) = std::min(pressed.inner_surface.V(v, 2), 9.0f);
+    for (Eigen::Index v = 0; v < pressed.coating.V.rows(); ++v)
+        pressed.coating.V(v, 2) = std::min(pressed.coating.V(v, 2), 11.2f);
+    return pressed;
+}
+
+} // namespace
+
 TEST_CASE("fast integrator: on a dome without markers it agrees with the path integrator",
           "[render][fast]") {
     const SensorFrame frame = clear_dome(16, 64, 24, 96);
@@ -119,13 +134,7 @@ TEST_CASE("fast integrator: shadow rays follow the deformed inner surface's refr
     settings.paths_per_vertex = 8;
     settings.direct_samples = 4;
     fast.build_cache(rest, settings, nullptr, 1.0);
-    // A contact: both surfaces pressed flat at the apex (z <= 9 mm inside, 11.2 mm outside),
-    // where the sphere through the point below has the wrong normal.
-    SensorFrame pressed = rest;
-    for (Eigen::Index v = 0; v < pressed.inner_surface.V.rows(); ++v)
-        pressed.inner_surface.V(v, 2) = std::min(pressed.inner_surface.V(v, 2), 9.0f);
-    for (Eigen::Index v = 0; v < pressed.coating.V.rows(); ++v)
-        pressed.coating.V(v, 2) = std::min(pressed.coating.V(v, 2), 11.2f);
+    const SensorFrame pressed = pressed_flat(rest);
     scene.set_frame(pressed);
     fast.set_frame(pressed, scene);
 
@@ -168,11 +177,7 @@ TEST_CASE("fast integrator: where a contact bends the coating, the frame re-esti
           "light as a cache built on that frame holds it",
           "[render][fast]") {
     const SensorFrame rest = clear_dome(16, 64, 24, 96);
-    SensorFrame pressed = rest; // both surfaces pressed flat at the apex, as above
-    for (Eigen::Index v = 0; v < pressed.inner_surface.V.rows(); ++v)
-        pressed.inner_surface.V(v, 2) = std::min(pressed.inner_surface.V(v, 2), 9.0f);
-    for (Eigen::Index v = 0; v < pressed.coating.V.rows(); ++v)
-        pressed.coating.V(v, 2) = std::min(pressed.coating.V(v, 2), 11.2f);
+    const SensorFrame pressed = pressed_flat(rest);
     EmbreeScene scene;
     scene.set_frame(pressed);
     const ShadingModel shading(OpticsParams{});
