@@ -592,8 +592,8 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                           "points) where a contact changed it by more than "
                           "render.fast.refresh_threshold; elsewhere the cache's rest value is "
                           "carried over. It takes the bias against the path integrator from 3.1 "
-                          "to 2.9 % RMS at 1.5 N + 0.6 N and from 5.8 to 4.0 % at 5 N, for 6 "
-                          "to 24 ms more per frame (docs/VALIDATION.md).",
+                          "to 2.8 % RMS at 1.5 N + 0.6 N and from 5.9 to 4.1 % at 5 N, for 9 "
+                          "to 22 ms more per frame (docs/VALIDATION.md).",
                           CHROMASIM_FIELD(render.fast.refresh_direct)));
     out.push_back(number("render.fast.refresh_threshold", 0.5, closed(0, 10), "",
                          "Fast integrator: the relative change of a vertex's point-LED light "
