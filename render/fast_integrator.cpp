@@ -145,7 +145,6 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
         spectral_optics = spectral_lanes(*spectra, lambda, led_scale);
         spectral_optics.led = Lanes::Ones();
     }
-    m_settings = settings; // area_flux's sample count and MIS ratio
     // The direct and indirect estimates share the LED light through the inner surface by MIS.
     const double bsdf_per_nee = double(settings.paths_per_vertex) / settings.direct_samples;
     // The outer markers' inner face above each vertex they cover (its distance along the
@@ -180,7 +179,8 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
         const auto radius = m_path.radius_below(bare, p);
         for (int k = 0; k < leds; ++k) {
             // A stream per vertex and LED, which set_frame's refresh repeats on a frame.
-            const Vec3 flux = area_flux(bare, p, n, k, radius, std::uint64_t(v) * leds + k);
+            const Vec3 flux =
+                area_flux(bare, p, n, k, radius, settings, std::uint64_t(v) * leds + k);
             for (int a = 0; a < 3; ++a)
                 cache->direct[(std::size_t(v) * leds + k) * 3 + a] = float(flux[a]);
             const Vec3 point = m_path.led_flux_point(bare, p, n, k, radius);
@@ -216,18 +216,20 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
     // The direct light's quadratic term along each edge: at the midpoint, less the mean of the
     // ends (the LEDs near the rim make G_k curve within a triangle: linear interpolation
     // left the rim about 2 % dark at rest; docs/VALIDATION.md).
-    coating_edges(cache->coating_triangles, m_edges, m_triangle_edges);
-    cache->direct_edge.assign(m_edges.size() * std::size_t(leds) * 3, 0.0f);
-    tbb::parallel_for(0, int(m_edges.size()), [&](int e) {
-        const auto [a, b] = m_edges[std::size_t(e)];
+    std::vector<std::array<std::uint32_t, 2>> edges;
+    std::vector<std::uint32_t> triangle_edges;
+    coating_edges(cache->coating_triangles, edges, triangle_edges);
+    cache->direct_edge.assign(edges.size() * std::size_t(leds) * 3, 0.0f);
+    tbb::parallel_for(0, int(edges.size()), [&](int e) {
+        const auto [a, b] = edges[std::size_t(e)];
         const Vec3 n = (normals[a] + normals[b]).normalized();
         const Vec3 mid =
             0.5 * (rest.coating.V.row(a) + rest.coating.V.row(b)).transpose().cast<double>();
         const Vec3 p = mid + kHitGap_mm * n;
         const auto radius = m_path.radius_below(bare, p);
         for (int k = 0; k < leds; ++k) {
-            const Vec3 flux =
-                area_flux(bare, p, n, k, radius, (std::uint64_t(nv) + std::uint64_t(e)) * leds + k);
+            const Vec3 flux = area_flux(bare, p, n, k, radius, settings,
+                                        (std::uint64_t(nv) + std::uint64_t(e)) * leds + k);
             const float* ga = cache->direct.data() + (std::size_t(a) * leds + k) * 3;
             const float* gb = cache->direct.data() + (std::size_t(b) * leds + k) * 3;
             float* out = cache->direct_edge.data() + (std::size_t(e) * leds + k) * 3;
@@ -317,6 +319,9 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
     cache->build_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     m_cache = std::move(cache);
+    m_settings = settings;
+    m_edges = std::move(edges);
+    m_triangle_edges = std::move(triangle_edges);
     m_direct.clear(); // set_frame brings the frame's data up to date
 }
 
@@ -365,13 +370,14 @@ void FastIntegrator::check_topology(const SensorFrame& frame) const {
 }
 
 Vec3 FastIntegrator::area_flux(const EmbreeScene& scene, const Vec3& p, const Vec3& n, int k,
-                               std::optional<double> radius_mm, std::uint64_t stream) const {
+                               std::optional<double> radius_mm,
+                               const render::LightCacheSettings& settings,
+                               std::uint64_t stream) const {
     if (scene.has_interface() && !radius_mm) return Vec3::Zero();
     // The cache's own estimate (build_cache): jittered strata of the LED, the chains' MIS
     // weights against the indirect paths' share, here on the frame's inner surface.
-    const auto [gx, gy] = strata_grid(m_settings.direct_samples);
-    const double bsdf_per_nee =
-        double(m_settings.paths_per_vertex) / double(m_settings.direct_samples);
+    const auto [gx, gy] = strata_grid(settings.direct_samples);
+    const double bsdf_per_nee = double(settings.paths_per_vertex) / double(settings.direct_samples);
     PixelRng rng(0xD1EC7, stream);
     Vec3 flux = Vec3::Zero();
     for (int sy = 0; sy < gy; ++sy)
@@ -380,7 +386,7 @@ Vec3 FastIntegrator::area_flux(const EmbreeScene& scene, const Vec3& p, const Ve
             flux += m_path.led_flux_sample(scene, p, n, k, u1, u2, rng.uniform(), bsdf_per_nee,
                                            radius_mm);
         }
-    return flux / double(m_settings.direct_samples);
+    return flux / double(settings.direct_samples);
 }
 
 void FastIntegrator::set_frame(const SensorFrame& frame, const EmbreeScene& scene) {
@@ -424,8 +430,8 @@ void FastIntegrator::set_frame(const SensorFrame& frame, const EmbreeScene& scen
             // turned towards an LED).
             if (refresh &&
                 (now - rest.cast<double>()).norm() > m_settings.refresh_threshold * rest.norm())
-                flux =
-                    area_flux(scene, p, n, k, radius, std::uint64_t(v) * c.leds + k).cast<float>();
+                flux = area_flux(scene, p, n, k, radius, m_settings, std::uint64_t(v) * c.leds + k)
+                           .cast<float>();
             for (int a = 0; a < 3; ++a)
                 m_direct[i + std::size_t(a)] = flux[a];
         }

@@ -52,13 +52,13 @@
 /// of what enters it, shaded with the light above the marker layer) to the coating, where the
 /// cache is interpolated with the hit's barycentric coordinates (V_k quadratically: the
 /// corners' values linearly plus each edge's term times its bubble 4 w_i w_j, scaled per
-/// frame by the change of the edge's ends) and G_k taken on the hit triangle's normal. Below an outer marker the indirect term is the light above it times
-/// (1 - scatter fraction) times the marker's diffuse transmittance 2 E_3(a t), t its thickness
-/// along the normal. T_k: one shadow ray to a random point on one LED drawn with probability
-/// G_k / sum G, along the sphere model's refraction through the inner surface below the point
-/// (PathIntegrator::refracted_direction) plus the frame's correction, interpolated over the
-/// hit triangle: the sphere model alone is 0.08 rad off near a flattened contact, 0.008 rad
-/// with the correction (tests/render/test_fast.cpp).
+/// frame by the change of the edge's ends) and G_k taken on the hit triangle's normal. Below an
+/// outer marker the indirect term is the light above it times (1 - scatter fraction) times the
+/// marker's diffuse transmittance 2 E_3(a t), t its thickness along the normal. T_k: one shadow ray
+/// to a random point on one LED drawn with probability G_k / sum G, along the sphere model's
+/// refraction through the inner surface below the point (PathIntegrator::refracted_direction) plus
+/// the frame's correction, interpolated over the hit triangle: the sphere model alone is 0.08 rad
+/// off near a flattened contact, 0.008 rad with the correction (tests/render/test_fast.cpp).
 ///
 /// What it leaves out or approximates, each part of its measured error against the path
 /// integrator (docs/VALIDATION.md): the indirect light's change with the deformation and with
@@ -132,11 +132,12 @@ public:
 private:
     template <int N> struct Lookup;
     /// LED k's unshadowed light at p (normal n) through the scene's inner surface (radius_mm:
-    /// the sphere model's radius below p; none: no light), by `direct_samples` jittered LED
+    /// the sphere model's radius below p; none: no light), by settings.direct_samples LED
     /// points with the cache's MIS weights, from the stream `stream` (build_cache and
     /// set_frame's refresh: vertex * leds + k).
     Vec3 area_flux(const EmbreeScene& scene, const Vec3& p, const Vec3& n, int k,
-                   std::optional<double> radius_mm, std::uint64_t stream) const;
+                   std::optional<double> radius_mm, const render::LightCacheSettings& settings,
+                   std::uint64_t stream) const;
     template <int N>
     Lookup<N> lookup(std::uint32_t prim, double u, double v, const Vec3& normal) const;
     template <int N>
