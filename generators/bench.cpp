@@ -5,6 +5,7 @@
 #include "generators/spec.hpp"
 #include "mechanics/dome_model.hpp"
 #include "render/embree_scene.hpp"
+#include "render/fisheye_camera.hpp"
 #include "render/renderer.hpp"
 #include "render/shading.hpp"
 
@@ -13,6 +14,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -21,6 +23,7 @@
 #include <numbers>
 #include <ostream>
 #include <random>
+#include <span>
 #include <sstream>
 
 namespace chromasim::generators {
@@ -146,6 +149,61 @@ void bench_dome(const DomeBenchOptions& o, std::ostream& out) {
     out << "\npeak RSS is cumulative over the levels run so far in this process\n";
 }
 
+MeanOfRenders mean_of_renders(const std::vector<std::vector<float>>& renders) {
+    if (renders.size() < 2)
+        throw std::invalid_argument("mean_of_renders: " + std::to_string(renders.size()) +
+                                    " render(s); allowed: two or more");
+    const std::size_t size = renders.front().size();
+    for (const auto& r : renders)
+        if (r.size() != size)
+            throw std::invalid_argument("mean_of_renders: renders of " + std::to_string(size) +
+                                        " and " + std::to_string(r.size()) +
+                                        " values; allowed: renders of one size");
+    const double n = double(renders.size());
+    MeanOfRenders out;
+    out.mean.assign(size, 0.0);
+    out.variance_of_mean.assign(size, 0.0);
+    for (std::size_t i = 0; i < size; ++i) {
+        double sum = 0.0;
+        for (const auto& r : renders)
+            sum += r[i];
+        const double mean = sum / n;
+        double ss = 0.0;
+        for (const auto& r : renders)
+            ss += (r[i] - mean) * (r[i] - mean);
+        out.mean[i] = mean;
+        out.variance_of_mean[i] = ss / (n - 1.0) / n;
+    }
+    return out;
+}
+
+ErrorAgainstReference error_against(const std::vector<float>& image,
+                                    const std::vector<float>& reference,
+                                    const std::vector<float>& reference_variance) {
+    if (image.size() != reference.size() ||
+        (!reference_variance.empty() && reference_variance.size() != reference.size()))
+        throw std::invalid_argument("error_against: " + std::to_string(image.size()) +
+                                    " image values, " + std::to_string(reference.size()) +
+                                    " reference values, " +
+                                    std::to_string(reference_variance.size()) +
+                                    " variances; allowed: equal counts (no variances: none known)");
+    ErrorAgainstReference error;
+    if (image.empty()) return error;
+    double sum2 = 0.0, var = 0.0;
+    for (std::size_t i = 0; i < image.size(); ++i) {
+        const double e = std::abs(double(image[i]) - double(reference[i]));
+        sum2 += e * e;
+        error.max = std::max(error.max, e);
+    }
+    for (float v : reference_variance)
+        var += v;
+    const double ms = sum2 / double(image.size());
+    if (!reference_variance.empty()) var /= double(reference_variance.size());
+    error.rms = std::sqrt(ms);
+    error.less_reference_noise = std::sqrt(std::max(0.0, ms - var));
+    return error;
+}
+
 void bench_render(const RenderBenchOptions& o, std::ostream& out) {
     mechanics::DomeModelOptions options;
     const mechanics::DomeModel model(options);
@@ -207,27 +265,49 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
     render::Image ref;
     std::string reference_source;
     if (!o.reference_in.empty()) {
-        const ImageF file = read_image_float(o.reference_in);
-        if (file.width != o.size_px || file.height != o.size_px)
-            throw std::invalid_argument(
-                "bench render: --reference-in " + o.reference_in.string() + " is " +
-                std::to_string(file.width) + " x " + std::to_string(file.height) +
-                " px; allowed: a reference of --size " + std::to_string(o.size_px) + " px");
-        ref.width = file.width;
-        ref.height = file.height;
-        const char* rgb_names[3] = {"R", "G", "B"};
-        const char* var_names[3] = {"variance.R", "variance.G", "variance.B"};
-        const bool has_variance = std::find(file.channels.begin(), file.channels.end(),
-                                            "variance.R") != file.channels.end();
-        for (int y = 0; y < ref.height; ++y)
-            for (int x = 0; x < ref.width; ++x)
-                for (int c = 0; c < 3; ++c) {
-                    ref.rgb.push_back(file.at(x, y, rgb_names[c]));
-                    if (has_variance) ref.variance.push_back(file.at(x, y, var_names[c]));
-                }
-        reference_source = o.reference_in.string();
+        // Every file is read and checked before the first render.
+        std::vector<render::Image> files;
+        for (const std::filesystem::path& path : o.reference_in) {
+            const ImageF file = read_image_float(path);
+            if (file.width != o.size_px || file.height != o.size_px)
+                throw std::invalid_argument(
+                    "bench render: --reference-in " + path.string() + " is " +
+                    std::to_string(file.width) + " x " + std::to_string(file.height) +
+                    " px; allowed: a reference of --size " + std::to_string(o.size_px) + " px");
+            render::Image image;
+            image.width = file.width;
+            image.height = file.height;
+            const char* rgb_names[3] = {"R", "G", "B"};
+            const char* var_names[3] = {"variance.R", "variance.G", "variance.B"};
+            const bool has_variance = std::find(file.channels.begin(), file.channels.end(),
+                                                "variance.R") != file.channels.end();
+            for (int y = 0; y < image.height; ++y)
+                for (int x = 0; x < image.width; ++x)
+                    for (int c = 0; c < 3; ++c) {
+                        image.rgb.push_back(file.at(x, y, rgb_names[c]));
+                        if (has_variance) image.variance.push_back(file.at(x, y, var_names[c]));
+                    }
+            reference_source += (reference_source.empty() ? "" : " + ") + path.string();
+            files.push_back(std::move(image));
+        }
+        if (files.size() == 1) {
+            ref = std::move(files.front());
+        } else {
+            std::vector<std::vector<float>> renders;
+            for (const render::Image& image : files)
+                renders.push_back(image.rgb);
+            const MeanOfRenders mean = mean_of_renders(renders);
+            ref.width = o.size_px;
+            ref.height = o.size_px;
+            ref.rgb.assign(mean.mean.begin(), mean.mean.end());
+            ref.variance.assign(mean.variance_of_mean.begin(), mean.variance_of_mean.end());
+            reference_source = "the mean of " + std::to_string(files.size()) +
+                               " independent renders (" + reference_source +
+                               "; its noise from their spread)";
+        }
     } else {
-        render::RenderSettings rs = settings(o.reference_spp, 1, o.reference_integrator);
+        render::RenderSettings rs =
+            settings(o.reference_spp, o.reference_seed, o.reference_integrator);
         rs.variance = true;
         ref = reference_renderer.render(rs);
         reference_source = "the spectral render at " + std::to_string(o.reference_spp) + " spp (" +
@@ -273,24 +353,18 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
                 render::Image img;
                 const double t = time_median(
                     o.repeats, [&] { img = renderer.render(settings(spp, 7, integrator)); });
-                double sum2 = 0, max_err = 0;
-                for (std::size_t i = 0; i < img.rgb.size(); ++i) {
-                    const double e = std::abs(double(img.rgb[i]) - ref.rgb[i]);
-                    sum2 += e * e;
-                    max_err = std::max(max_err, e);
-                }
+                const ErrorAgainstReference error = error_against(img.rgb, ref.rgb, ref.variance);
                 if (spp == o.samples_per_pixel.front()) { // rays of one render, counted once
                     renderer.count_rays(true);
                     renderer.render(settings(spp, 7, integrator));
                     rays[integrator + " " + mode] = {double(renderer.rays_counted()), t};
                     renderer.count_rays(false);
                 }
-                const double ms = sum2 / double(img.rgb.size());
                 out << "| " << integrator << " | " << mode << " | " << spp << " | "
                     << std::setprecision(1) << 1e3 * t << " | " << std::setprecision(3)
-                    << 100 * std::sqrt(ms) / kWhite << " | "
-                    << 100 * std::sqrt(std::max(0.0, ms - ref_var)) / kWhite << " | "
-                    << 100 * max_err / kWhite << " |\n";
+                    << 100 * error.rms / kWhite << " | "
+                    << 100 * error.less_reference_noise / kWhite << " | "
+                    << 100 * error.max / kWhite << " |\n";
             }
         }
     // Embree's raw rate on the same scene: incoherent rays from the camera and the LEDs in
@@ -318,6 +392,49 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
     out << "\nEmbree alone on this scene: " << std::setprecision(2) << raw_rate / 1e6
         << " M rays/s (" << kRawRays / 1000000 << " M incoherent rays from the camera and the "
         << "LEDs, median of " << o.repeats << ")\n";
+    // The ceiling for coherent rays: the camera's, 16 per pixel on a 4 x 4 grid, to the first
+    // surface, one by one and as one packet per pixel.
+    const render::FisheyeCamera fisheye(camera);
+    std::vector<std::vector<render::Vec3>> pixel_rays;
+    for (int y = 0; y < o.size_px; ++y)
+        for (int x = 0; x < o.size_px; ++x) {
+            std::vector<render::Vec3> rays;
+            for (int k = 0; k < 16; ++k)
+                if (const auto d =
+                        fisheye.direction({x + (k % 4 + 0.5) / 4.0, y + (k / 4 + 0.5) / 4.0}))
+                    rays.push_back(*d);
+            if (!rays.empty()) pixel_rays.push_back(std::move(rays));
+        }
+    std::size_t camera_rays = 0;
+    for (const auto& rays : pixel_rays)
+        camera_rays += rays.size();
+    const auto camera_rate = [&](bool packets) {
+        const double s = time_median(o.repeats, [&] {
+            tbb::parallel_for(
+                tbb::blocked_range<std::size_t>(0, pixel_rays.size(), 64), [&](const auto& r) {
+                    std::array<render::detail::RayHit, 16> hits;
+                    std::array<render::Vec3, 16> origins;
+                    origins.fill(fisheye.origin_mm());
+                    for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                        const auto& rays = pixel_rays[i];
+                        if (packets) {
+                            scene.closest_hits16(std::span(origins).first(rays.size()), rays, 0.0,
+                                                 1e3, std::span(hits).first(rays.size()));
+                        } else {
+                            for (std::size_t k = 0; k < rays.size(); ++k)
+                                hits[k] = scene.closest_hit(fisheye.origin_mm(), rays[k], 0.0, 1e3);
+                        }
+                    }
+                });
+        });
+        return double(camera_rays) / s;
+    };
+    const double single_rate = camera_rate(false), packet_rate = camera_rate(true);
+    out << "Embree alone, coherent camera rays (" << camera_rays
+        << ", 16 per pixel): " << std::setprecision(2) << packet_rate / 1e6
+        << " M rays/s in packets of 16 (one per "
+        << "pixel), " << single_rate / 1e6 << " M rays/s one by one (median of " << o.repeats
+        << ")\n";
     for (const auto& [mode, counted] : rays) {
         const double rate = counted.first / counted.second;
         out << mode << " at " << o.samples_per_pixel.front() << " spp: " << std::setprecision(0)

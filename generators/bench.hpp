@@ -4,6 +4,7 @@
 #include "render/scene_data.hpp"
 #include <iosfwd>
 
+#include <cstdint>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -43,12 +44,39 @@ struct RenderBenchOptions {
     double normal_N = 1.5, shear_N = 0.6, mu = 0.8;
     /// The fast integrator's light cache.
     render::LightCacheSettings light_cache;
-    /// Read the reference from this EXR (R, G, B and variance.*, as written by
-    /// `reference_out`) instead of rendering it; it must be size_px square.
-    std::filesystem::path reference_in;
+    /// Read the reference from these EXRs (R, G, B and variance.*, as written by
+    /// `reference_out`) instead of rendering it; each must be size_px square. Two or more:
+    /// independent renders (different `reference_seed`), averaged; the reference's noise is
+    /// then measured from their spread, not taken from the variance channel (which a
+    /// heavy-tailed path estimate understates).
+    std::vector<std::filesystem::path> reference_in;
     /// Write the rendered reference (with its variance channels) to this EXR.
     std::filesystem::path reference_out;
+    /// Seed of the rendered reference (the timed renders use 7). Two references with
+    /// different seeds measure the reference's noise without trusting its variance channel.
+    std::uint64_t reference_seed = 1;
 };
+
+/// Independent renders of one image averaged: per value, their mean and the variance of
+/// that mean from their spread (the unbiased sample variance over the count).
+struct MeanOfRenders {
+    std::vector<double> mean;
+    std::vector<double> variance_of_mean;
+};
+/// Throws std::invalid_argument for fewer than two renders or renders of different sizes.
+MeanOfRenders mean_of_renders(const std::vector<std::vector<float>>& renders);
+
+/// The error of `image` against a noisy reference, in the reference's units: the RMS
+/// difference, and the same less the reference's noise in quadrature,
+/// sqrt(max(0, RMS^2 - mean(reference_variance))) (reference_variance empty: no noise known).
+struct ErrorAgainstReference {
+    double rms = 0.0;
+    double less_reference_noise = 0.0;
+    double max = 0.0;
+};
+ErrorAgainstReference error_against(const std::vector<float>& image,
+                                    const std::vector<float>& reference,
+                                    const std::vector<float>& reference_variance);
 
 /// Samples per pixel vs image error and time on a loaded frame (coarse mesh; by default
 /// 1.5 N, 0.6 N pull): median render time, RMS and max error against the spectral render of

@@ -301,6 +301,56 @@ RayHit EmbreeScene::closest_hit(const Vec3& origin_mm, const Vec3& direction, do
     return m_impl->to_hit(query);
 }
 
+void EmbreeScene::closest_hits16(std::span<const Vec3> origins_mm, std::span<const Vec3> directions,
+                                 double tnear_mm, double tfar_mm, std::span<RayHit> out) const {
+    const std::size_t count = origins_mm.size();
+    if (directions.size() != count || out.size() != count || count > 16)
+        throw std::invalid_argument("EmbreeScene::closest_hits16: " + std::to_string(count) +
+                                    " origins, " + std::to_string(directions.size()) +
+                                    " directions, " + std::to_string(out.size()) +
+                                    " results; allowed: one size, at most 16");
+    if (count == 0) return;
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    alignas(64) RTCRayHit16 packet;
+    alignas(64) int valid[16];
+    for (std::size_t k = 0; k < 16; ++k) {
+        // Lanes past `count` are inactive; they repeat lane 0 so that every field is finite.
+        const std::size_t i = k < count ? k : 0;
+        const RTCRayHit one = make_query(origins_mm[i], directions[i], tnear_mm, tfar_mm);
+        valid[k] = k < count ? -1 : 0;
+        packet.ray.org_x[k] = one.ray.org_x;
+        packet.ray.org_y[k] = one.ray.org_y;
+        packet.ray.org_z[k] = one.ray.org_z;
+        packet.ray.dir_x[k] = one.ray.dir_x;
+        packet.ray.dir_y[k] = one.ray.dir_y;
+        packet.ray.dir_z[k] = one.ray.dir_z;
+        packet.ray.tnear[k] = one.ray.tnear;
+        packet.ray.tfar[k] = one.ray.tfar;
+        packet.ray.time[k] = one.ray.time;
+        packet.ray.mask[k] = one.ray.mask;
+        packet.ray.id[k] = unsigned(k);
+        packet.ray.flags[k] = one.ray.flags;
+        packet.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
+        packet.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
+    }
+    rtcIntersect16(valid, m_impl->scene, &context, &packet);
+    if (m_impl->counting) m_impl->rays.fetch_add(count, std::memory_order_relaxed);
+    for (std::size_t k = 0; k < count; ++k) {
+        RTCRayHit one{};
+        one.ray.tfar = packet.ray.tfar[k];
+        one.hit.geomID = packet.hit.geomID[k];
+        one.hit.primID = packet.hit.primID[k];
+        one.hit.Ng_x = packet.hit.Ng_x[k];
+        one.hit.Ng_y = packet.hit.Ng_y[k];
+        one.hit.Ng_z = packet.hit.Ng_z[k];
+        one.hit.u = packet.hit.u[k];
+        one.hit.v = packet.hit.v[k];
+        out[k] = m_impl->to_hit(one);
+    }
+}
+
 RayHit EmbreeScene::closest_interface_hit(const Vec3& origin_mm, const Vec3& direction,
                                           double tnear_mm, double tfar_mm) const {
     RTCIntersectContext context;

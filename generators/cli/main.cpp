@@ -253,10 +253,15 @@ int main(int argc, char** argv) {
         "fast integrator: keep the rest ratio of area to point LED light on every vertex");
     bench_render
         ->add_option("--reference-in", render_bench.reference_in,
-                     "read the reference from this EXR (written by --reference-out)")
+                     "read the reference from this EXR (written by --reference-out); two or "
+                     "more: independent renders (--reference-seed), averaged, their spread "
+                     "gives the reference's noise")
         ->check(CLI::ExistingFile);
     bench_render->add_option("--reference-out", render_bench.reference_out,
                              "write the rendered reference (with variance) to this EXR");
+    bench_render->add_option("--reference-seed", render_bench.reference_seed,
+                             "seed of the rendered reference (another seed: an independent "
+                             "reference, to measure its noise)");
     gen::PipelineBenchOptions pipeline_bench;
     auto* bench_pipeline = bench->add_subcommand(
         "pipeline", "labelled stereo frames per second of generate, per stage");

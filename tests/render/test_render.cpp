@@ -148,8 +148,8 @@ Eigen::Array3d pixel_at(const Renderer& renderer, const Image& image, const Vec3
 
 /// `rest`: the fast integrator's light cache is built on it (a quick one: 8 paths per vertex).
 Image render_frame(const CameraParams& camera, const OpticsParams& optics, const SensorFrame& frame,
-                   int spp = 2, std::uint64_t seed = 1,
-                   Integrator integrator = Integrator::direct, const SensorFrame* rest = nullptr) {
+                   int spp = 2, std::uint64_t seed = 1, Integrator integrator = Integrator::direct,
+                   const SensorFrame* rest = nullptr) {
     Renderer renderer(camera, optics);
     if (integrator == Integrator::fast) {
         LightCacheSettings cache;
@@ -374,6 +374,58 @@ TEST_CASE("EmbreeScene refits in place when the topology is unchanged", "[render
     frame.inner_markers = SurfaceMesh{}; // topology change: rebuild
     CHECK(scene.set_frame(frame) == detail::SceneUpdate::built);
     CHECK(scene.closest_hit(Vec3::Zero(), axis, 0.0, 100.0).kind == detail::SurfaceKind::coating);
+}
+
+TEST_CASE("EmbreeScene packets of 16 rays answer as the rays one by one", "[render]") {
+    // A dome with an inner surface and both marker layers; rays from the camera point and from
+    // points in the layers, in random directions (a full packet and a partial one of 11),
+    // with a near limit that skips the first surface for some rays.
+    SensorFrame frame = clear_dome(12, 48, 10, 40);
+    const SensorFrame markers = marker_frame();
+    frame.inner_markers = markers.inner_markers;
+    frame.outer_markers = markers.outer_markers;
+    detail::EmbreeScene scene;
+    scene.set_frame(frame);
+    Eigen::Matrix<double, 3, Eigen::Dynamic> random = Eigen::MatrixXd::Random(3, 27 * 2);
+    int compared = 0, hits = 0;
+    for (const int count : {16, 11}) {
+        for (const double tnear : {0.0, 1.0}) {
+            std::vector<Vec3> origins, directions;
+            for (int i = 0; i < count; ++i) {
+                const Vec3 r = random.col(compared % random.cols());
+                origins.push_back(i % 2 ? Vec3(0.0, 0.0, 0.0)
+                                        : Vec3(0.3 * r.x(), 0.3 * r.y(), 11.5));
+                Vec3 w = random.col((compared + 7) % random.cols());
+                if (i == 0) w = Vec3(0.01, 0.02, 1.0); // through the markers on the axis
+                directions.push_back(w.normalized());
+                ++compared;
+            }
+            std::vector<detail::RayHit> packed(std::size_t(count), detail::RayHit{});
+            scene.closest_hits16(origins, directions, tnear, 100.0, packed);
+            for (int i = 0; i < count; ++i) {
+                const detail::RayHit one = scene.closest_hit(
+                    origins[std::size_t(i)], directions[std::size_t(i)], tnear, 100.0);
+                const detail::RayHit& two = packed[std::size_t(i)];
+                INFO("count " << count << ", tnear " << tnear << ", ray " << i);
+                CHECK(two.kind == one.kind);
+                CHECK(two.prim_id == one.prim_id);
+                CHECK(two.t_mm == Approx(one.t_mm).epsilon(1e-5));
+                CHECK(two.u == Approx(one.u).margin(1e-5));
+                CHECK(two.v == Approx(one.v).margin(1e-5));
+                CHECK((two.normal - one.normal).norm() < 1e-6);
+                hits += one.hit();
+            }
+        }
+    }
+    CHECK(hits > 40); // most rays hit something: the comparison is not of empty answers
+    std::vector<detail::RayHit> out(17);
+    const std::vector<Vec3> seventeen(17, Vec3::UnitZ());
+    CHECK_THROWS_AS(scene.closest_hits16(seventeen, seventeen, 0.0, 1.0, out),
+                    std::invalid_argument);
+    CHECK_THROWS_AS(scene.closest_hits16(std::span(seventeen).first(3),
+                                         std::span(seventeen).first(2), 0.0, 1.0,
+                                         std::span(out).first(3)),
+                    std::invalid_argument);
 }
 
 TEST_CASE("shadow transmittance multiplies marker transmissions, the coating blocks", "[render]") {
@@ -611,7 +663,7 @@ TEST_CASE("degenerate deformation: zero-area triangles and rays at the image cir
             CHECK(all_finite(image));
             CHECK(*std::max_element(image.rgb.begin(), image.rgb.end()) < 100.0f);
             // A camera wider than the dome (100 deg): rays below the rim plane see nothing.
-            CHECK(all_finite(render_frame(CameraParams{64, 64, 100.0}, optics, frame, 2, 9,
-                                          integrator, &rest)));
+            CHECK(all_finite(
+                render_frame(CameraParams{64, 64, 100.0}, optics, frame, 2, 9, integrator, &rest)));
         }
 }

@@ -1,0 +1,63 @@
+// What `bench render` reports as an image's error against a noisy reference
+// (generators/bench.hpp): the mean of independent reference renders with the variance of that
+// mean from their spread, and the RMS error less the reference's noise in quadrature.
+#include "generators/bench.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <cstddef>
+#include <random>
+#include <stdexcept>
+#include <vector>
+
+using chromasim::generators::error_against;
+using chromasim::generators::mean_of_renders;
+
+TEST_CASE("bench error: the mean of renders and the variance of that mean, by hand",
+          "[generators][bench]") {
+    // Values 1, 3 and 2, 2: means 2 and 2; sample variances 2 and 0, over 2 renders: 1 and 0.
+    const auto m = mean_of_renders({{1.0f, 2.0f}, {3.0f, 2.0f}});
+    REQUIRE(m.mean.size() == 2);
+    CHECK(m.mean[0] == Approx(2.0));
+    CHECK(m.mean[1] == Approx(2.0));
+    CHECK(m.variance_of_mean[0] == Approx(1.0));
+    CHECK(m.variance_of_mean[1] == Approx(0.0).margin(1e-12));
+    CHECK_THROWS_AS(mean_of_renders({{1.0f}}), std::invalid_argument);
+    CHECK_THROWS_AS(mean_of_renders({{1.0f}, {1.0f, 2.0f}}), std::invalid_argument);
+    CHECK_THROWS_AS(error_against({1.0f}, {1.0f, 2.0f}, {}), std::invalid_argument);
+}
+
+TEST_CASE("bench error: a known bias recovered through noisy references", "[generators][bench]") {
+    // A converged image that is off the truth by 0.03 everywhere, against references with
+    // Gaussian noise of 0.1 per value: three independent references, their mean's noise from
+    // their spread. The RMS error is dominated by the noise (about 0.064); less the noise it
+    // is the bias, within a few per cent (40,000 values).
+    constexpr std::size_t n = 40'000;
+    constexpr double bias = 0.03, sigma = 0.1;
+    std::mt19937_64 rng(12345);
+    std::normal_distribution<double> noise(0.0, sigma);
+    std::vector<float> truth(n), image(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        truth[i] = float(0.5 + 0.3 * std::sin(0.001 * double(i)));
+        image[i] = float(truth[i] + bias);
+    }
+    std::vector<std::vector<float>> refs(3, std::vector<float>(n));
+    for (auto& r : refs)
+        for (std::size_t i = 0; i < n; ++i)
+            r[i] = float(truth[i] + noise(rng));
+    const auto m = mean_of_renders(refs);
+    const std::vector<float> mean(m.mean.begin(), m.mean.end());
+    const std::vector<float> var(m.variance_of_mean.begin(), m.variance_of_mean.end());
+    const auto e = error_against(image, mean, var);
+    CHECK(e.rms == Approx(std::sqrt(bias * bias + sigma * sigma / 3.0)).epsilon(0.02));
+    CHECK(e.less_reference_noise == Approx(bias).epsilon(0.06));
+    // Without the noise estimate, the noise passes for error: more than twice the bias.
+    const auto raw = error_against(image, mean, {});
+    CHECK(raw.less_reference_noise == Approx(raw.rms));
+    CHECK(raw.rms > 2.0 * bias);
+    // A reference identical to the image: no error at all.
+    const auto none = error_against(image, image, {});
+    CHECK(none.rms == 0.0);
+    CHECK(none.max == 0.0);
+}
