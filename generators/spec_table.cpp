@@ -575,12 +575,18 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
     out.push_back(integer("render.fast.paths_per_vertex", 256, closed(1, 65536), "",
                           "Fast integrator: paths traced per coating vertex (at the coating "
                           "and above the outer markers) for the cached indirect light, once "
-                          "per sensor; its noise is a fixed pattern across frames.",
+                          "per sensor; its noise is a fixed pattern across frames. Measured "
+                          "at rest against the path reference (RMS over the image circle, "
+                          "cache build on 2 cores): 256 paths, 6 s, 2.9 % (2.4 % inside 0.8 "
+                          "of the circle's radius); 1024, 18 s, 2.8 % (1.6 %); 4096, 70 s, "
+                          "2.4 % (1.8 %). The circle's outer tenth stays 4.3 to 5.4 % off at "
+                          "any count (docs/VALIDATION.md).",
                           CHROMASIM_FIELD(render.fast.paths_per_vertex)));
     out.push_back(number("render.fast.smoothing_mm", 0.75, closed(0, 10), "mm",
                          "Fast integrator: standard deviation of the Gaussian (local linear "
                          "regression) that smooths the cached indirect light over the "
-                         "coating; 0: none.",
+                         "coating; 0: none (at 4096 paths: 3.1 % RMS off the path "
+                         "reference instead of 2.4 %).",
                          CHROMASIM_FIELD(render.fast.smoothing_mm)));
     out.push_back(integer("render.fast.direct_samples", 16, closed(1, 4096), "",
                           "Fast integrator: LED points per LED per coating vertex for the "
