@@ -422,10 +422,17 @@ void FastIntegrator::set_frame(const SensorFrame& frame, const EmbreeScene& scen
                 for (int a = 0; a < 3; ++a)
                     out[a] = float(refracted.direction[a] - model[a]);
             }
-            Eigen::Vector3f flux =
-                rest.norm() > 0.0f && now.norm() > 0.0
-                    ? Eigen::Vector3f(now.cast<float>() * (area.norm() / rest.norm()))
-                    : area;
+            // The area LED's vector at rest turned and scaled as the point LED's changed: the
+            // two point in different directions (the area's is weighted by MIS between the
+            // Chains, the point's is not), and taking the point's direction with the area's
+            // length left G_k 1 % low at the apex and 3 to 5 % low near the LEDs at rest.
+            Eigen::Vector3f flux = area;
+            if (rest.norm() > 0.0f && now.norm() > 0.0) {
+                const Eigen::Vector3d from = rest.cast<double>();
+                flux = (Eigen::Quaterniond::FromTwoVectors(from, now) *
+                        (area.cast<double>() * (now.norm() / from.norm())))
+                           .cast<float>();
+            }
             // A relative change, or light where there was none at rest (a vertex the press
             // turned towards an LED).
             if (refresh &&

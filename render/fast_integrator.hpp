@@ -33,10 +33,13 @@
 ///     smooth albedo and transmittance spectra; the LED spectrum multiplies it per sample).
 ///
 /// Per frame (set_frame): the cache moves with the coating's vertices (the same material
-/// points). V_k is the point LED's vector irradiance through this frame's inner surface times
-/// |V_k| / |point V_k| at rest (the deformation changes the refraction a lot near the rim: a
-/// straight-line correction left 5 % RMS in G_k there), one Newton solve per LED, Chain and
-/// vertex; the radius of the inner surface below each vertex (one ray); per vertex and LED,
+/// points). V_k is the cached (area LED) V_k at rest turned and scaled as the point LED's
+/// vector irradiance changed from rest to this frame's inner surface (the deformation changes
+/// the refraction a lot near the rim: a straight-line correction left 5 % RMS in G_k there),
+/// one Newton solve per LED, Chain and vertex. (Taking the point LED's direction with the area
+/// LED's length instead left G_k 1 % low at the apex and 3 to 5 % low near the LEDs at rest:
+/// the area LED's vector is weighted by MIS between the Chains, the point LED's is not, so
+/// they point differently); the radius of the inner surface below each vertex (one ray); per vertex and LED,
 /// the refracted solve's direction less the sphere model's (the shadow rays' correction). The
 /// indirect light is used as cached. Where the point LED's light at a vertex changed by more
 /// than `refresh_threshold` of its rest value (near a contact), that rest ratio is stale (at

@@ -159,6 +159,21 @@ TEST_CASE("the fast integrator's shadow-ray refraction through the sphere model 
         }
     }
     CHECK(checked >= 90); // of 108: exits past the critical angle have no refraction
+    // A point on the sphere itself, or a hair off it (a light-cache path can start there):
+    // no layer to cross, but still a unit direction, never NaN (a 4096-path cache met this
+    // and sent Embree a NaN ray when a zero length was divided by).
+    for (double off : {0.0, 1e-15, 1e-9}) {
+        for (double polar : {0.0, 30.0, 80.0}) {
+            const Vec3 p = (R + off) * unit_from_angles(polar, 40.0);
+            for (int k = 0; k < integrator.led_count(); ++k) {
+                const Vec3 w =
+                    integrator.refracted_direction(p, integrator.led_point(k, 0.3, 0.6), R);
+                INFO("off the sphere by " << off << " mm, polar " << polar << ", LED " << k);
+                CHECK(w.allFinite());
+                CHECK(std::abs(w.norm() - 1.0) < 1e-12);
+            }
+        }
+    }
 }
 
 TEST_CASE("through the inner surface, next-event estimation with MIS agrees with BSDF "
