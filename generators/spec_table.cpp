@@ -565,7 +565,8 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                          "fast: the path integrator's light with the smooth indirect light and "
                          "the LEDs' unshadowed light cached once per sensor on the coating "
                          "(render.fast.*); marker transmittance and coloured shadows traced "
-                         "per frame: about 2.7 % RMS off the path reference (4 % at 5 N) at "
+                         "per frame: about 2.6 % RMS off the path reference at rest and 3 % at "
+                         "1.5 N + 0.6 N (4 % at 5 N, measured with 0.4.0) at "
                          "the cost per sample of direct, plus about 6 s once per sensor for "
                          "the cache, "
                          "which --cache-dir keeps between runs (the shipped dataset specs "
@@ -577,10 +578,11 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                           "and above the outer markers) for the cached indirect light, once "
                           "per sensor; its noise is a fixed pattern across frames. Measured "
                           "at rest against the path reference (RMS over the image circle, "
-                          "cache build on 2 cores): 256 paths, 6 s, 2.9 % (2.4 % inside 0.8 "
-                          "of the circle's radius); 1024, 18 s, 2.8 % (1.6 %); 4096, 70 s, "
-                          "2.4 % (1.8 %). The circle's outer tenth stays 4.3 to 5.4 % off at "
-                          "any count (docs/VALIDATION.md).",
+                          "cache build on 2 cores): 256 paths, 4 s, 2.8 % (2.5 % inside 0.8 "
+                          "of the circle's radius); 1024, 13 s, 2.7 % (1.6 %); 4096, 51 s, "
+                          "2.4 % (1.8 %). The circle's outer tenth stays 4.2 to 5.1 % off at "
+                          "any count, and at 1.5 N + 0.6 N more paths gain nothing (3.2, 3.2, "
+                          "3.3 %: the cached light is the rest frame's; docs/VALIDATION.md).",
                           CHROMASIM_FIELD(render.fast.paths_per_vertex)));
     out.push_back(number("render.fast.smoothing_mm", 0.75, closed(0, 10), "mm",
                          "Fast integrator: standard deviation of the Gaussian (local linear "
@@ -604,7 +606,10 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
     out.push_back(number("render.fast.refresh_threshold", 0.5, closed(0, 10), "",
                          "Fast integrator: the relative change of a vertex's point-LED light "
                          "from rest above which render.fast.refresh_direct re-estimates it; "
-                         "0: every vertex whose point-LED light changed at all.",
+                         "0: every vertex whose point-LED light changed at all. At 1.5 N + "
+                         "0.6 N: 0.5, 31 ms per frame update, 3.2 % RMS off the path "
+                         "reference over the image circle; 0.1, 89 ms, 3.0 %; 0, 258 ms, "
+                         "2.9 % (docs/VALIDATION.md).",
                          CHROMASIM_FIELD(render.fast.refresh_threshold)));
     add_render_sensor(out);
     out.push_back(boolean("outputs.images", true,
