@@ -566,7 +566,7 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                          "the LEDs' unshadowed light cached once per sensor on the coating "
                          "(render.fast.*); marker transmittance and coloured shadows traced "
                          "per frame: about 2.6 % RMS off the path reference at rest and 3 % at "
-                         "1.5 N + 0.6 N (4 % at 5 N, measured with 0.4.0) at "
+                         "1.5 N + 0.6 N (4.3 % at 5 N) at "
                          "the cost per sample of direct, plus about 6 s once per sensor for "
                          "the cache, "
                          "which --cache-dir keeps between runs (the shipped dataset specs "
