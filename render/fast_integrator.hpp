@@ -39,13 +39,14 @@
 /// one Newton solve per LED, Chain and vertex. (Taking the point LED's direction with the area
 /// LED's length instead left G_k 1 % low at the apex and 3 to 5 % low near the LEDs at rest:
 /// the area LED's vector is weighted by MIS between the Chains, the point LED's is not, so
-/// they point differently); the radius of the inner surface below each vertex (one ray); per vertex and LED,
-/// the refracted solve's direction less the sphere model's (the shadow rays' correction). The
-/// indirect light is used as cached. Where the point LED's light at a vertex changed by more
-/// than `refresh_threshold` of its rest value (near a contact), that rest ratio is stale (at
-/// 5 N it left 4.4 % RMS of the 5.8 % bias against the path integrator): the vertex's light
-/// from that LED is estimated anew as the cache does (`direct_samples` points, the same MIS
-/// weights, a fixed stream per vertex and LED).
+/// they point differently.) Also per frame: the radius of the inner surface below each vertex
+/// (one ray); per vertex and LED, the refracted solve's direction less the sphere model's
+/// (the shadow rays' correction). The indirect light is used as cached. Where the point LED's
+/// light at a vertex changed by more than `refresh_threshold` of its rest value (near a
+/// contact), the rest relation is stale (at 5 N the rest ratio left 4.4 % RMS of the 5.8 %
+/// bias against the path integrator): the vertex's light from that LED is estimated anew as
+/// the cache does (`direct_samples` points, the same MIS weights, a fixed stream per vertex
+/// and LED).
 ///
 /// Per camera sample: the camera ray meets the inner surface and splits deterministically:
 /// (1 - F) refracts into the layers, F reflects into the cavity and is followed to the LED it
