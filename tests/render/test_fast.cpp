@@ -33,6 +33,33 @@ SensorFrame pressed_flat(const SensorFrame& rest) {
     return pressed;
 }
 
+/// The fast integrator on a frame's scene, with the default optics (no spectra).
+struct FastOnFrame {
+    explicit FastOnFrame(const SensorFrame& frame) { scene.set_frame(frame); }
+    EmbreeScene scene;
+    ShadingModel shading{OpticsParams{}};
+    PathIntegrator path{shading};
+    FastIntegrator fast{shading, path};
+};
+
+/// The light cache's LED vectors, [vertex * leds + k].
+std::vector<Vec3> cached_vectors(const FastIntegrator& fast) {
+    const std::vector<float>& d = fast.cache().direct;
+    std::vector<Vec3> out;
+    for (std::size_t i = 0; i + 2 < d.size(); i += 3)
+        out.emplace_back(d[i], d[i + 1], d[i + 2]);
+    return out;
+}
+
+/// The frame's LED vectors (FastIntegrator::frame_direct), in the same order.
+std::vector<Vec3> frame_vectors(const FastIntegrator& fast, int vertices, int leds) {
+    std::vector<Vec3> out;
+    for (int v = 0; v < vertices; ++v)
+        for (int k = 0; k < leds; ++k)
+            out.push_back(fast.frame_direct(v, k));
+    return out;
+}
+
 } // namespace
 
 TEST_CASE("fast integrator: on a dome without markers it agrees with the path integrator",
@@ -125,11 +152,8 @@ TEST_CASE("fast integrator: shadow rays follow the deformed inner surface's refr
           "the sphere model alone is far off",
           "[render][fast]") {
     const SensorFrame rest = clear_dome(16, 64, 24, 96);
-    EmbreeScene scene;
-    scene.set_frame(rest);
-    const ShadingModel shading(OpticsParams{});
-    const PathIntegrator path(shading);
-    FastIntegrator fast(shading, path);
+    FastOnFrame on(rest);
+    auto& [scene, shading, path, fast] = on;
     LightCacheSettings settings;
     settings.paths_per_vertex = 8;
     settings.direct_samples = 4;
@@ -192,19 +216,13 @@ TEST_CASE("fast integrator: where a contact bends the coating, the frame re-esti
         s.refresh_threshold = 0.0; // every vertex and LED
         fast.build_cache(cache_on, s, nullptr, 1.0);
         fast.set_frame(pressed, scene);
-        std::vector<Vec3> g;
-        for (int v = 0; v < int(pressed.coating.V.rows()); ++v)
-            for (int k = 0; k < path.led_count(); ++k)
-                g.push_back(fast.frame_direct(v, k));
-        return g;
+        return frame_vectors(fast, int(pressed.coating.V.rows()), path.led_count());
     };
     std::vector<Vec3> truth; // the area LEDs' light in a cache built on the frame itself
     {
         FastIntegrator fast(shading, path);
         fast.build_cache(pressed, settings, nullptr, 1.0);
-        const std::vector<float>& d = fast.cache().direct;
-        for (std::size_t i = 0; i + 2 < d.size(); i += 3)
-            truth.emplace_back(d[i], d[i + 1], d[i + 2]);
+        truth = cached_vectors(fast);
     }
     const std::vector<Vec3> refreshed = frame_light(rest, true);
     const std::vector<Vec3> stale = frame_light(rest, false);
@@ -235,11 +253,8 @@ TEST_CASE("fast integrator: the LEDs' light is interpolated quadratically over a
           "triangle, closer to the light there than the corners' linear interpolation",
           "[render][fast]") {
     const SensorFrame rest = clear_dome(8, 32, 24, 96); // coarse triangles, about 2.5 mm
-    EmbreeScene scene;
-    scene.set_frame(rest);
-    const ShadingModel shading(OpticsParams{});
-    const PathIntegrator path(shading);
-    FastIntegrator fast(shading, path);
+    FastOnFrame on(rest);
+    auto& [scene, shading, path, fast] = on;
     LightCacheSettings settings;
     settings.paths_per_vertex = 16;
     settings.direct_samples = 16;
@@ -293,28 +308,24 @@ TEST_CASE("fast integrator: the LEDs' light is interpolated quadratically over a
 TEST_CASE("fast integrator: at rest the frame's LED light is the cache's own, vector for vector",
           "[render][fast]") {
     const SensorFrame rest = clear_dome(8, 32, 24, 96);
-    EmbreeScene scene;
-    scene.set_frame(rest);
-    const ShadingModel shading(OpticsParams{});
-    const PathIntegrator path(shading);
-    FastIntegrator fast(shading, path);
+    FastOnFrame on(rest);
+    auto& [scene, shading, path, fast] = on;
     LightCacheSettings settings;
     settings.paths_per_vertex = 4;
     settings.direct_samples = 16;
     settings.refresh_direct = false;
     fast.build_cache(rest, settings, nullptr, 1.0);
     fast.set_frame(rest, scene);
-    const std::vector<float>& cached = fast.cache().direct;
+    const std::vector<Vec3> cached = cached_vectors(fast);
+    const std::vector<Vec3> frame =
+        frame_vectors(fast, int(rest.coating.V.rows()), path.led_count());
     double e2 = 0.0, norm2 = 0.0;
     int lit = 0;
-    for (int v = 0; v < int(rest.coating.V.rows()); ++v)
-        for (int k = 0; k < path.led_count(); ++k) {
-            const float* c = cached.data() + 3 * (std::size_t(v) * path.led_count() + k);
-            const Vec3 truth(c[0], c[1], c[2]);
-            e2 += (fast.frame_direct(v, k) - truth).squaredNorm();
-            norm2 += truth.squaredNorm();
-            lit += truth.squaredNorm() > 0.0;
-        }
+    for (std::size_t i = 0; i < cached.size(); ++i) {
+        e2 += (frame[i] - cached[i]).squaredNorm();
+        norm2 += cached[i].squaredNorm();
+        lit += cached[i].squaredNorm() > 0.0;
+    }
     INFO(lit << " lit vertex-LED pairs, RMS off the cache " << std::sqrt(e2 / norm2));
     CHECK(lit > 300);
     CHECK(std::sqrt(e2 / norm2) < 1e-5);
