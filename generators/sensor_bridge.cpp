@@ -169,6 +169,7 @@ render::LightCacheSettings light_cache_settings(const Spec& spec) {
     s.smoothing_mm = spec.render.fast.smoothing_mm;
     s.refresh_direct = spec.render.fast.refresh_direct;
     s.refresh_threshold = spec.render.fast.refresh_threshold;
+    s.scale_indirect = spec.render.fast.scale_indirect;
     return s;
 }
 

@@ -148,6 +148,7 @@ struct Spec {
             double smoothing_mm = 0.75;
             bool refresh_direct = true;
             double refresh_threshold = 0.5;
+            bool scale_indirect = true;
         } fast;
         /// The camera sensor model (render/sensor_model.hpp); the PNG only, the EXR stays the
         /// noise-free render.

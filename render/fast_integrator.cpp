@@ -67,6 +67,39 @@ std::vector<Vec3> coating_normals(const SurfaceMesh& mesh) {
     return n;
 }
 
+/// Each coating vertex's tributary area (a third of its triangles'), mm^2.
+std::vector<double> vertex_areas(const SurfaceMesh& mesh) {
+    std::vector<double> area(std::size_t(mesh.V.rows()), 0.0);
+    for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
+        const Vec3 a = mesh.V.row(mesh.F(f, 0)).cast<double>().transpose();
+        const Vec3 b = mesh.V.row(mesh.F(f, 1)).cast<double>().transpose();
+        const Vec3 c = mesh.V.row(mesh.F(f, 2)).cast<double>().transpose();
+        const double third = (b - a).cross(c - a).norm() / 6.0;
+        for (int k = 0; k < 3; ++k)
+            area[std::size_t(mesh.F(f, k))] += third;
+    }
+    return area;
+}
+
+/// The LEDs' unshadowed flux onto the coating, per unit LED emission: sum over vertices of
+/// tributary area times sum_k max(0, n . V_k). `vectors`: V_k per vertex and LED,
+/// [(vertex * leds + k) * 3].
+double direct_flux(const SurfaceMesh& mesh, const std::vector<Vec3>& normals,
+                   const std::vector<float>& vectors, int leds) {
+    const std::vector<double> area = vertex_areas(mesh);
+    double flux = 0.0;
+    for (std::size_t v = 0; v < area.size(); ++v) {
+        double g = 0.0;
+        for (int k = 0; k < leds; ++k) {
+            const float* V = vectors.data() + (v * std::size_t(leds) + std::size_t(k)) * 3;
+            g += std::max(0.0,
+                          normals[v].x() * V[0] + normals[v].y() * V[1] + normals[v].z() * V[2]);
+        }
+        flux += area[v] * g;
+    }
+    return flux;
+}
+
 /// The coating's edges, each once, in the order the triangles first name them, and each
 /// triangle's three (edge i from corner i to corner i + 1 mod 3).
 void coating_edges(const std::vector<std::uint32_t>& triangles,
@@ -242,15 +275,7 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
     // (3D distance at rest, cut at 3 sigma), weighted by the vertices' tributary areas,
     // preserves the field's integral and takes the per-vertex noise down.
     if (settings.smoothing_mm > 0.0) {
-        std::vector<double> area(std::size_t(nv), 0.0);
-        for (Eigen::Index f = 0; f < rest.coating.F.rows(); ++f) {
-            const Vec3 a = rest.coating.V.row(rest.coating.F(f, 0)).cast<double>().transpose();
-            const Vec3 b = rest.coating.V.row(rest.coating.F(f, 1)).cast<double>().transpose();
-            const Vec3 c = rest.coating.V.row(rest.coating.F(f, 2)).cast<double>().transpose();
-            const double third = (b - a).cross(c - a).norm() / 6.0;
-            for (int k = 0; k < 3; ++k)
-                area[rest.coating.F(f, k)] += third;
-        }
+        const std::vector<double> area = vertex_areas(rest.coating);
         const double sigma = settings.smoothing_mm, cutoff2 = 9.0 * sigma * sigma;
         for (std::vector<float>* field : {&cache->indirect, &cache->indirect_above}) {
             std::vector<float> smooth(field->size(), 0.0f);
@@ -316,6 +341,7 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
                 float(count > 0 ? ratio / count : 1.0);
         }
     }
+    cache->direct_flux = direct_flux(rest.coating, normals, cache->direct, leds);
     cache->build_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     m_cache = std::move(cache);
@@ -328,12 +354,12 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
 void FastIntegrator::adopt_cache(LightCache cache, const render::LightCacheSettings& settings) {
     const int lanes = m_shading.optics().spectra ? kCacheLambdas : kRgbLanes;
     const auto nv = std::size_t(std::max(cache.vertices, 0));
-    const bool sized = cache.vertices >= 0 &&
-                       cache.direct.size() == nv * std::size_t(m_path.led_count()) * 3 &&
-                       cache.point_rest.size() == cache.direct.size() &&
-                       cache.indirect.size() == nv * std::size_t(lanes) &&
-                       cache.indirect_above.size() == cache.indirect.size() &&
-                       cache.coating_triangles.size() % 3 == 0;
+    const bool sized =
+        cache.vertices >= 0 && cache.direct.size() == nv * std::size_t(m_path.led_count()) * 3 &&
+        cache.point_rest.size() == cache.direct.size() &&
+        cache.indirect.size() == nv * std::size_t(lanes) &&
+        cache.indirect_above.size() == cache.indirect.size() && std::isfinite(cache.direct_flux) &&
+        cache.direct_flux >= 0.0 && cache.coating_triangles.size() % 3 == 0;
     std::vector<std::array<std::uint32_t, 2>> edges;
     std::vector<std::uint32_t> triangle_edges;
     if (sized) coating_edges(cache.coating_triangles, edges, triangle_edges);
@@ -458,6 +484,13 @@ void FastIntegrator::set_frame(const SensorFrame& frame, const EmbreeScene& scen
             for (int x = 0; x < 3; ++x)
                 m_direct_edge[i + std::size_t(x)] = scale * c.direct_edge[i + std::size_t(x)];
         }
+    // The indirect light follows the LEDs' light the coating receives: this frame's
+    // unshadowed flux onto the coating over the rest cache's (docs/VALIDATION.md).
+    m_indirect_scale = 1.0;
+    if (m_settings.scale_indirect && c.direct_flux > 0.0) {
+        const double now = direct_flux(frame.coating, normals, m_direct, c.leds);
+        if (std::isfinite(now)) m_indirect_scale = now / c.direct_flux;
+    }
 }
 
 template <int N>
@@ -613,8 +646,8 @@ LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, c
             const double s = optics.outer_marker_scatter_fraction;
             // The cached indirect light at the hit: the level above the markers only where a
             // marker is involved (E_ind / pi per unit LED emission, at the lanes).
-            const auto cached = [&](const std::vector<float>& level) {
-                return spectral_at(level, at.triangle, at.weights, lambda_nm);
+            const auto cached = [&](const std::vector<float>& level) -> LanesN<N> {
+                return m_indirect_scale * spectral_at(level, at.triangle, at.weights, lambda_nm);
             };
             const LanesN<N> above =
                 chord > 0.0 || pending > 0 ? cached(m_cache->indirect_above) : LanesN<N>::Zero();

@@ -144,6 +144,11 @@ struct LightCacheSettings {
     /// the area LED's ratio to it at rest, which goes stale where the surface bends.
     bool refresh_direct = true;
     double refresh_threshold = 0.5;
+    /// Per frame, not part of the stored cache: scale the cached indirect light by the LEDs'
+    /// unshadowed flux onto the coating on this frame over rest (LightCache::direct_flux).
+    /// A press takes light off the coating (7.5 % at 5 N); the rest value then left the image
+    /// 3.5 % of white too bright on average (docs/VALIDATION.md).
+    bool scale_indirect = true;
 };
 
 /// The fast integrator's per-sensor light cache on the coating vertices (plain data, structure
@@ -166,6 +171,9 @@ struct LightCache {
     /// LED's light at the edge's midpoint less the mean of its two ends' (edges numbered as
     /// coating_edges finds them). A sample adds it with the edge's quadratic bubble function.
     std::vector<float> direct_edge;
+    /// The LEDs' unshadowed flux onto the coating at rest (the `direct` vectors on the vertex
+    /// normals, summed over the LEDs, times the vertices' areas), per unit LED emission.
+    double direct_flux = 0.0;
     std::vector<std::uint32_t> coating_triangles; ///< the coating's triangles (3 per), for checks
     double build_s = 0.0;                         ///< wall time of the build
 };

@@ -251,6 +251,9 @@ int main(int argc, char** argv) {
     bench_render->add_flag(
         "!--no-refresh", render_bench.light_cache.refresh_direct,
         "fast integrator: keep the rest ratio of area to point LED light on every vertex");
+    bench_render->add_flag("!--no-indirect-scale", render_bench.light_cache.scale_indirect,
+                           "fast integrator: use the cached indirect light as at rest on every "
+                           "frame (no scaling by the coating's LED light)");
     bench_render
         ->add_option("--reference-in", render_bench.reference_in,
                      "read the reference from this EXR (written by --reference-out); two or "

@@ -34,7 +34,8 @@ TEST_CASE("fast integrator: the light cache saved to disk is read back by the ne
     settings.samples_per_pixel = 2;
     auto render_with = [&](const OpticsParams& optics, LightCacheOutcome* report) {
         Renderer renderer(CameraParams{24, 24, 84.0}, optics);
-        renderer.set_frame(frame);
+        // A pressed frame: its image needs the cache's rest flux as well (the indirect scale).
+        renderer.set_frame(pressed_flat(frame));
         *report = provide_light_cache(renderer, frame, optics, cache, dir);
         return renderer.render(settings).rgb;
     };

@@ -3,6 +3,7 @@
 #include "render/furnace.hpp"
 #include "render/scene_data.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -53,6 +54,17 @@ inline SensorFrame clear_dome(int coating_rings, int coating_segments, int inner
     frame.coating = hemisphere(12.7, coating_rings, coating_segments);
     frame.inner_surface = hemisphere(10.5, inner_rings, inner_segments);
     return frame;
+}
+
+/// A contact: both surfaces of `rest` pressed flat at the apex (z <= 9 mm inside, 11.2 mm
+/// outside), where the sphere through the point below has the wrong normal.
+inline SensorFrame pressed_flat(const SensorFrame& rest) {
+    SensorFrame pressed = rest;
+    for (Eigen::Index v = 0; v < pressed.inner_surface.V.rows(); ++v)
+        pressed.inner_surface.V(v, 2) = std::min(pressed.inner_surface.V(v, 2), 9.0f);
+    for (Eigen::Index v = 0; v < pressed.coating.V.rows(); ++v)
+        pressed.coating.V(v, 2) = std::min(pressed.coating.V(v, 2), 11.2f);
+    return pressed;
 }
 
 } // namespace chromasim::render::test
