@@ -143,7 +143,7 @@ struct Spec {
         std::string integrator = "direct"; ///< direct | path | fast
         /// The fast integrator's light cache (render::LightCacheSettings).
         struct Fast {
-            int paths_per_vertex = 256;
+            int paths_per_vertex = 1024;
             int direct_samples = 16;
             double smoothing_mm = 0.75;
             bool refresh_direct = true;

@@ -573,16 +573,15 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                          "use it). docs/VALIDATION.md has each one's "
                          "error and cost.",
                          CHROMASIM_FIELD(render.integrator)));
-    out.push_back(integer("render.fast.paths_per_vertex", 256, closed(1, 65536), "",
+    out.push_back(integer("render.fast.paths_per_vertex", 1024, closed(1, 65536), "",
                           "Fast integrator: paths traced per coating vertex (at the coating "
                           "and above the outer markers) for the cached indirect light, once "
-                          "per sensor; its noise is a fixed pattern across frames. Measured "
-                          "at rest against the path reference (RMS over the image circle, "
-                          "cache build on 2 cores): 256 paths, 4 s, 2.8 % (2.5 % inside 0.8 "
-                          "of the circle's radius); 1024, 13 s, 2.7 % (1.6 %); 4096, 51 s, "
-                          "2.4 % (1.8 %). The circle's outer tenth stays 4.2 to 5.1 % off at "
-                          "any count, and at 1.5 N + 0.6 N more paths gain nothing (3.2, 3.2, "
-                          "3.3 %: the cached light is the rest frame's; docs/VALIDATION.md).",
+                          "per sensor (and kept on disk with --cache-dir); its noise is a "
+                          "fixed pattern across frames. Measured against the path reference "
+                          "(64 spp at 64 px, RMS over the image circle less the reference's "
+                          "noise; cache build on 2 cores): 256 paths, 4.7 s: 2.5 % at rest, "
+                          "2.7 % at 1.5 N + 0.6 N, 3.0 % at 5 N; 1024, 14 s: 1.9, 2.2, 2.4 %; "
+                          "4096, 52 s: 1.7, 2.1, 2.3 % (docs/VALIDATION.md).",
                           CHROMASIM_FIELD(render.fast.paths_per_vertex)));
     out.push_back(number("render.fast.smoothing_mm", 0.75, closed(0, 10), "mm",
                          "Fast integrator: standard deviation of the Gaussian (local linear "

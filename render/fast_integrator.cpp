@@ -178,8 +178,9 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
         spectral_optics = spectral_lanes(*spectra, lambda, led_scale);
         spectral_optics.led = Lanes::Ones();
     }
-    // The direct and indirect estimates share the LED light through the inner surface by MIS.
-    const double bsdf_per_nee = double(settings.paths_per_vertex) / settings.direct_samples;
+    // The direct and indirect estimates share the LED light through the inner surface by MIS,
+    // with a fixed ratio (kCacheBsdfPerNee).
+    const double bsdf_per_nee = kCacheBsdfPerNee;
     // The outer markers' inner face above each vertex they cover (its distance along the
     // normal, 0 where none covers it).
     std::vector<double> above_mm(std::size_t(nv), 0.0);
@@ -403,7 +404,7 @@ Vec3 FastIntegrator::area_flux(const EmbreeScene& scene, const Vec3& p, const Ve
     // The cache's own estimate (build_cache): jittered strata of the LED, the chains' MIS
     // weights against the indirect paths' share, here on the frame's inner surface.
     const auto [gx, gy] = strata_grid(settings.direct_samples);
-    const double bsdf_per_nee = double(settings.paths_per_vertex) / double(settings.direct_samples);
+    const double bsdf_per_nee = kCacheBsdfPerNee;
     PixelRng rng(0xD1EC7, stream);
     Vec3 flux = Vec3::Zero();
     for (int sy = 0; sy < gy; ++sy)

@@ -15,7 +15,8 @@
 /// Light cache (once per sensor, on the undeformed dome), at every coating vertex:
 ///   - the vector irradiance of each LED, V_k (G_k on a surface of normal n is V_k . n), by
 ///     next-event estimation through the Chains on the bare dome (coating and inner surface,
-///     `direct_samples` points per LED), and the same for a point LED at the LED's centre
+///     `direct_samples` points per LED; MIS against the indirect paths below with a fixed
+///     ratio, kCacheBsdfPerNee), and the same for a point LED at the LED's centre
 ///     (PathIntegrator::led_flux_point, deterministic); and per coating edge, V_k at its
 ///     midpoint less the mean of its ends' (the quadratic term: near the rim the LEDs are
 ///     close and G_k curves within a 1.2 mm triangle; linear interpolation left the rim 2 %
@@ -88,6 +89,14 @@ namespace chromasim::render::detail {
 inline constexpr int kCacheLambdas = 16;
 inline constexpr double kCacheLambdaMin_nm = 400.0;
 inline constexpr double kCacheLambdaStep_nm = 20.0;
+/// The ratio of indirect paths to LED points per vertex that the light cache's MIS weights
+/// between the two assume: 16 (256 / 16, the defaults up to 0.5.0), whatever the sample
+/// counts. Any fixed ratio keeps the weights a partition of unity (the sum stays unbiased);
+/// a fixed one keeps the split between the direct light, which each frame updates vertex by
+/// vertex, and the indirect light, which it only scales, where it is. With the actual counts,
+/// 4096 paths moved so much of the LEDs' light into the indirect term that the bias at 5 N
+/// went from 3.0 to 4.4 % (docs/VALIDATION.md).
+inline constexpr double kCacheBsdfPerNee = 16.0;
 
 class FastIntegrator {
 public:

@@ -132,7 +132,7 @@ enum class Integrator {
 
 /// Work of the fast integrator's per-sensor light cache (render/fast_integrator.hpp).
 struct LightCacheSettings {
-    int paths_per_vertex = 256; ///< indirect light: paths per coating vertex (and level)
+    int paths_per_vertex = 1024; ///< indirect light: paths per coating vertex (and level)
     int direct_samples = 16;    ///< unshadowed LED light: points per LED per coating vertex
     /// Indirect light: standard deviation of the Gaussian that smooths it over the coating,
     /// mm (0: none).

@@ -56,7 +56,8 @@ void require_same_values(const Spec& a, const Spec& b) {
 
 const char* const quickstart_reordered = R"(# same values as quickstart.yaml, other order
 outputs: {markers: true, labels: true, images: true}
-render: {exposure: 1, samples_per_pixel: 4, integrator: fast, height_px: 128, width_px: 128}
+render: {exposure: 1, samples_per_pixel: 4, integrator: fast, height_px: 128, width_px: 128,
+         fast: {paths_per_vertex: 256}}
 splits: [{fraction: 0.5, name: train}, {name: test, fraction: 0.5}]
 sampling: {repetitions: 1}
 protocol:
