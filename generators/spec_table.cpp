@@ -565,9 +565,9 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                          "fast: the path integrator's light with the smooth indirect light and "
                          "the LEDs' unshadowed light cached once per sensor on the coating "
                          "(render.fast.*); marker transmittance and coloured shadows traced "
-                         "per frame: about 2.6 % RMS off the path reference at rest and 3 % at "
-                         "1.5 N + 0.6 N (4.3 % at 5 N) at "
-                         "the cost per sample of direct, plus about 6 s once per sensor for "
+                         "per frame: about 1.9 % RMS off the path reference at rest, 2.2 % "
+                         "at 1.5 N + 0.6 N and 2.4 % at 5 N at "
+                         "the cost per sample of direct, plus about 14 s once per sensor for "
                          "the cache, "
                          "which --cache-dir keeps between runs (the shipped dataset specs "
                          "use it). docs/VALIDATION.md has each one's "
@@ -586,8 +586,8 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
     out.push_back(number("render.fast.smoothing_mm", 0.75, closed(0, 10), "mm",
                          "Fast integrator: standard deviation of the Gaussian (local linear "
                          "regression) that smooths the cached indirect light over the "
-                         "coating; 0: none (at 4096 paths: 3.1 % RMS off the path "
-                         "reference instead of 2.4 %).",
+                         "coating; 0: none. At 1024 paths, at rest: 0.5 mm, 2.5 % RMS off "
+                         "the path reference; 0.75 mm, 1.9 %; 1 mm, 1.9 % (docs/VALIDATION.md).",
                          CHROMASIM_FIELD(render.fast.smoothing_mm)));
     out.push_back(integer("render.fast.direct_samples", 16, closed(1, 4096), "",
                           "Fast integrator: LED points per LED per coating vertex for the "
