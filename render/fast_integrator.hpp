@@ -90,13 +90,15 @@ inline constexpr int kCacheLambdas = 16;
 inline constexpr double kCacheLambdaMin_nm = 400.0;
 inline constexpr double kCacheLambdaStep_nm = 20.0;
 /// The ratio of indirect paths to LED points per vertex that the light cache's MIS weights
-/// between the two assume: 16 (256 / 16, the defaults up to 0.5.0), whatever the sample
-/// counts. Any fixed ratio keeps the weights a partition of unity (the sum stays unbiased);
-/// a fixed one keeps the split between the direct light, which each frame updates vertex by
-/// vertex, and the indirect light, which it only scales, where it is. With the actual counts,
-/// 4096 paths moved so much of the LEDs' light into the indirect term that the bias at 5 N
-/// went from 3.0 to 4.4 % (docs/VALIDATION.md).
-inline constexpr double kCacheBsdfPerNee = 16.0;
+/// between the two assume: 4, whatever the sample counts. Any fixed ratio keeps the weights a
+/// partition of unity (the sum stays unbiased); a fixed one keeps the split between the direct
+/// light, which each frame updates vertex by vertex, and the indirect light, which it only
+/// scales, where it is. With the actual counts, 4096 paths moved so much of the LEDs' light
+/// into the indirect term that the bias at 5 N went from 3.0 to 4.4 %. And a low ratio leaves
+/// the light near the LEDs to the direct term (interpolated quadratically, not smoothed): at
+/// 1024 paths, ratios 1, 2, 4 and 16 left 1.76, 1.74, 1.71 and 1.89 % at rest and 2.15, 2.15,
+/// 2.14 and 2.37 % at 5 N (docs/VALIDATION.md).
+inline constexpr double kCacheBsdfPerNee = 4.0;
 
 class FastIntegrator {
 public:
