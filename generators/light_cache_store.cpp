@@ -16,7 +16,7 @@ namespace {
 
 constexpr std::string_view kMagic = "CSLCACH1";
 /// Bump when the cache's algorithm or layout changes without a chromasim version change.
-constexpr int kLayout = 3; // 2: direct_edge; 3: direct_flux
+constexpr int kLayout = 4; // 2: direct_edge; 3: direct_flux; 4: the fixed MIS ratio 4
 
 /// Builds the key from typed fields: each is hashed with its size, then its raw bytes.
 struct KeyHash {

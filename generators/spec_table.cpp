@@ -565,8 +565,8 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                          "fast: the path integrator's light with the smooth indirect light and "
                          "the LEDs' unshadowed light cached once per sensor on the coating "
                          "(render.fast.*); marker transmittance and coloured shadows traced "
-                         "per frame: about 1.9 % RMS off the path reference at rest, 2.2 % "
-                         "at 1.5 N + 0.6 N and 2.4 % at 5 N at "
+                         "per frame: about 1.7 % RMS off the path reference at rest, 2.1 % "
+                         "at 1.5 N + 0.6 N and 2.1 % at 5 N at "
                          "the cost per sample of direct, plus about 14 s once per sensor for "
                          "the cache, "
                          "which --cache-dir keeps between runs (the shipped dataset specs "
@@ -579,15 +579,16 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                           "per sensor (and kept on disk with --cache-dir); its noise is a "
                           "fixed pattern across frames. Measured against the path reference "
                           "(64 spp at 64 px, RMS over the image circle less the reference's "
-                          "noise; cache build on 2 cores): 256 paths, 4.7 s: 2.5 % at rest, "
-                          "2.7 % at 1.5 N + 0.6 N, 3.0 % at 5 N; 1024, 14 s: 1.9, 2.2, 2.4 %; "
-                          "4096, 52 s: 1.7, 2.1, 2.3 % (docs/VALIDATION.md).",
+                          "noise; cache build on 2 cores): 256 paths, 4.6 s: 2.3 % at rest, "
+                          "2.5 % at 1.5 N + 0.6 N, 2.8 % at 5 N; 1024, 15 s: 1.7, 2.1, 2.1 %; "
+                          "4096, 55 s: 1.6, 1.9, 2.1 % (docs/VALIDATION.md).",
                           CHROMASIM_FIELD(render.fast.paths_per_vertex)));
     out.push_back(number("render.fast.smoothing_mm", 0.75, closed(0, 10), "mm",
                          "Fast integrator: standard deviation of the Gaussian (local linear "
                          "regression) that smooths the cached indirect light over the "
-                         "coating; 0: none. At 1024 paths, at rest: 0.5 mm, 2.5 % RMS off "
-                         "the path reference; 0.75 mm, 1.9 %; 1 mm, 1.9 % (docs/VALIDATION.md).",
+                         "coating; 0: none. At 1024 paths, at rest (with the light cache's MIS "
+                         "ratio 16 then, 4 now): 0.5 mm, 2.5 % RMS off the path reference; "
+                         "0.75 mm, 1.9 %; 1 mm, 1.9 % (docs/VALIDATION.md).",
                          CHROMASIM_FIELD(render.fast.smoothing_mm)));
     out.push_back(integer("render.fast.direct_samples", 16, closed(1, 4096), "",
                           "Fast integrator: LED points per LED per coating vertex for the "
@@ -616,7 +617,8 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                           "false: the rest value on every frame. A press takes light off the "
                           "coating (7.5 % at 5 N); this takes the bias against the path "
                           "integrator at 5 N from 4.3 to 3.0 % RMS of white and at 1.5 N + "
-                          "0.6 N from 2.8 to 2.7 %, at no measurable cost per frame "
+                          "0.6 N from 2.8 to 2.7 % (256 cache paths), at no measurable cost "
+                          "per frame "
                           "(docs/VALIDATION.md).",
                           CHROMASIM_FIELD(render.fast.scale_indirect)));
     add_render_sensor(out);

@@ -47,12 +47,12 @@
 /// its vertices' areas) over the same at rest. In a cavity whose losses are mostly its fixed
 /// black base, the interreflected light follows the light put in: a 5 N press takes 7.5 % of
 /// it off, and the rest cache then left the image 3.5 % of white too bright on average; the
-/// factor takes the bias at 5 N from 4.3 to 3.0 % RMS (docs/VALIDATION.md). Where the point LED's
-/// light at a vertex changed by more than `refresh_threshold` of its rest value (near a
-/// contact), the rest relation is stale (at 5 N the rest ratio left 4.4 % RMS of the 5.8 %
-/// bias against the path integrator): the vertex's light from that LED is estimated anew as
-/// the cache does (`direct_samples` points, the same MIS weights, a fixed stream per vertex
-/// and LED).
+/// factor takes the bias at 5 N from 4.3 to 3.0 % RMS with 256 cache paths (docs/VALIDATION.md).
+/// Where the point LED's light at a vertex changed by more than `refresh_threshold` of its rest
+/// value (near a contact), the rest relation is stale (at 5 N the rest ratio left 4.4 % RMS of
+/// the 5.8 % bias against the path integrator): the vertex's light from that LED is estimated anew
+/// as the cache does (`direct_samples` points, the same MIS weights, a fixed stream per vertex and
+/// LED).
 ///
 /// Per camera sample: the camera ray meets the inner surface and splits deterministically:
 /// (1 - F) refracts into the layers, F reflects into the cavity and is followed to the LED it
