@@ -178,9 +178,6 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
         spectral_optics = spectral_lanes(*spectra, lambda, led_scale);
         spectral_optics.led = Lanes::Ones();
     }
-    // The direct and indirect estimates share the LED light through the inner surface by MIS,
-    // with a fixed ratio (kCacheBsdfPerNee).
-    const double bsdf_per_nee = kCacheBsdfPerNee;
     // The outer markers' inner face above each vertex they cover (its distance along the
     // normal, 0 where none covers it).
     std::vector<double> above_mm(std::size_t(nv), 0.0);
@@ -223,17 +220,20 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
         }
         // The indirect light at the coating and above the outer marker layer; a covered
         // vertex's coating value is its unfiltered one (inside() filters per sample).
+        // LED light reached through the inner surface is shared with the LED points by MIS
+        // (the fixed ratio kCacheBsdfPerNee).
         auto mean_indirect = [&](const Vec3& at, float* out) {
             if (spectra) {
                 Lanes sum = Lanes::Zero();
                 for (int i = 0; i < settings.paths_per_vertex; ++i)
-                    sum += m_path.indirect(full, at, n, spectral_optics, rng, 1.0 / bsdf_per_nee);
+                    sum +=
+                        m_path.indirect(full, at, n, spectral_optics, rng, 1.0 / kCacheBsdfPerNee);
                 for (int j = 0; j < kCacheLambdas; ++j)
                     out[j] = float(sum[j] / settings.paths_per_vertex);
             } else {
                 RgbLanes sum = RgbLanes::Zero();
                 for (int i = 0; i < settings.paths_per_vertex; ++i)
-                    sum += m_path.indirect(full, at, n, rgb_optics, rng, 1.0 / bsdf_per_nee);
+                    sum += m_path.indirect(full, at, n, rgb_optics, rng, 1.0 / kCacheBsdfPerNee);
                 for (int j = 0; j < kRgbLanes; ++j)
                     out[j] = float(sum[j] / settings.paths_per_vertex);
             }
@@ -370,7 +370,7 @@ void FastIntegrator::adopt_cache(LightCache cache, const render::LightCacheSetti
         throw std::invalid_argument(
             "FastIntegrator::adopt_cache: a cache for " + std::to_string(cache.leds) +
             " LEDs and " + std::to_string(cache.lanes) +
-            " lanes, or with arrays of other sizes; "
+            " lanes, or with arrays of other sizes or a negative or non-finite rest flux; "
             "allowed: one built for this sensor's " +
             std::to_string(m_path.led_count()) + " LEDs and " + std::to_string(lanes) + " lanes (" +
             (m_shading.optics().spectra ? "spectral" : "RGB") + " mode)");
@@ -404,13 +404,12 @@ Vec3 FastIntegrator::area_flux(const EmbreeScene& scene, const Vec3& p, const Ve
     // The cache's own estimate (build_cache): jittered strata of the LED, the chains' MIS
     // weights against the indirect paths' share, here on the frame's inner surface.
     const auto [gx, gy] = strata_grid(settings.direct_samples);
-    const double bsdf_per_nee = kCacheBsdfPerNee;
     PixelRng rng(0xD1EC7, stream);
     Vec3 flux = Vec3::Zero();
     for (int sy = 0; sy < gy; ++sy)
         for (int sx = 0; sx < gx; ++sx) {
             const double u1 = (sx + rng.uniform()) / gx, u2 = (sy + rng.uniform()) / gy;
-            flux += m_path.led_flux_sample(scene, p, n, k, u1, u2, rng.uniform(), bsdf_per_nee,
+            flux += m_path.led_flux_sample(scene, p, n, k, u1, u2, rng.uniform(), kCacheBsdfPerNee,
                                            radius_mm);
         }
     return flux / double(settings.direct_samples);
