@@ -1,6 +1,7 @@
 #include "render/fast_integrator.hpp"
 
 #include "render/spectrum.hpp"
+#include "render/sphere_refraction.hpp"
 
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
@@ -14,6 +15,7 @@
 #include <limits>
 #include <map>
 #include <numbers>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -27,6 +29,57 @@ constexpr int kMaxLeds = 64;
 /// A coating hit this close behind an outer marker's face lies below that marker (the faces
 /// sit 1 % of the layer, 5 um, off the coating).
 constexpr double kUnderMarker_mm = 0.05;
+/// The shadow ray's refraction: the sphere model's mismatch (a difference of sines) at which
+/// to stop, about 1e-9 rad and 1e-8 mm across the layers.
+constexpr double kShadowTolerance = 1e-9;
+/// Shadow-ray culling: the bracket about the guess (in t = tan(psi / 2), about 0.02 rad of
+/// the exit point's angle), the exit points' spread at which it is tested (mm), and the
+/// margin of each triangle's ball over its corners' paths (mm).
+constexpr double kGuessHalfWidth = 0.01;
+constexpr double kCullWidth_mm = 0.05;
+constexpr double kCullMargin_mm = 0.1;
+/// An edge of the coating folds inwards where its neighbour's far corner rises more than this
+/// above a triangle's plane, seen from the cavity: ten times the vertices' float round-off at
+/// the dome's radius (coplanar triangles of a tessellated sphere are no fold), a hundredth of
+/// the rays' kHitGap_mm.
+constexpr double kFoldHeight_mm = 1e-5;
+
+/// Where the ray from p (outside the sphere of radius R about the origin) along the unit w
+/// first meets the sphere; none if it misses it or meets it behind p.
+std::optional<Vec3> sphere_exit(const Vec3& p, const Vec3& w, double R) {
+    const double b = p.dot(w), c = p.squaredNorm() - R * R;
+    const double disc = b * b - c;
+    if (!(disc >= 0.0)) return std::nullopt;
+    const double t = -b - std::sqrt(disc);
+    if (!(t > 0.0)) return std::nullopt;
+    return p + t * w;
+}
+
+/// Squared distance from x to the triangle (a, b, c) (Ericson, Real-Time Collision Detection,
+/// 5.1.5: the closest point by the Voronoi regions of the corners and edges).
+double distance2_to_triangle(const Vec3& x, const Vec3& a, const Vec3& b, const Vec3& c) {
+    const Vec3 ab = b - a, ac = c - a, ax = x - a;
+    const double d1 = ab.dot(ax), d2 = ac.dot(ax);
+    if (d1 <= 0.0 && d2 <= 0.0) return ax.squaredNorm();
+    const Vec3 bx = x - b;
+    const double d3 = ab.dot(bx), d4 = ac.dot(bx);
+    if (d3 >= 0.0 && d4 <= d3) return bx.squaredNorm();
+    const double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) return (x - (a + (d1 / (d1 - d3)) * ab)).squaredNorm();
+    const Vec3 cx = x - c;
+    const double d5 = ab.dot(cx), d6 = ac.dot(cx);
+    if (d6 >= 0.0 && d5 <= d6) return cx.squaredNorm();
+    const double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) return (x - (a + (d2 / (d2 - d6)) * ac)).squaredNorm();
+    const double va = d3 * d6 - d5 * d4;
+    if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0)
+        return (x - (b + ((d4 - d3) / ((d4 - d3) + (d5 - d6))) * (c - b))).squaredNorm();
+    const double denom = va + vb + vc;
+    if (!(denom > 0.0)) // a degenerate triangle: the nearest of its corners, conservatively
+        return std::min({ax.squaredNorm(), bx.squaredNorm(), cx.squaredNorm()}) -
+               std::max({ab.squaredNorm(), ac.squaredNorm()});
+    return (x - (a + (vb / denom) * ab + (vc / denom) * ac)).squaredNorm();
+}
 
 /// Transmittance of a slab of optical thickness tau (per lane) for light arriving with a
 /// Lambertian (cosine) distribution: 2 E_3(tau) = 2 int_0^1 mu exp(-tau / mu) dmu, by 8-point
@@ -126,6 +179,7 @@ template <int N> struct FastIntegrator::Lookup {
     double radius_mm = 0.0;                  ///< the sphere model's inner radius below (0: none)
     const std::uint32_t* triangle = nullptr; ///< the hit triangle's vertices
     double weights[3] = {0.0, 0.0, 0.0};     ///< and their barycentric weights
+    std::uint32_t prim = 0;                  ///< the hit triangle
 };
 
 FastIntegrator::FastIntegrator(const ShadingModel& shading, const PathIntegrator& path)
@@ -421,6 +475,8 @@ void FastIntegrator::set_frame(const SensorFrame& frame, const EmbreeScene& scen
     m_direct.assign(c.direct.size(), 0.0f);
     m_radius.assign(scene.has_interface() ? std::size_t(c.vertices) : 0, 0.0f);
     m_shadow.assign(scene.has_interface() ? c.direct.size() : 0, 0.0f);
+    m_guess.assign(scene.has_interface() && m_settings.cull_shadows ? 3 * c.direct.size() : 0,
+                   0.0f);
     const std::vector<Vec3> normals = coating_normals(frame.coating);
     tbb::parallel_for(0, c.vertices, [&](int v) {
         const Vec3 n = normals[std::size_t(v)];
@@ -438,15 +494,31 @@ void FastIntegrator::set_frame(const SensorFrame& frame, const EmbreeScene& scen
             const Vec3 now = !scene.has_interface() || radius
                                  ? m_path.led_flux_point(scene, p, n, k, radius, &refracted)
                                  : Vec3::Zero();
+            const Vec3 model =
+                radius ? m_path.refracted_direction(p, m_path.led_point(k, 0.5, 0.5), *radius)
+                       : Vec3::Zero();
             if (!m_shadow.empty() && refracted.direction.squaredNorm() > 0.0) {
                 // What the sphere model misses: near the contact the deformed surface is far
                 // from the sphere through the point below (0.1 rad RMS at 5 N, against
                 // 0.009 rad after this correction; docs/VALIDATION.md).
-                const Vec3 model =
-                    m_path.refracted_direction(p, m_path.led_point(k, 0.5, 0.5), *radius);
                 float* out = m_shadow.data() + 3 * (std::size_t(v) * c.leds + k);
                 for (int a = 0; a < 3; ++a)
                     out[a] = float(refracted.direction[a] - model[a]);
+            }
+            if (!m_guess.empty() && radius) {
+                // The culling's guess: the centre's direction and its change across the LED
+                // (central differences over the middle half of each side).
+                const auto towards = [&](double u1, double u2) {
+                    return m_path.refracted_direction(p, m_path.led_point(k, u1, u2), *radius);
+                };
+                const Vec3 across = 2.0 * (towards(0.75, 0.5) - towards(0.25, 0.5));
+                const Vec3 up = 2.0 * (towards(0.5, 0.75) - towards(0.5, 0.25));
+                float* out = m_guess.data() + 9 * (std::size_t(v) * c.leds + k);
+                for (int a = 0; a < 3; ++a) {
+                    out[a] = float(model[a]);
+                    out[3 + a] = float(across[a]);
+                    out[6 + a] = float(up[a]);
+                }
             }
             // The area LED's vector at rest turned and scaled as the point LED's changed: the
             // two point in different directions (the area's is weighted by MIS between the
@@ -470,6 +542,7 @@ void FastIntegrator::set_frame(const SensorFrame& frame, const EmbreeScene& scen
         }
         if (!m_radius.empty()) m_radius[std::size_t(v)] = radius ? float(*radius) : 0.0f;
     });
+    build_shadow_culling(frame);
     // The quadratic terms, scaled as their edge's ends changed from rest.
     m_direct_edge.assign(c.direct_edge.size(), 0.0f);
     for (std::size_t e = 0; e < m_edges.size(); ++e)
@@ -490,6 +563,137 @@ void FastIntegrator::set_frame(const SensorFrame& frame, const EmbreeScene& scen
     if (m_settings.scale_indirect && c.direct_flux > 0.0) {
         const double now = direct_flux(frame.coating, normals, m_direct, c.leds);
         if (std::isfinite(now)) m_indirect_scale = now / c.direct_flux;
+    }
+}
+
+void FastIntegrator::build_shadow_culling(const SensorFrame& frame) {
+    m_cull_ball.clear();
+    m_cull_first.assign(1, 0);
+    m_cull_markers.clear();
+    m_marker_balls.clear();
+    m_fold_cones.clear();
+    if (m_guess.empty()) return;
+    const LightCache& c = *m_cache;
+    const std::size_t leds = std::size_t(c.leds);
+    const auto nf = std::size_t(frame.coating.F.rows());
+    m_cull_ball.assign(nf * leds, Eigen::Vector4d(0.0, 0.0, 0.0, -1.0));
+    m_cull_first.assign(nf * leds + 1, 0);
+    // Each marker's bounding ball (its closed surface lies in its corners' convex hull).
+    const int per_marker = frame.triangles_per_marker;
+    for (const SurfaceMesh* mesh : {&frame.inner_markers, &frame.outer_markers}) {
+        if (mesh->F.rows() == 0) continue;
+        if (per_marker < 1) return; // markers without their grouping: no culling
+        for (Eigen::Index first = 0; first < mesh->F.rows(); first += per_marker) {
+            const Eigen::Index last = std::min<Eigen::Index>(first + per_marker, mesh->F.rows());
+            Vec3 centre = Vec3::Zero();
+            for (Eigen::Index f = first; f < last; ++f)
+                for (int a = 0; a < 3; ++a)
+                    centre += mesh->V.row(mesh->F(f, a)).cast<double>().transpose();
+            centre /= double(3 * (last - first));
+            double r2 = 0.0;
+            for (Eigen::Index f = first; f < last; ++f)
+                for (int a = 0; a < 3; ++a)
+                    r2 = std::max(r2,
+                                  (mesh->V.row(mesh->F(f, a)).cast<double>().transpose() - centre)
+                                      .squaredNorm());
+            m_marker_balls.emplace_back(centre.x(), centre.y(), centre.z(),
+                                        std::sqrt(r2) * (1.0 + 1e-9) + 1e-9);
+        }
+    }
+    // Where the coating folds inwards (an edge whose neighbour rises above a triangle's plane,
+    // seen from the cavity), a path from the cavity can meet the coating before its end. A
+    // path that does so leaves and re-enters the coating, so in the plane through the origin
+    // and the path the coating's section between the two points is not convex: the path's
+    // radial projection crosses such an edge. So each fold is kept as the cone of directions
+    // of its edge (axis, chord to the ends), and is in the way of paths whose directions come
+    // that close. Under load the contact's edges fold by up to about 0.01 mm.
+    const auto& V = frame.coating.V;
+    const auto vertex = [&](std::uint32_t v) -> Vec3 {
+        return V.row(Eigen::Index(v)).cast<double>().transpose();
+    };
+    std::vector<std::array<std::int64_t, 2>> sides(m_edges.size(), {-1, -1});
+    for (std::size_t f = 0; f < nf; ++f)
+        for (int a = 0; a < 3; ++a) {
+            auto& side = sides[m_triangle_edges[3 * f + std::size_t(a)]];
+            side[side[0] < 0 ? 0 : 1] = std::int64_t(f);
+        }
+    for (std::size_t e = 0; e < m_edges.size(); ++e) {
+        if (sides[e][1] < 0) continue; // the rim
+        bool fold = false;
+        for (int s = 0; s < 2; ++s) {
+            const std::uint32_t* t = c.coating_triangles.data() + 3 * std::size_t(sides[e][s]);
+            const std::uint32_t* o = c.coating_triangles.data() + 3 * std::size_t(sides[e][1 - s]);
+            Vec3 n = (vertex(t[1]) - vertex(t[0])).cross(vertex(t[2]) - vertex(t[0]));
+            if (n.dot(vertex(t[0]) + vertex(t[1]) + vertex(t[2])) < 0.0) n = -n; // outwards
+            for (int a = 0; a < 3; ++a)
+                if (o[a] != m_edges[e][0] && o[a] != m_edges[e][1])
+                    fold = fold || n.normalized().dot(vertex(o[a]) - vertex(t[0])) > kFoldHeight_mm;
+        }
+        if (fold) {
+            const Vec3 a = vertex(m_edges[e][0]).normalized(),
+                       b = vertex(m_edges[e][1]).normalized();
+            const Vec3 axis = (a + b).normalized();
+            m_fold_cones.emplace_back(axis.x(), axis.y(), axis.z(), (axis - a).norm() + 1e-9);
+        }
+    }
+    // Each triangle's ball per LED: its corners, and where the guessed paths from its
+    // corners to the LED's corners leave the sphere, plus a margin; then the markers whose
+    // balls meet it and the folds whose cones meet its cone.
+    const auto markers = std::uint32_t(m_marker_balls.size());
+    std::vector<std::vector<std::uint32_t>> lists(nf * leds);
+    tbb::parallel_for(std::size_t(0), nf, [&](std::size_t f) {
+        const std::uint32_t* t = c.coating_triangles.data() + 3 * f;
+        for (std::size_t k = 0; k < leds; ++k) {
+            std::array<Vec3, 15> points;
+            int count = 0;
+            bool lit = true;
+            for (int a = 0; a < 3; ++a) {
+                const Vec3 p = vertex(t[a]);
+                points[std::size_t(count++)] = p;
+                const double radius = m_radius[t[a]];
+                lit = lit && radius > 0.0;
+                const std::size_t vk = std::size_t(t[a]) * leds + k;
+                const float* g = m_guess.data() + 9 * vk;
+                const float* cor = m_shadow.data() + 3 * vk;
+                for (const double u1 : {-0.5, 0.5})
+                    for (const double u2 : {-0.5, 0.5}) {
+                        Vec3 w;
+                        for (int x = 0; x < 3; ++x)
+                            w[x] = g[x] + u1 * g[3 + x] + u2 * g[6 + x] + cor[x];
+                        if (!(w.norm() > 0.0)) continue;
+                        if (const auto q = sphere_exit(p, w.normalized(), radius))
+                            points[std::size_t(count++)] = *q;
+                    }
+            }
+            if (!lit) continue;
+            Vec3 centre = Vec3::Zero();
+            for (int i = 0; i < count; ++i)
+                centre += points[std::size_t(i)];
+            centre /= double(count);
+            double r = 0.0;
+            for (int i = 0; i < count; ++i)
+                r = std::max(r, (points[std::size_t(i)] - centre).norm());
+            r += kCullMargin_mm;
+            m_cull_ball[f * leds + k] = Eigen::Vector4d(centre.x(), centre.y(), centre.z(), r);
+            auto& list = lists[f * leds + k];
+            for (std::uint32_t m = 0; m < markers; ++m)
+                if ((m_marker_balls[m].head<3>() - centre).norm() <= m_marker_balls[m].w() + r)
+                    list.push_back(m);
+            // The ball's directions lie within asin(r / |centre|) of the centre's.
+            const double spread =
+                r < centre.norm() ? std::asin(r / centre.norm()) : std::numbers::pi;
+            for (std::size_t i = 0; i < m_fold_cones.size(); ++i) {
+                const Eigen::Vector4d& cone = m_fold_cones[i];
+                const double apart =
+                    std::acos(std::clamp(cone.head<3>().dot(centre.normalized()), -1.0, 1.0));
+                if (apart <= spread + 2.0 * std::asin(std::min(1.0, 0.5 * cone.w())) + 1e-6)
+                    list.push_back(markers + std::uint32_t(i));
+            }
+        }
+    });
+    for (std::size_t i = 0; i < lists.size(); ++i) {
+        m_cull_first[i + 1] = m_cull_first[i] + std::uint32_t(lists[i].size());
+        m_cull_markers.insert(m_cull_markers.end(), lists[i].begin(), lists[i].end());
     }
 }
 
@@ -518,6 +722,7 @@ FastIntegrator::Lookup<N> FastIntegrator::lookup(std::uint32_t prim, double u, d
         for (int i = 0; i < 3; ++i)
             at.radius_mm += w[i] * m_radius[f[i]];
     at.triangle = f;
+    at.prim = prim;
     for (int i = 0; i < 3; ++i)
         at.weights[i] = w[i];
     return at;
@@ -590,19 +795,113 @@ LanesN<N> FastIntegrator::shade(const EmbreeScene& scene, const Vec3& p, const L
     int k = 0;
     for (double acc = at.direct[0]; acc <= u && k + 1 < m_cache->leds;)
         acc += at.direct[std::size_t(++k)];
-    const Vec3 l = m_path.led_point(k, u1, u2);
     LanesN<N> T = LanesN<N>::Ones();
-    if (!scene.has_interface()) {
-        T = m_shading.transmittance(scene, l, p, lanes);
-    } else if (at.radius_mm > 0.0) {
-        // Where the shadow ray towards l leaves the layers (through the sphere below).
-        const Vec3 w = shadow_direction(at, p, k, l);
-        const double b = p.dot(w), c = p.squaredNorm() - at.radius_mm * at.radius_mm;
-        const double disc = b * b - c;
-        const double t = disc >= 0.0 ? -b - std::sqrt(disc) : -1.0;
-        if (t > 0.0) T = m_shading.transmittance(scene, p + t * w, p, lanes, kHitGap_mm);
-    }
+    if (!scene.has_interface())
+        T = m_shading.transmittance(scene, m_path.led_point(k, u1, u2), p, lanes);
+    else if (at.radius_mm > 0.0)
+        T = shadow_transmittance(scene, p, at, k, u1, u2, lanes);
     return (total * kInvPi) * T + indirect;
+}
+
+template <int N>
+LanesN<N> FastIntegrator::shadow_transmittance(const EmbreeScene& scene, const Vec3& p,
+                                               const Lookup<N>& at, int k, double u1, double u2,
+                                               const LaneOptics<N>& lanes) const {
+    const Vec3 l = m_path.led_point(k, u1, u2);
+    // The sphere model's refraction towards l; where the culling's bracket shows the ray
+    // cannot meet anything, it stops there.
+    SphereRefraction solver(p, l, at.radius_mm, m_shading.optics().refractive_index);
+    Vec3 w;
+    if (m_guess.empty()) {
+        w = solver.solve(kShadowTolerance);
+    } else {
+        Vec3 guess = Vec3::Zero(), correction = Vec3::Zero();
+        const std::size_t leds = std::size_t(m_cache->leds);
+        for (int i = 0; i < 3; ++i) {
+            const std::size_t vk = std::size_t(at.triangle[i]) * leds + std::size_t(k);
+            const float* g = m_guess.data() + 9 * vk;
+            const float* c = m_shadow.data() + 3 * vk;
+            for (int a = 0; a < 3; ++a) {
+                guess[a] += at.weights[i] * (g[a] + (u1 - 0.5) * g[3 + a] + (u2 - 0.5) * g[6 + a]);
+                correction[a] += at.weights[i] * c[a];
+            }
+        }
+        if (!(guess.norm() > 0.0)) {
+            w = solver.solve(kShadowTolerance);
+        } else if (solver.bracket_near(guess.normalized(), kGuessHalfWidth, kCullWidth_mm,
+                                       kShadowTolerance)) {
+            if (shadow_free(at.prim, k, p, solver.exit_lo(), solver.exit_hi(), correction,
+                            at.radius_mm)) {
+                return LanesN<N>::Ones();
+            }
+            w = solver.finish(kShadowTolerance);
+        } else {
+            w = solver.solve(kShadowTolerance);
+        }
+    }
+    // Plus the frame's correction (the deformed surface against the sphere), interpolated.
+    for (int i = 0; i < 3; ++i) {
+        const float* correction =
+            m_shadow.data() + 3 * (std::size_t(at.triangle[i]) * m_cache->leds + k);
+        for (int a = 0; a < 3; ++a)
+            w[a] += at.weights[i] * correction[a];
+    }
+    w.normalize();
+    // Where the shadow ray towards l leaves the layers (through the sphere below).
+    const auto exit = sphere_exit(p, w, at.radius_mm);
+    return exit ? m_shading.transmittance(scene, *exit, p, lanes, kHitGap_mm) : LanesN<N>::Ones();
+}
+
+bool FastIntegrator::shadow_free(std::uint32_t prim, int k, const Vec3& p, const Vec3& x_lo,
+                                 const Vec3& x_hi, const Vec3& correction, double radius_mm) const {
+    const std::size_t i = std::size_t(prim) * std::size_t(m_cache->leds) + std::size_t(k);
+    const Eigen::Vector4d& ball = m_cull_ball[i];
+    if (!(ball.w() > 0.0)) return false;
+    // The paths' ends on the sphere, turned by the correction as the ray will be.
+    const auto end = [&](const Vec3& x) {
+        return sphere_exit(p, ((x - p).normalized() + correction).normalized(), radius_mm);
+    };
+    const auto q_lo = end(x_lo), q_hi = end(x_hi);
+    if (!q_lo || !q_hi) return false;
+    // The ends between the bracket's two lie on a curve near the chord q_lo q_hi: within its
+    // sagitta, generously chord^2 / R, plus round-off.
+    const double slack = (*q_lo - *q_hi).squaredNorm() / radius_mm + 1e-4;
+    // Above the rim plane, so not across the frame.
+    if (!(p.z() > slack && q_lo->z() > slack && q_hi->z() > slack)) return false;
+    // Inside the ball, so only its markers can be in the way.
+    const Vec3 centre = ball.head<3>();
+    const double inner = ball.w() - slack;
+    for (const Vec3* x : {&p, &*q_lo, &*q_hi})
+        if (!((*x - centre).squaredNorm() < inner * inner)) return false;
+    // The path's directions from the origin: the spherical triangle of these three, within
+    // its sagitta of the flat one (generously a quarter of the longest chord squared), plus
+    // the slack's angle.
+    const auto markers = std::uint32_t(m_marker_balls.size());
+    const Vec3 dp = p.normalized(), dlo = q_lo->normalized(), dhi = q_hi->normalized();
+    const double turn =
+        std::max({(dp - dlo).squaredNorm(), (dp - dhi).squaredNorm(), (dlo - dhi).squaredNorm()}) /
+            4.0 +
+        slack / radius_mm;
+    // The path triangle's own ball, to pass over most of the list's markers at once.
+    const Vec3 middle = (p + *q_lo + *q_hi) / 3.0;
+    const double around =
+        std::sqrt(std::max({(p - middle).squaredNorm(), (*q_lo - middle).squaredNorm(),
+                            (*q_hi - middle).squaredNorm()}));
+    for (std::uint32_t j = m_cull_first[i]; j < m_cull_first[i + 1]; ++j) {
+        const std::uint32_t index = m_cull_markers[j];
+        if (index < markers) {
+            const Eigen::Vector4d& m = m_marker_balls[index];
+            const double reach = m.w() + slack;
+            const double far = reach + around;
+            if ((m.head<3>() - middle).squaredNorm() > far * far) continue;
+            if (distance2_to_triangle(m.head<3>(), p, *q_lo, *q_hi) <= reach * reach) return false;
+        } else {
+            const Eigen::Vector4d& cone = m_fold_cones[index - markers];
+            const double reach = cone.w() + turn;
+            if (distance2_to_triangle(cone.head<3>(), dp, dlo, dhi) <= reach * reach) return false;
+        }
+    }
+    return true;
 }
 
 template <int N>

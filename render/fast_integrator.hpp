@@ -174,6 +174,21 @@ private:
     /// hit triangle (m_shadow).
     template <int N>
     Vec3 shadow_direction(const Lookup<N>& at, const Vec3& p, int k, const Vec3& led_point) const;
+    /// The shadow ray's transmittance from p towards the LED point (u1, u2) of LED k through
+    /// the sphere model, one where the ray provably meets nothing (the culling below).
+    template <int N>
+    LanesN<N> shadow_transmittance(const EmbreeScene& scene, const Vec3& p, const Lookup<N>& at,
+                                   int k, double u1, double u2, const LaneOptics<N>& lanes) const;
+    /// True if every shadow path from p leaving the sphere of radius `radius_mm` between the
+    /// bracket's exit points x_lo and x_hi (turned by the correction `correction`) misses the
+    /// markers, the frame and the coating: it lies in the triangle (p, q_lo, q_hi) (grown by
+    /// the arc's sagitta), which lies in triangle `prim`'s ball for LED k, and no marker of
+    /// that ball's list comes that close.
+    bool shadow_free(std::uint32_t prim, int k, const Vec3& p, const Vec3& x_lo, const Vec3& x_hi,
+                     const Vec3& correction, double radius_mm) const;
+    /// Per frame: the shadow-ray guesses' balls and marker lists (LightCacheSettings::
+    /// cull_shadows); clears them where the frame's coating folds inwards near a ball.
+    void build_shadow_culling(const SensorFrame& frame);
     template <int N>
     LanesN<N> spectral_at(const std::vector<float>& values, const std::uint32_t* triangle,
                           const double* weights, const LanesN<N>* lambda_nm) const;
@@ -199,6 +214,22 @@ private:
     /// the LED's centre (the Newton solve on the deformed inner surface) less the sphere
     /// model's direction from the same point; zero where the solve found none.
     std::vector<float> m_shadow;
+    /// Shadow-ray culling (LightCacheSettings::cull_shadows; docs/VALIDATION.md). Per vertex
+    /// and LED k, [(vertex * leds + k) * 9]: the sphere model's direction from the vertex to
+    /// the LED's centre and its change across the LED's width and height (per unit of the
+    /// sample's u1, u2), the guess that brackets each shadow ray's refraction.
+    std::vector<float> m_guess;
+    /// Per coating triangle f and LED k, [f * leds + k]: a ball (centre, radius; radius < 0:
+    /// no culling) meant to hold the shadow paths from f to the LED, and the markers whose
+    /// bounding balls meet it and the folds whose cones meet its cone (m_cull_markers[
+    /// m_cull_first[i] .. m_cull_first[i + 1]]).
+    std::vector<Eigen::Vector4d> m_cull_ball;
+    std::vector<std::uint32_t> m_cull_first;
+    std::vector<std::uint32_t> m_cull_markers;
+    std::vector<Eigen::Vector4d> m_marker_balls; ///< each marker's (centre, radius), mm
+    /// Where the coating folds inwards: each such edge's cone of directions from the origin
+    /// (unit axis, chord to its ends); in m_cull_markers after the markers (index - markers).
+    std::vector<Eigen::Vector4d> m_fold_cones;
 };
 
 } // namespace chromasim::render::detail

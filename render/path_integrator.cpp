@@ -1,5 +1,7 @@
 #include "render/path_integrator.hpp"
 
+#include "render/sphere_refraction.hpp"
+
 #include <Eigen/Geometry>
 #include <Eigen/LU>
 
@@ -143,66 +145,6 @@ std::pair<double, double> illinois(F&& f, double lo, double hi, double f_lo, dou
         }
     }
     return {x, fx};
-}
-
-/// The refraction of p -> l by the sphere about the origin of radius R: the direction from p
-/// to the point x where the tangential components of the unit directions obey Snell's law,
-/// n (w_in . tau) = w_out . tau, found by regula falsi on x's position on the circle in the
-/// plane of O, p and l, parametrised without trigonometry by t = tan(psi / 2), psi the angle
-/// from p's foot. `tolerance`: the Snell mismatch (a difference of sines) at which to stop.
-Vec3 sphere_refraction(const Vec3& p, const Vec3& l, double R, double eta,
-                       double tolerance = 1e-13) {
-    // Everything lies in the plane of O, p and l: coordinates (along e1, along e2), p = (a, 0),
-    // l = (lx, ly), x = R (c, s) and tau = (-s, c), so that (x - p) . tau = a s and
-    // (l - x) . tau = ly c - lx s; each evaluation is then a few flops and two square roots.
-    const double a = p.norm();
-    if (!(a > 0.0)) return (l - p).normalized();
-    const Vec3 e1 = p / a;
-    const double lx = l.dot(e1);
-    Vec3 e2 = l - lx * e1;
-    const double ly = e2.norm();
-    if (!(ly > 1e-9)) return (l - p).normalized(); // l on p's axis: straight down
-    e2 /= ly;
-    const double R2 = R * R, l2 = lx * lx + ly * ly;
-    // The circle's point at t: cos psi = (1 - t^2) / (1 + t^2), sin psi = 2 t / (1 + t^2).
-    auto cos_sin = [](double t) {
-        const double d = 1.0 / (1.0 + t * t);
-        return std::pair<double, double>{(1.0 - t * t) * d, 2.0 * t * d};
-    };
-    // t of the direction of a point (c, s) of the plane: tan(psi / 2) = sin / (1 + cos).
-    auto t_of = [](double c, double s) { return s / (std::sqrt(c * c + s * s) + c); };
-    // A unit direction of zero length (x on p or on l) counts as zero, as Eigen's
-    // normalized() leaves it.
-    auto mismatch = [&](double t) {
-        const auto [c, s] = cos_sin(t);
-        const double to_x = std::sqrt(std::max(0.0, R2 + a * a - 2.0 * a * R * c)); // |x - p|
-        const double to_l = std::sqrt(std::max(0.0, l2 + R2 - 2.0 * R * (lx * c + ly * s)));
-        return (to_x > 0.0 ? eta * a * s / to_x : 0.0) -
-               (to_l > 0.0 ? (ly * c - lx * s) / to_l : 0.0);
-    };
-    // The bracket: from p's foot (t = 0) to where the straight segment p -> l crosses the
-    // sphere (the refracted path in the denser layer is steeper than the straight one, so x
-    // lies between), else to l's own direction.
-    const double t_l = t_of(lx, ly);
-    double lo = 0.0, hi = t_l;
-    double f_lo = mismatch(lo), f_hi = 0.0;
-    bool bracketed = false;
-    {
-        const double dx = lx - a, dy = ly;
-        const double qa = dx * dx + dy * dy, qb = a * dx, qc = a * a - R2;
-        const double disc = qb * qb - qa * qc;
-        const double u = disc >= 0.0 ? (-qb - std::sqrt(disc)) / qa : -1.0;
-        if (u > 0.0 && u < 1.0) {
-            const double t_s = t_of(a + u * dx, u * dy);
-            const double f_s = mismatch(t_s);
-            if (f_lo * f_s <= 0.0 && std::abs(t_s) < std::abs(t_l))
-                hi = t_s, f_hi = f_s, bracketed = true;
-        }
-        if (!bracketed) f_hi = mismatch(hi);
-    }
-    if (f_lo * f_hi > 0.0) return (l - p).normalized();
-    const auto [c, s] = cos_sin(illinois(mismatch, lo, hi, f_lo, f_hi, tolerance).first);
-    return (R * (c * e1 + s * e2) - p).normalized();
 }
 
 /// The reflections of a -> l off the inside of the sphere about the origin of radius R (a on

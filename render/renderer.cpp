@@ -120,7 +120,9 @@ struct Renderer::Impl {
     detail::ShadingModel shading;
     detail::PathIntegrator path{shading};
     detail::FastIntegrator fast{shading, path};
-    SurfaceMesh coating; ///< the current frame's, for a light cache built after set_frame
+    /// The current frame's coating and markers (no inner surface: the scene has it), for a
+    /// light cache built after set_frame.
+    SensorFrame frame;
     detail::EmbreeScene scene;
     double scale; ///< image value per unit radiance (analytic: the direct model's apex)
     /// The path integrator's scale once set_exposure_reference measured its apex.
@@ -268,9 +270,7 @@ struct Renderer::Impl {
     /// After a new light cache: the loaded frame's data for it (if a frame is loaded).
     void refresh_fast_frame() {
         if (!scene.has_frame()) return;
-        SensorFrame current;
-        current.coating = coating;
-        fast.set_frame(current, scene);
+        fast.set_frame(frame, scene);
     }
 };
 
@@ -333,7 +333,10 @@ void Renderer::set_frame(const SensorFrame& frame) {
     detail::validate_marker_layout(frame);
     if (m_impl->fast.has_cache()) m_impl->fast.check_topology(frame); // before any change
     m_impl->scene.set_frame(frame);
-    m_impl->coating = frame.coating;
+    m_impl->frame.coating = frame.coating;
+    m_impl->frame.inner_markers = frame.inner_markers;
+    m_impl->frame.outer_markers = frame.outer_markers;
+    m_impl->frame.triangles_per_marker = frame.triangles_per_marker;
     if (m_impl->fast.has_cache()) m_impl->fast.set_frame(frame, m_impl->scene);
     m_impl->triangles_per_marker = frame.triangles_per_marker;
 }

@@ -133,7 +133,7 @@ enum class Integrator {
 /// Work of the fast integrator's per-sensor light cache (render/fast_integrator.hpp).
 struct LightCacheSettings {
     int paths_per_vertex = 1024; ///< indirect light: paths per coating vertex (and level)
-    int direct_samples = 16;    ///< unshadowed LED light: points per LED per coating vertex
+    int direct_samples = 16;     ///< unshadowed LED light: points per LED per coating vertex
     /// Indirect light: standard deviation of the Gaussian that smooths it over the coating,
     /// mm (0: none).
     double smoothing_mm = 0.75;
@@ -149,6 +149,11 @@ struct LightCacheSettings {
     /// A press takes light off the coating (7.5 % at 5 N); the rest value then left the image
     /// 3.5 % of white too bright on average (docs/VALIDATION.md).
     bool scale_indirect = true;
+    /// Per frame, not part of the stored cache: skip the fast integrator's shadow rays that
+    /// provably meet no marker (a bracket of the refraction near a per-vertex guess, tested
+    /// against the markers' bounding balls). Exact: the image is the same to the refraction
+    /// solve's tolerance; off only to measure what it saves (bench render --no-shadow-cull).
+    bool cull_shadows = true;
 };
 
 /// The fast integrator's per-sensor light cache on the coating vertices (plain data, structure

@@ -254,6 +254,9 @@ int main(int argc, char** argv) {
     bench_render->add_flag("!--no-indirect-scale", render_bench.light_cache.scale_indirect,
                            "fast integrator: use the cached indirect light as at rest on every "
                            "frame (no scaling by the coating's LED light)");
+    bench_render->add_flag("!--no-shadow-cull", render_bench.light_cache.cull_shadows,
+                           "fast integrator: trace every shadow ray, also those that provably "
+                           "meet no marker (the same image; to measure what the culling saves)");
     bench_render
         ->add_option("--reference-in", render_bench.reference_in,
                      "read the reference from this EXR (written by --reference-out); two or "

@@ -67,4 +67,58 @@ inline SensorFrame pressed_flat(const SensorFrame& rest) {
     return pressed;
 }
 
+/// Box markers (12 triangles each, normals outwards) on ChromaTouch's pattern (SENSOR.md 1: an
+/// apex marker and rings every 12.5 degrees of polar angle up to 62.5, round(6 sin(k 12.5) /
+/// sin(12.5)) markers on ring k), centred on the sphere of radius_mm, thickness_mm along the
+/// radius and width_mm across.
+inline SurfaceMesh box_markers(double radius_mm, double thickness_mm, double width_mm) {
+    MeshBuilder mesh;
+    const double step = 12.5 * std::numbers::pi / 180.0;
+    for (int ring = 0; ring <= 5; ++ring) {
+        const int count =
+            ring == 0 ? 1 : int(std::lround(6.0 * std::sin(ring * step) / std::sin(step)));
+        for (int m = 0; m < count; ++m) {
+            const Vec3 u = unit_from_angles(12.5 * ring, 360.0 * m / count);
+            const Vec3 a = (std::abs(u.z()) < 0.9 ? Vec3::UnitZ() : Vec3::UnitX()).cross(u);
+            const Vec3 e1 = a.normalized(), e2 = u.cross(e1);
+            const Vec3 centre = radius_mm * u;
+            std::uint32_t corner[8];
+            for (int c = 0; c < 8; ++c)
+                corner[c] = mesh.add_vertex(centre + ((c & 1) ? 0.5 : -0.5) * thickness_mm * u +
+                                            ((c & 2) ? 0.5 : -0.5) * width_mm * e1 +
+                                            ((c & 4) ? 0.5 : -0.5) * width_mm * e2);
+            // Each face as two triangles, wound so that the normal points out of the box.
+            static constexpr int faces[6][4] = {{0, 2, 6, 4}, {1, 3, 7, 5}, {0, 1, 5, 4},
+                                                {2, 3, 7, 6}, {0, 1, 3, 2}, {4, 5, 7, 6}};
+            for (const auto& f : faces) {
+                const Vec3 p0 = mesh.vertices[corner[f[0]]], p1 = mesh.vertices[corner[f[1]]],
+                           p2 = mesh.vertices[corner[f[2]]];
+                const bool out = (p1 - p0).cross(p2 - p0).dot((p0 + p2) / 2.0 - centre) > 0.0;
+                const std::uint32_t q[4] = {corner[f[0]], corner[f[1]], corner[f[2]], corner[f[3]]};
+                if (out) {
+                    mesh.triangles.push_back({q[0], q[1], q[2]});
+                    mesh.triangles.push_back({q[0], q[2], q[3]});
+                } else {
+                    mesh.triangles.push_back({q[0], q[2], q[1]});
+                    mesh.triangles.push_back({q[0], q[3], q[2]});
+                }
+            }
+        }
+    }
+    return mesh.build();
+}
+
+/// `rest`'s coating with a groove: the vertices between the polar angles lo_deg and hi_deg
+/// pushed in towards the centre by depth_mm, so that its walls fold the coating inwards.
+inline SensorFrame grooved(const SensorFrame& rest, double lo_deg, double hi_deg, double depth_mm) {
+    SensorFrame out = rest;
+    for (Eigen::Index v = 0; v < out.coating.V.rows(); ++v) {
+        const Vec3 p = out.coating.V.row(v).cast<double>().transpose();
+        const double polar = std::acos(p.normalized().z()) * 180.0 / std::numbers::pi;
+        if (polar > lo_deg && polar < hi_deg)
+            out.coating.V.row(v) = (p * (1.0 - depth_mm / p.norm())).cast<float>().transpose();
+    }
+    return out;
+}
+
 } // namespace chromasim::render::test

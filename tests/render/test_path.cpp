@@ -5,6 +5,7 @@
 #include "render/furnace.hpp"
 #include "render/path_integrator.hpp"
 #include "render/shading.hpp"
+#include "render/sphere_refraction.hpp"
 #include "test_meshes.hpp"
 
 #include <Eigen/Geometry>
@@ -174,6 +175,57 @@ TEST_CASE("the fast integrator's shadow-ray refraction through the sphere model 
             }
         }
     }
+}
+
+TEST_CASE("the sphere model's refraction bracketed near a guess holds the root between its "
+          "exit points and ends where the whole bracket's solve does, in fewer evaluations",
+          "[render][path][fast]") {
+    const ShadingModel shading(OpticsParams{});
+    const PathIntegrator integrator(shading);
+    const double eta = shading.optics().refractive_index;
+    const double R = 10.5, width_mm = 0.05;
+    int bracketed = 0, tried = 0, narrow = 0, full = 0, at_bracket = 0;
+    for (double polar : {0.0, 20.0, 45.0, 70.0, 85.0}) {
+        for (double azimuth : {0.0, 75.0, 200.0}) {
+            const Vec3 p = 12.7 * unit_from_angles(polar, azimuth);
+            for (int k = 0; k < integrator.led_count(); ++k) {
+                const Vec3 l = integrator.led_point(k, 0.8, 0.1);
+                SphereRefraction whole(p, l, R, eta);
+                const Vec3 w = whole.solve(1e-9);
+                full += whole.evaluations();
+                const double b = p.dot(w), c = p.squaredNorm() - R * R;
+                const Vec3 x = p + (-b - std::sqrt(b * b - c)) * w; // the root's exit point
+                // A guess 0.01 rad off, as the per-vertex table gives it.
+                Vec3 e1, e2;
+                orthonormal_basis(w, e1, e2);
+                SphereRefraction near(p, l, R, eta);
+                ++tried;
+                INFO("polar " << polar << ", azimuth " << azimuth << ", LED " << k);
+                if (!near.bracket_near((w + 0.01 * (e1 + e2) / std::sqrt(2.0)).normalized(), 0.01,
+                                       width_mm, 1e-9))
+                    continue;
+                ++bracketed;
+                at_bracket += near.evaluations();
+                const Vec3 lo = near.exit_lo(), hi = near.exit_hi();
+                CHECK((hi - lo).norm() <= width_mm);
+                // The root's exit point on the arc between the bracket's (both on the sphere,
+                // in one plane with the centre): between them along the chord.
+                CHECK((x - lo).dot(hi - lo) >= -1e-12);
+                CHECK((x - hi).dot(lo - hi) >= -1e-12);
+                const Vec3 finished = near.finish(1e-9);
+                narrow += near.evaluations();
+                CHECK((finished - w).norm() < 1e-8);
+            }
+        }
+    }
+    INFO(bracketed << " of " << tried << " bracketed; mismatch evaluations " << at_bracket
+                   << " to the bracket, " << narrow << " from the guess to the tolerance, " << full
+                   << " from the whole bracket");
+    CHECK(bracketed >= tried * 9 / 10);
+    // Where the culling stops (at the bracket), about half the whole solve's work; going on
+    // to the tolerance, no more than the whole solve.
+    CHECK(at_bracket < 0.6 * full * bracketed / tried);
+    CHECK(narrow <= full * bracketed / tried);
 }
 
 TEST_CASE("through the inner surface, next-event estimation with MIS agrees with BSDF "

@@ -1,0 +1,72 @@
+#pragma once
+/// The sphere model's refraction: the direction from a point p in the clear layers (outside
+/// the sphere of radius R about the origin) that leaves the layers through the sphere and,
+/// refracted into the air (index ratio eta), heads for a point l in the cavity. Shadow rays of
+/// the fast integrator and the starts of the path integrator's Newton solves use it.
+///
+/// Everything lies in the plane of O, p and l. The exit point x = R (cos psi e1 + sin psi e2),
+/// psi from p's foot, is parametrised without trigonometry by t = tan(psi / 2); the root of
+/// Snell's mismatch n (w_in . tau) - w_out . tau lies between p's foot (t = 0) and where the
+/// straight segment p -> l crosses the sphere (the refracted path in the denser layer is
+/// steeper), found by regula falsi with the Illinois modification.
+///
+/// Two ways in:
+///   - solve(): the whole bracket (about 9 evaluations of the mismatch to 1e-9);
+///   - bracket_near() then finish(): a bracket around a guessed direction, narrowed until its
+///     exit points are a given distance apart (about 4 evaluations with a good guess). A caller
+///     that only needs to know the region the path lies in (the fast integrator's culling of
+///     shadow rays that can meet no marker) stops there; finish() goes on to the tolerance.
+#include <Eigen/Core>
+
+namespace chromasim::render::detail {
+
+class SphereRefraction {
+public:
+    using Vec3 = Eigen::Vector3d;
+
+    SphereRefraction(const Vec3& p, const Vec3& l, double R, double eta);
+
+    /// The direction by regula falsi over the whole bracket, stopping at a mismatch below
+    /// `tolerance` (a difference of sines). Straight p -> l where the plane is degenerate or
+    /// the bracket has no sign change.
+    Vec3 solve(double tolerance);
+
+    /// Brackets the root within t_guess +- half_width_t (t_guess: where the ray from p along
+    /// `guess` leaves the sphere), then narrows the bracket until its two exit points are at
+    /// most `width_mm` apart (at most a few evaluations). False when the guess does not
+    /// bracket the root or the plane is degenerate: use solve().
+    bool bracket_near(const Vec3& guess, double half_width_t, double width_mm, double tolerance);
+    /// After bracket_near(): the bracket's exit points on the sphere (the root's exit point
+    /// lies on the arc between them).
+    Vec3 exit_lo() const { return at(m_lo); }
+    Vec3 exit_hi() const { return at(m_hi); }
+    /// After bracket_near(): regula falsi on from the bracket to `tolerance`.
+    Vec3 finish(double tolerance);
+
+    /// Evaluations of the mismatch so far (for tests and benchmarks).
+    int evaluations() const { return m_evaluations; }
+
+private:
+    double mismatch(double t);
+    Vec3 at(double t) const;
+    /// t of the direction of a point (c, s) of the plane: tan(psi / 2) = sin / (1 + cos).
+    static double t_of(double c, double s);
+    /// Illinois regula falsi on [m_lo, m_hi] until the mismatch is below `tolerance` or the
+    /// bracket below 1e-10 (at most 30 steps); the last point evaluated.
+    double illinois(double tolerance);
+    Vec3 direction_at(double t) const { return (at(t) - m_p).normalized(); }
+
+    Vec3 m_p, m_l, m_e1 = Vec3::Zero(), m_e2 = Vec3::Zero();
+    double m_a = 0.0, m_lx = 0.0, m_ly = 0.0, m_R = 0.0, m_R2 = 0.0, m_l2 = 0.0, m_eta = 1.0;
+    bool m_degenerate = false; ///< p at the origin or l on p's axis: the straight direction
+    double m_lo = 0.0, m_hi = 0.0, m_f_lo = 0.0, m_f_hi = 0.0;
+    int m_evaluations = 0;
+};
+
+/// SphereRefraction(p, l, R, eta).solve(tolerance).
+inline Eigen::Vector3d sphere_refraction(const Eigen::Vector3d& p, const Eigen::Vector3d& l,
+                                         double R, double eta, double tolerance = 1e-13) {
+    return SphereRefraction(p, l, R, eta).solve(tolerance);
+}
+
+} // namespace chromasim::render::detail
