@@ -907,7 +907,8 @@ bool FastIntegrator::shadow_free(std::uint32_t prim, int k, const Vec3& p, const
 template <int N>
 LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, const Vec3& d,
                                  double tnear, const LaneOptics<N>& lanes,
-                                 const LanesN<N>* lambda_nm, PixelRng& rng, double u_led) const {
+                                 const LanesN<N>* lambda_nm, PixelRng& rng, double u_led,
+                                 const RayHit* first) const {
     constexpr double inf = std::numeric_limits<double>::infinity();
     const OpticsParams& optics = m_shading.optics();
     LanesN<N> beta = LanesN<N>::Ones();
@@ -923,7 +924,8 @@ LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, c
     // The last outer marker left: where, and the chord through it.
     double outer_exit_mm = -inf, outer_chord_mm = 0.0;
     for (int i = 0; i < kMaxHits; ++i) {
-        const RayHit hit = scene.closest_hit(origin, d, tnear, inf);
+        // The first hit may come traced already (radiance16: the same ray, in a packet).
+        const RayHit hit = i == 0 && first ? *first : scene.closest_hit(origin, d, tnear, inf);
         if (!hit.hit()) break;
         tnear = hit.t_mm + kHitGap_mm;
         if (!(hit.normal.squaredNorm() > 0.5)) continue; // a zero-area triangle
@@ -1023,6 +1025,154 @@ LanesN<N> FastIntegrator::radiance(const EmbreeScene& scene, const Vec3& origin,
     };
     return in_cavity(in_cavity, origin, direction, 0.0, true);
 }
+
+template <int N>
+void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
+                                std::span<const Vec3> directions,
+                                std::span<const LaneOptics<N>* const> lanes,
+                                std::span<const LanesN<N>* const> lambda_nm,
+                                std::span<const double> u_led, PixelRng& rng,
+                                std::span<LanesN<N>> out) const {
+    if (!m_cache || m_direct.empty())
+        throw std::logic_error("FastIntegrator::radiance16 called before build_cache/set_frame");
+    const std::size_t n = directions.size();
+    if (n > 16 || lanes.size() != n || lambda_nm.size() != n || u_led.size() != n ||
+        out.size() != n)
+        throw std::invalid_argument("FastIntegrator::radiance16: " + std::to_string(n) +
+                                    " directions; allowed: at most 16, one lane set, "
+                                    "wavelength set, LED uniform and result per direction");
+    constexpr double inf = std::numeric_limits<double>::infinity();
+    const double eta = m_shading.optics().refractive_index;
+    // radiance()'s in_cavity, taken apart level by level. What each sample's camera ray does
+    // at the first surface, and then its reflection at the second.
+    enum class Then { nothing, led, straight, split };
+    struct Level {
+        Then then = Then::nothing;
+        Vec3 p = Vec3::Zero();
+        double F = 0.0;
+        bool refract = false, reflect = false;
+        Vec3 refracted = Vec3::Zero(), reflected = Vec3::Zero();
+    };
+    // One level for the rays from o[i] along d[i] (tnear) whose first hits are `hits`.
+    const auto classify = [&](const Vec3& o, const Vec3& d, double tnear, const RayHit& hit,
+                              bool reflect) {
+        Level level;
+        const double tfar = hit.hit() ? hit.t_mm : inf;
+        if (m_shading.crosses_frame(o, d, tnear, tfar)) return level;
+        if (const auto led = m_path.led_hit(o, d, tnear, tfar)) {
+            if (led->second) level.then = Then::led;
+            return level;
+        }
+        if (!hit.hit()) return level;
+        if (hit.kind != SurfaceKind::inner_surface) {
+            level.then = Then::straight;
+            return level;
+        }
+        const double cos_g = hit.normal.dot(d);
+        if (!(cos_g < 0.0)) return level; // the back of the surface: not from air
+        level.then = Then::split;
+        level.p = o + hit.t_mm * d;
+        const Vec3 normal = facing(hit.shading_normal, d);
+        const double cos_i = -d.dot(normal);
+        level.F = fresnel_dielectric(cos_i, 1.0 / eta);
+        level.refract =
+            refract(d, normal, 1.0 / eta, level.refracted) && level.refracted.dot(hit.normal) < 0.0;
+        level.reflected = (d + 2.0 * cos_i * normal).normalized();
+        level.reflect = reflect && level.F > 0.0 && level.reflected.dot(hit.normal) > 0.0;
+        return level;
+    };
+    // Packets of the rays some samples send from their own points along their directions.
+    std::array<Vec3, 16> origins, rays;
+    std::array<RayHit, 16> hits;
+    std::array<std::size_t, 16> who;
+    const auto trace = [&](double tnear, auto&& wants, auto&& ray, std::array<RayHit, 16>& got) {
+        std::size_t m = 0;
+        for (std::size_t i = 0; i < n; ++i)
+            if (wants(i)) {
+                const auto [o, d] = ray(i);
+                origins[m] = o, rays[m] = d, who[m++] = i;
+            }
+        scene.closest_hits16(std::span(origins.data(), m), std::span(rays.data(), m), tnear, inf,
+                             std::span(hits.data(), m));
+        for (std::size_t j = 0; j < m; ++j)
+            got[who[j]] = hits[j];
+    };
+    std::array<RayHit, 16> first, into, back, far_wall;
+    trace(
+        0.0, [](std::size_t) { return true; },
+        [&](std::size_t i) {
+            return std::pair{origin, directions[i]};
+        },
+        first);
+    std::array<Level, 16> near{}, far{};
+    for (std::size_t i = 0; i < n; ++i)
+        near[i] = classify(origin, directions[i], 0.0, first[i], true);
+    const auto splits = [&](const std::array<Level, 16>& at, bool reflected) {
+        return [&at, reflected](std::size_t i) {
+            return at[i].then == Then::split && (reflected ? at[i].reflect : at[i].refract);
+        };
+    };
+    trace(
+        kHitGap_mm, splits(near, false),
+        [&](std::size_t i) {
+            return std::pair{near[i].p, near[i].refracted};
+        },
+        into);
+    trace(
+        kHitGap_mm, splits(near, true),
+        [&](std::size_t i) {
+            return std::pair{near[i].p, near[i].reflected};
+        },
+        back);
+    for (std::size_t i = 0; i < n; ++i)
+        if (splits(near, true)(i))
+            far[i] = classify(near[i].p, near[i].reflected, kHitGap_mm, back[i], false);
+    trace(
+        kHitGap_mm, splits(far, false),
+        [&](std::size_t i) {
+            return std::pair{far[i].p, far[i].refracted};
+        },
+        far_wall);
+    // Then each sample in order, as radiance() would: the refracted ray's layers first, then
+    // the reflected ray's.
+    for (std::size_t i = 0; i < n; ++i) {
+        const LaneOptics<N>& l = *lanes[i];
+        const LanesN<N> led_radiance = l.led / m_path.led_area_mm2();
+        const auto layers = [&](const Vec3& o, const Vec3& d, double tnear, const RayHit& hit) {
+            return inside(scene, o, d, tnear, l, lambda_nm[i], rng, u_led[i], &hit);
+        };
+        LanesN<N> L = LanesN<N>::Zero();
+        const Level& a = near[i];
+        if (a.then == Then::led) {
+            L = led_radiance;
+        } else if (a.then == Then::straight) {
+            L = layers(origin, directions[i], 0.0, first[i]);
+        } else if (a.then == Then::split) {
+            if (a.refract) L += (1.0 - a.F) * layers(a.p, a.refracted, kHitGap_mm, into[i]);
+            if (a.reflect) {
+                const Level& b = far[i];
+                if (b.then == Then::led)
+                    L += a.F * led_radiance;
+                else if (b.then == Then::straight)
+                    L += a.F * layers(a.p, a.reflected, kHitGap_mm, back[i]);
+                else if (b.then == Then::split && b.refract)
+                    L += a.F * ((1.0 - b.F) * layers(b.p, b.refracted, kHitGap_mm, far_wall[i]));
+            }
+        }
+        out[i] = L;
+    }
+}
+
+template void FastIntegrator::radiance16(const EmbreeScene&, const Vec3&, std::span<const Vec3>,
+                                         std::span<const LaneOptics<kRgbLanes>* const>,
+                                         std::span<const LanesN<kRgbLanes>* const>,
+                                         std::span<const double>, PixelRng&,
+                                         std::span<LanesN<kRgbLanes>>) const;
+template void FastIntegrator::radiance16(const EmbreeScene&, const Vec3&, std::span<const Vec3>,
+                                         std::span<const LaneOptics<kSpectralLanes>* const>,
+                                         std::span<const LanesN<kSpectralLanes>* const>,
+                                         std::span<const double>, PixelRng&,
+                                         std::span<LanesN<kSpectralLanes>>) const;
 
 template LanesN<kRgbLanes> FastIntegrator::radiance(const EmbreeScene&, const Vec3&, const Vec3&,
                                                     const LaneOptics<kRgbLanes>&,

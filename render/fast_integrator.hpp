@@ -81,6 +81,7 @@
 
 #include <array>
 #include <memory>
+#include <span>
 #include <vector>
 
 namespace chromasim::render::detail {
@@ -131,6 +132,17 @@ public:
     LanesN<N> radiance(const EmbreeScene& scene, const Vec3& origin_mm, const Vec3& direction,
                        const LaneOptics<N>& lanes, const LanesN<N>* lambda_nm, PixelRng& rng,
                        double u_led = -1.0) const;
+
+    /// The radiance along up to 16 camera rays from one origin (a pixel's samples, in order),
+    /// as radiance() gives each: their first hits, their refracted and reflected rays and the
+    /// reflected rays' refraction into the far wall go to Embree as coherent packets of 16;
+    /// the rest (markers, shading, shadow rays) runs per sample, in order, from `rng`.
+    /// lanes[i], lambda_nm[i], u_led[i]: sample i's, as radiance() takes them.
+    template <int N>
+    void radiance16(const EmbreeScene& scene, const Vec3& origin_mm,
+                    std::span<const Vec3> directions, std::span<const LaneOptics<N>* const> lanes,
+                    std::span<const LanesN<N>* const> lambda_nm, std::span<const double> u_led,
+                    PixelRng& rng, std::span<LanesN<N>> out) const;
 
     /// The shadow ray's direction from `p_mm`, the point of coating triangle `prim` at
     /// barycentric coordinates (u, v), towards `led_point_mm` on LED k, as the samples take it
@@ -195,7 +207,7 @@ private:
     template <int N>
     LanesN<N> inside(const EmbreeScene& scene, const Vec3& origin, const Vec3& direction,
                      double tnear_mm, const LaneOptics<N>& lanes, const LanesN<N>* lambda_nm,
-                     PixelRng& rng, double u_led) const;
+                     PixelRng& rng, double u_led, const RayHit* first = nullptr) const;
 
     const ShadingModel& m_shading;
     const PathIntegrator& m_path;
