@@ -43,6 +43,8 @@ constexpr double kCullMargin_mm = 0.1;
 /// the dome's radius (coplanar triangles of a tessellated sphere are no fold), a hundredth of
 /// the rays' kHitGap_mm.
 constexpr double kFoldHeight_mm = 1e-5;
+/// radiance16 sends a level's rays to Embree as one packet from this many on, else one by one.
+constexpr std::size_t kMinPacket = 4;
 
 /// Where the ray from p (outside the sphere of radius R about the origin) along the unit w
 /// first meets the sphere; none if it misses it or meets it behind p.
@@ -1092,8 +1094,13 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
                 const auto [o, d] = ray(i);
                 origins[m] = o, rays[m] = d, who[m++] = i;
             }
-        scene.closest_hits16(std::span(origins.data(), m), std::span(rays.data(), m), tnear, inf,
-                             std::span(hits.data(), m));
+        if (m >= kMinPacket) {
+            scene.closest_hits16(std::span(origins.data(), m), std::span(rays.data(), m), tnear,
+                                 inf, std::span(hits.data(), m));
+        } else { // a packet of a few active rays costs more than the rays alone
+            for (std::size_t j = 0; j < m; ++j)
+                hits[j] = scene.closest_hit(origins[j], rays[j], tnear, inf);
+        }
         for (std::size_t j = 0; j < m; ++j)
             got[who[j]] = hits[j];
     };
