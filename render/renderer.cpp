@@ -187,10 +187,11 @@ struct Renderer::Impl {
         const auto [nx, ny] = detail::strata_grid(count);
         const std::uint64_t index = std::uint64_t(y) * std::uint64_t(camera.width_px()) + x;
         detail::PixelRng rng(settings.seed, index);
-        const auto led_seed = std::uint32_t(detail::mix64(settings.seed ^ (index << 1)));
+        const std::uint32_t led_seed = detail::led_permutation_seed(settings.seed, index);
+        const std::uint32_t lambda_seed = detail::wavelength_permutation_seed(settings.seed, index);
         detail::Rgb sum = detail::Rgb::Zero();
         if (settings.integrator == Integrator::fast) {
-            sample_pixel_fast(x, y, nx, ny, rng, led_seed, scale, sum, sum2);
+            sample_pixel_fast(x, y, nx, ny, rng, led_seed, lambda_seed, scale, sum, sum2);
             return sum;
         }
         for (int sy = 0; sy < ny; ++sy) {
@@ -198,13 +199,16 @@ struct Renderer::Impl {
                 const double u = (sx + rng.uniform()) / nx;
                 const double v = (sy + rng.uniform()) / ny;
                 const auto direction = camera.direction(Eigen::Vector2d(x + u, y + v));
-                // Hero wavelengths, stratified over the pixel's samples: sample k takes stratum
-                // (3 k + 1) mod n (a fixed shuffle, so position and wavelength strata do not
+                // Hero wavelengths, stratified over the pixel's samples: sample k takes a
+                // stratum by a per-pixel permutation (so position and wavelength strata do not
                 // pair up along the pixel's rows). The RGB mode draws none. The shadow ray's
-                // LED (fast integrator): a stratum per sample, by a per-pixel permutation.
+                // LED (fast integrator): a stratum per sample, by another permutation.
                 const int k = sy * nx + sx;
                 const double u_lambda =
-                    wavelengths ? (double((3 * k + 1) % count) + rng.uniform()) / count : 0.0;
+                    wavelengths
+                        ? (detail::wavelength_stratum(k, count, lambda_seed) + rng.uniform()) /
+                              count
+                        : 0.0;
                 const double u_led =
                     (detail::permute(std::uint32_t(k), std::uint32_t(count), led_seed) +
                      rng.uniform()) /
@@ -222,17 +226,20 @@ struct Renderer::Impl {
     /// sample_pixel for the fast integrator: the same strata and draws per sample, the
     /// samples taken 16 at a time through FastIntegrator::radiance16 (coherent packets).
     void sample_pixel_fast(int x, int y, int nx, int ny, detail::PixelRng& rng,
-                           std::uint32_t led_seed, double scale, detail::Rgb& sum,
-                           detail::Rgb* sum2) const {
+                           std::uint32_t led_seed, std::uint32_t lambda_seed, double scale,
+                           detail::Rgb& sum, detail::Rgb* sum2) const {
         const int count = nx * ny;
         if (hero_sets.empty())
-            batches<detail::kRgbLanes>(x, y, nx, ny, count, rng, led_seed, scale, sum, sum2);
+            batches<detail::kRgbLanes>(x, y, nx, ny, count, rng, led_seed, lambda_seed, scale, sum,
+                                       sum2);
         else
-            batches<detail::kSpectralLanes>(x, y, nx, ny, count, rng, led_seed, scale, sum, sum2);
+            batches<detail::kSpectralLanes>(x, y, nx, ny, count, rng, led_seed, lambda_seed, scale,
+                                            sum, sum2);
     }
     template <int N>
     void batches(int x, int y, int nx, int ny, int count, detail::PixelRng& rng,
-                 std::uint32_t led_seed, double scale, detail::Rgb& sum, detail::Rgb* sum2) const {
+                 std::uint32_t led_seed, std::uint32_t lambda_seed, double scale, detail::Rgb& sum,
+                 detail::Rgb* sum2) const {
         const bool spectral = N == detail::kSpectralLanes;
         const detail::LaneOptics<N> rgb = [&] {
             if constexpr (N == detail::kRgbLanes)
@@ -254,7 +261,9 @@ struct Renderer::Impl {
                 const double v = (sy + rng.uniform()) / ny;
                 const auto direction = camera.direction(Eigen::Vector2d(x + u, y + v));
                 const double u_lambda =
-                    spectral ? (double((3 * k + 1) % count) + rng.uniform()) / count : 0.0;
+                    spectral ? (detail::wavelength_stratum(k, count, lambda_seed) + rng.uniform()) /
+                                   count
+                             : 0.0;
                 const double u_shadow =
                     (detail::permute(std::uint32_t(k), std::uint32_t(count), led_seed) +
                      rng.uniform()) /
