@@ -627,9 +627,11 @@ void FastIntegrator::build_shadow_culling(const SensorFrame& frame) {
             const std::uint32_t* o = c.coating_triangles.data() + 3 * std::size_t(sides[e][1 - s]);
             Vec3 n = (vertex(t[1]) - vertex(t[0])).cross(vertex(t[2]) - vertex(t[0]));
             if (n.dot(vertex(t[0]) + vertex(t[1]) + vertex(t[2])) < 0.0) n = -n; // outwards
-            for (int a = 0; a < 3; ++a)
+            // A triangle squeezed to no area has no plane to tell: counted as a fold.
+            if (!(n.norm() > 0.0) || !n.allFinite()) fold = true;
+            for (int a = 0; a < 3 && !fold; ++a)
                 if (o[a] != m_edges[e][0] && o[a] != m_edges[e][1])
-                    fold = fold || n.normalized().dot(vertex(o[a]) - vertex(t[0])) > kFoldHeight_mm;
+                    fold = !(n.normalized().dot(vertex(o[a]) - vertex(t[0])) <= kFoldHeight_mm);
         }
         if (fold) {
             const Vec3 a = vertex(m_edges[e][0]).normalized(),
