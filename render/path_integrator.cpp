@@ -115,37 +115,8 @@ std::pair<Vec3, Vec3> on_circle(const Vec3& e1, const Vec3& e2, double R, double
     return on_circle(e1, e2, R, std::cos(psi), std::sin(psi));
 }
 
-/// Most iterations of the sphere model's root finding (illinois below): as many as bisection
-/// would need for 2^-30 of the bracket; regula falsi stops far earlier.
-constexpr int kBisections = 30;
 /// Samples of the circle when looking for the sphere model's mirror points.
 constexpr int kMirrorScan = 64;
-
-/// A root of f in [lo, hi] (f_lo = f(lo) and f_hi = f(hi) of opposite signs) by regula falsi
-/// with the Illinois modification: it keeps a bracket like bisection and converges
-/// superlinearly (a few evaluations where bisection takes 30). Stops at |f| < tolerance or a
-/// bracket below 1e-10. Returns the last point and its f.
-template <class F>
-std::pair<double, double> illinois(F&& f, double lo, double hi, double f_lo, double f_hi,
-                                   double tolerance) {
-    double x = 0.5 * (lo + hi), fx = f_lo;
-    int side = 0;
-    for (int i = 0; i < kBisections && f_hi != f_lo; ++i) {
-        x = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
-        fx = f(x);
-        if (std::abs(fx) < tolerance || std::abs(hi - lo) < 1e-10) break;
-        if ((fx > 0.0) == (f_hi > 0.0)) {
-            hi = x, f_hi = fx;
-            if (side == -1) f_lo *= 0.5;
-            side = -1;
-        } else {
-            lo = x, f_lo = fx;
-            if (side == 1) f_hi *= 0.5;
-            side = 1;
-        }
-    }
-    return {x, fx};
-}
 
 /// The reflections of a -> l off the inside of the sphere about the origin of radius R (a on
 /// the sphere, l inside): the angles of the points x where the mirror law holds,

@@ -56,6 +56,7 @@
 #include <cstdint>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -196,31 +197,40 @@ struct Renderer::Impl {
         }
         for (int sy = 0; sy < ny; ++sy) {
             for (int sx = 0; sx < nx; ++sx) {
-                const double u = (sx + rng.uniform()) / nx;
-                const double v = (sy + rng.uniform()) / ny;
-                const auto direction = camera.direction(Eigen::Vector2d(x + u, y + v));
-                // Hero wavelengths, stratified over the pixel's samples: sample k takes a
-                // stratum by a per-pixel permutation (so position and wavelength strata do not
-                // pair up along the pixel's rows). The RGB mode draws none. The shadow ray's
-                // LED (fast integrator): a stratum per sample, by another permutation.
-                const int k = sy * nx + sx;
-                const double u_lambda =
-                    wavelengths
-                        ? (detail::wavelength_stratum(k, count, lambda_seed) + rng.uniform()) /
-                              count
-                        : 0.0;
-                const double u_led =
-                    (detail::permute(std::uint32_t(k), std::uint32_t(count), led_seed) +
-                     rng.uniform()) /
-                    count;
-                if (!direction) continue;
-                const detail::Rgb value = sample_rgb(scene, camera.origin_mm(), *direction,
-                                                     settings.integrator, u_lambda, rng, u_led);
+                const Draw d = draw(x, y, sy * nx + sx, nx, ny, rng, led_seed, lambda_seed);
+                if (!d.direction) continue;
+                const detail::Rgb value = sample_rgb(scene, camera.origin_mm(), *d.direction,
+                                                     settings.integrator, d.u_lambda, rng, d.u_led);
                 sum += value;
                 if (sum2) *sum2 += (value * scale).square();
             }
         }
         return sum;
+    }
+
+    /// Sample k of a pixel's nx x ny: its camera ray through its position stratum (none outside
+    /// the camera's field), its hero-wavelength uniform (a stratum by a per-pixel permutation,
+    /// so that position and wavelength strata do not pair up along the pixel's rows; zero in
+    /// RGB mode, which draws none) and the fast integrator's shadow-ray LED uniform (a stratum
+    /// by another permutation), drawn from `rng` in that order.
+    struct Draw {
+        std::optional<Vec3> direction;
+        double u_lambda = 0.0, u_led = 0.0;
+    };
+    Draw draw(int x, int y, int k, int nx, int ny, detail::PixelRng& rng, std::uint32_t led_seed,
+              std::uint32_t lambda_seed) const {
+        const int count = nx * ny, sx = k % nx, sy = k / nx;
+        Draw d;
+        const double u = (sx + rng.uniform()) / nx;
+        const double v = (sy + rng.uniform()) / ny;
+        d.direction = camera.direction(Eigen::Vector2d(x + u, y + v));
+        if (wavelengths)
+            d.u_lambda =
+                (detail::wavelength_stratum(k, count, lambda_seed) + rng.uniform()) / count;
+        d.u_led =
+            (detail::permute(std::uint32_t(k), std::uint32_t(count), led_seed) + rng.uniform()) /
+            count;
+        return d;
     }
 
     /// sample_pixel for the fast integrator: the same strata and draws per sample, the
@@ -240,7 +250,6 @@ struct Renderer::Impl {
     void batches(int x, int y, int nx, int ny, int count, detail::PixelRng& rng,
                  std::uint32_t led_seed, std::uint32_t lambda_seed, double scale, detail::Rgb& sum,
                  detail::Rgb* sum2) const {
-        const bool spectral = N == detail::kSpectralLanes;
         const detail::LaneOptics<N> rgb = [&] {
             if constexpr (N == detail::kRgbLanes)
                 return shading.rgb_lanes();
@@ -256,24 +265,13 @@ struct Renderer::Impl {
         for (int first = 0; first < count; first += 16) {
             std::size_t m = 0;
             for (int k = first; k < std::min(count, first + 16); ++k) {
-                const int sx = k % nx, sy = k / nx;
-                const double u = (sx + rng.uniform()) / nx;
-                const double v = (sy + rng.uniform()) / ny;
-                const auto direction = camera.direction(Eigen::Vector2d(x + u, y + v));
-                const double u_lambda =
-                    spectral ? (detail::wavelength_stratum(k, count, lambda_seed) + rng.uniform()) /
-                                   count
-                             : 0.0;
-                const double u_shadow =
-                    (detail::permute(std::uint32_t(k), std::uint32_t(count), led_seed) +
-                     rng.uniform()) /
-                    count;
-                if (!direction) continue;
-                directions[m] = *direction;
-                u_led[m] = u_shadow;
+                const Draw d = draw(x, y, k, nx, ny, rng, led_seed, lambda_seed);
+                if (!d.direction) continue;
+                directions[m] = *d.direction;
+                u_led[m] = d.u_led;
                 if constexpr (N == detail::kSpectralLanes) {
                     const HeroSet& h = hero_sets[std::size_t(
-                        std::clamp(int(u_lambda * kHeroSets), 0, kHeroSets - 1))];
+                        std::clamp(int(d.u_lambda * kHeroSets), 0, kHeroSets - 1))];
                     sets[m] = &h, lanes[m] = &h.lanes, lambda[m] = &h.lambda_nm;
                 } else {
                     lanes[m] = &rgb, lambda[m] = nullptr;

@@ -6,8 +6,6 @@
 namespace chromasim::render::detail {
 
 namespace {
-/// Most steps of regula falsi: as many as bisection would need for 2^-30 of the bracket.
-constexpr int kMaxSteps = 30;
 /// Narrowing rounds of bracket_near (each a regula falsi step and a probe).
 constexpr int kNarrowRounds = 3;
 } // namespace
@@ -56,24 +54,9 @@ double SphereRefraction::mismatch(double t) {
            (to_l > 0.0 ? (m_ly * c - m_lx * s) / to_l : 0.0);
 }
 
-double SphereRefraction::illinois(double tolerance) {
-    double x = 0.5 * (m_lo + m_hi);
-    int side = 0;
-    for (int i = 0; i < kMaxSteps && m_f_hi != m_f_lo; ++i) {
-        x = (m_lo * m_f_hi - m_hi * m_f_lo) / (m_f_hi - m_f_lo);
-        const double fx = mismatch(x);
-        if (std::abs(fx) < tolerance || std::abs(m_hi - m_lo) < 1e-10) break;
-        if ((fx > 0.0) == (m_f_hi > 0.0)) {
-            m_hi = x, m_f_hi = fx;
-            if (side == -1) m_f_lo *= 0.5;
-            side = -1;
-        } else {
-            m_lo = x, m_f_lo = fx;
-            if (side == 1) m_f_hi *= 0.5;
-            side = 1;
-        }
-    }
-    return x;
+double SphereRefraction::regula_falsi(double tolerance) {
+    return illinois([this](double t) { return mismatch(t); }, m_lo, m_hi, m_f_lo, m_f_hi, tolerance)
+        .first;
 }
 
 SphereRefraction::Vec3 SphereRefraction::solve(double tolerance) {
@@ -98,7 +81,7 @@ SphereRefraction::Vec3 SphereRefraction::solve(double tolerance) {
         if (!bracketed) m_f_hi = mismatch(m_hi);
     }
     if (m_f_lo * m_f_hi > 0.0) return (m_l - m_p).normalized();
-    return direction_at(illinois(tolerance));
+    return direction_at(regula_falsi(tolerance));
 }
 
 bool SphereRefraction::bracket_near(const Vec3& guess, double half_width_t, double width_mm,
@@ -158,7 +141,7 @@ bool SphereRefraction::bracket_near(const Vec3& guess, double half_width_t, doub
 
 SphereRefraction::Vec3 SphereRefraction::finish(double tolerance) {
     if (m_lo == m_hi) return direction_at(m_lo);
-    return direction_at(illinois(tolerance));
+    return direction_at(regula_falsi(tolerance));
 }
 
 } // namespace chromasim::render::detail
