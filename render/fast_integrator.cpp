@@ -735,14 +735,19 @@ FastIntegrator::Lookup<N> FastIntegrator::lookup(std::uint32_t prim, double u, d
 template <int N>
 Vec3 FastIntegrator::shadow_direction(const Lookup<N>& at, const Vec3& p, int k,
                                       const Vec3& led_point) const {
-    Vec3 w = m_path.refracted_direction(p, led_point, at.radius_mm);
+    return (m_path.refracted_direction(p, led_point, at.radius_mm) + shadow_correction(at, k))
+        .normalized();
+}
+
+template <int N> Vec3 FastIntegrator::shadow_correction(const Lookup<N>& at, int k) const {
+    Vec3 c = Vec3::Zero();
     for (int i = 0; i < 3; ++i) {
-        const float* correction =
+        const float* at_vertex =
             m_shadow.data() + 3 * (std::size_t(at.triangle[i]) * m_cache->leds + k);
         for (int a = 0; a < 3; ++a)
-            w[a] += at.weights[i] * correction[a];
+            c[a] += at.weights[i] * at_vertex[a];
     }
-    return w.normalized();
+    return c;
 }
 
 double FastIntegrator::direct_at(std::uint32_t prim, double u, double v, const Vec3& normal,
@@ -815,20 +820,18 @@ LanesN<N> FastIntegrator::shadow_transmittance(const EmbreeScene& scene, const V
     // The sphere model's refraction towards l; where the culling's bracket shows the ray
     // cannot meet anything, it stops there.
     SphereRefraction solver(p, l, at.radius_mm, m_shading.optics().refractive_index);
+    // The frame's correction (the deformed surface against the sphere), interpolated.
+    const Vec3 correction = shadow_correction(at, k);
     Vec3 w;
     if (m_guess.empty()) {
         w = solver.solve(kShadowTolerance);
     } else {
-        Vec3 guess = Vec3::Zero(), correction = Vec3::Zero();
-        const std::size_t leds = std::size_t(m_cache->leds);
+        Vec3 guess = Vec3::Zero();
         for (int i = 0; i < 3; ++i) {
-            const std::size_t vk = std::size_t(at.triangle[i]) * leds + std::size_t(k);
-            const float* g = m_guess.data() + 9 * vk;
-            const float* c = m_shadow.data() + 3 * vk;
-            for (int a = 0; a < 3; ++a) {
+            const float* g =
+                m_guess.data() + 9 * (std::size_t(at.triangle[i]) * m_cache->leds + std::size_t(k));
+            for (int a = 0; a < 3; ++a)
                 guess[a] += at.weights[i] * (g[a] + (u1 - 0.5) * g[3 + a] + (u2 - 0.5) * g[6 + a]);
-                correction[a] += at.weights[i] * c[a];
-            }
         }
         if (!(guess.norm() > 0.0)) {
             w = solver.solve(kShadowTolerance);
@@ -843,14 +846,7 @@ LanesN<N> FastIntegrator::shadow_transmittance(const EmbreeScene& scene, const V
             w = solver.solve(kShadowTolerance);
         }
     }
-    // Plus the frame's correction (the deformed surface against the sphere), interpolated.
-    for (int i = 0; i < 3; ++i) {
-        const float* correction =
-            m_shadow.data() + 3 * (std::size_t(at.triangle[i]) * m_cache->leds + k);
-        for (int a = 0; a < 3; ++a)
-            w[a] += at.weights[i] * correction[a];
-    }
-    w.normalize();
+    w = (w + correction).normalized();
     // Where the shadow ray towards l leaves the layers (through the sphere below).
     const auto exit = sphere_exit(p, w, at.radius_mm);
     return exit ? m_shading.transmittance(scene, *exit, p, lanes, kHitGap_mm) : LanesN<N>::Ones();

@@ -186,6 +186,9 @@ private:
     /// hit triangle (m_shadow).
     template <int N>
     Vec3 shadow_direction(const Lookup<N>& at, const Vec3& p, int k, const Vec3& led_point) const;
+    /// The frame's correction to the sphere model's shadow direction towards LED k (m_shadow),
+    /// interpolated over the hit triangle.
+    template <int N> Vec3 shadow_correction(const Lookup<N>& at, int k) const;
     /// The shadow ray's transmittance from p towards the LED point (u1, u2) of LED k through
     /// the sphere model, one where the ray provably meets nothing (the culling below).
     template <int N>
