@@ -990,40 +990,13 @@ template <int N>
 LanesN<N> FastIntegrator::radiance(const EmbreeScene& scene, const Vec3& origin,
                                    const Vec3& direction, const LaneOptics<N>& lanes,
                                    const LanesN<N>* lambda_nm, PixelRng& rng, double u_led) const {
-    if (!m_cache || m_direct.empty())
-        throw std::logic_error("FastIntegrator::radiance called before build_cache/set_frame");
-    constexpr double inf = std::numeric_limits<double>::infinity();
-    const double eta = m_shading.optics().refractive_index;
-    const LanesN<N> led_radiance = lanes.led / m_path.led_area_mm2();
-    // What a ray in the cavity from o along d brings back, with `weight`: an LED, the black
-    // frame, or the dome wall, entered with (1 - F); `reflect` also follows the reflection F
-    // (the camera ray), else it is left out.
-    auto in_cavity = [&](auto&& self, const Vec3& o, const Vec3& d, double tnear,
-                         bool reflect) -> LanesN<N> {
-        const RayHit hit = scene.closest_hit(o, d, tnear, inf);
-        const double tfar = hit.hit() ? hit.t_mm : inf;
-        if (m_shading.crosses_frame(o, d, tnear, tfar)) return LanesN<N>::Zero();
-        if (const auto led = m_path.led_hit(o, d, tnear, tfar))
-            return led->second ? led_radiance : LanesN<N>::Zero();
-        if (!hit.hit()) return LanesN<N>::Zero();
-        if (hit.kind != SurfaceKind::inner_surface) // no inner surface: straight into the layers
-            return inside(scene, o, d, tnear, lanes, lambda_nm, rng, u_led);
-        const double cos_g = hit.normal.dot(d);
-        if (!(cos_g < 0.0)) return LanesN<N>::Zero(); // the back of the surface: not from air
-        const Vec3 p = o + hit.t_mm * d;
-        const Vec3 n = facing(hit.shading_normal, d);
-        const double cos_i = -d.dot(n);
-        const double F = fresnel_dielectric(cos_i, 1.0 / eta);
-        LanesN<N> L = LanesN<N>::Zero();
-        Vec3 refracted;
-        if (refract(d, n, 1.0 / eta, refracted) && refracted.dot(hit.normal) < 0.0)
-            L += (1.0 - F) * inside(scene, p, refracted, kHitGap_mm, lanes, lambda_nm, rng, u_led);
-        const Vec3 reflected = (d + 2.0 * cos_i * n).normalized();
-        if (reflect && F > 0.0 && reflected.dot(hit.normal) > 0.0)
-            L += F * self(self, p, reflected, kHitGap_mm, false);
-        return L;
-    };
-    return in_cavity(in_cavity, origin, direction, 0.0, true);
+    // One sample through radiance16 (its rays go to Embree one by one).
+    const LaneOptics<N>* lane_sets[1] = {&lanes};
+    const LanesN<N>* lambdas[1] = {lambda_nm};
+    LanesN<N> out[1];
+    radiance16<N>(scene, origin, std::span<const Vec3>(&direction, 1), lane_sets, lambdas,
+                  std::span<const double>(&u_led, 1), rng, out);
+    return out[0];
 }
 
 template <int N>
@@ -1034,7 +1007,7 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
                                 std::span<const double> u_led, PixelRng& rng,
                                 std::span<LanesN<N>> out) const {
     if (!m_cache || m_direct.empty())
-        throw std::logic_error("FastIntegrator::radiance16 called before build_cache/set_frame");
+        throw std::logic_error("FastIntegrator::radiance called before build_cache/set_frame");
     const std::size_t n = directions.size();
     if (n > 16 || lanes.size() != n || lambda_nm.size() != n || u_led.size() != n ||
         out.size() != n)
@@ -1043,8 +1016,11 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
                                     "wavelength set, LED uniform and result per direction");
     constexpr double inf = std::numeric_limits<double>::infinity();
     const double eta = m_shading.optics().refractive_index;
-    // radiance()'s in_cavity, taken apart level by level. What each sample's camera ray does
-    // at the first surface, and then its reflection at the second.
+    // The cavity level by level: a ray from o along d brings back an LED's light, nothing
+    // (the black frame, a miss, the back of the inner surface), or the dome wall's, entered
+    // with (1 - F); the camera ray also follows the reflection F, the reflected ray does not.
+    // What each sample's camera ray does at the first surface, then its reflection at the
+    // second.
     enum class Then { nothing, led, straight, split };
     struct Level {
         Then then = Then::nothing;

@@ -198,11 +198,11 @@ private:
     /// bracket's exit points x_lo and x_hi (turned by the correction `correction`) misses the
     /// markers, the frame and the coating: it lies in the triangle (p, q_lo, q_hi) (grown by
     /// the arc's sagitta), which lies in triangle `prim`'s ball for LED k, and no marker of
-    /// that ball's list comes that close.
+    /// that ball's list (markers; folds, by their cones of directions) comes that close.
     bool shadow_free(std::uint32_t prim, int k, const Vec3& p, const Vec3& x_lo, const Vec3& x_hi,
                      const Vec3& correction, double radius_mm) const;
-    /// Per frame: the shadow-ray guesses' balls and marker lists (LightCacheSettings::
-    /// cull_shadows); clears them where the frame's coating folds inwards near a ball.
+    /// Per frame (LightCacheSettings::cull_shadows): the markers' balls, the coating's inward
+    /// folds, and each coating triangle's ball per LED with the markers and folds near it.
     void build_shadow_culling(const SensorFrame& frame);
     template <int N>
     LanesN<N> spectral_at(const std::vector<float>& values, const std::uint32_t* triangle,

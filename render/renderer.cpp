@@ -200,7 +200,7 @@ struct Renderer::Impl {
                 const Draw d = draw(x, y, sy * nx + sx, nx, ny, rng, led_seed, lambda_seed);
                 if (!d.direction) continue;
                 const detail::Rgb value = sample_rgb(scene, camera.origin_mm(), *d.direction,
-                                                     settings.integrator, d.u_lambda, rng, d.u_led);
+                                                     settings.integrator, d.u_lambda, rng);
                 sum += value;
                 if (sum2) *sum2 += (value * scale).square();
             }
@@ -301,29 +301,22 @@ struct Renderer::Impl {
     }
 
     /// Camera RGB (before exposure) of one sample along the ray: the RGB mode's lanes, or 16
-    /// hero wavelengths from u_lambda (a tabulated set), through any integrator. u_led: the
-    /// fast integrator's shadow-ray LED (negative: drawn from rng).
+    /// hero wavelengths from u_lambda (a tabulated set), through the direct or the path
+    /// integrator (the fast integrator takes a pixel's samples together: sample_pixel_fast).
     detail::Rgb sample_rgb(const detail::EmbreeScene& in, const Vec3& origin, const Vec3& direction,
-                           Integrator integrator, double u_lambda, detail::PixelRng& rng,
-                           double u_led = -1.0) const {
+                           Integrator integrator, double u_lambda, detail::PixelRng& rng) const {
         const bool path_traced = integrator == Integrator::path;
         if (hero_sets.empty()) { // RGB mode
             const auto lanes = shading.rgb_lanes();
-            if (integrator == Integrator::fast)
-                return detail::Rgb(fast.radiance<detail::kRgbLanes>(in, origin, direction, lanes,
-                                                                    nullptr, rng, u_led)
-                                       .head<3>());
             return path_traced
                        ? detail::Rgb(path.radiance(in, origin, direction, lanes, rng).head<3>())
                        : shading.radiance(in, origin, direction);
         }
         const HeroSet& h =
             hero_sets[std::size_t(std::clamp(int(u_lambda * kHeroSets), 0, kHeroSets - 1))];
-        const detail::Lanes radiance =
-            integrator == Integrator::fast
-                ? fast.radiance(in, origin, direction, h.lanes, &h.lambda_nm, rng, u_led)
-            : path_traced ? path.radiance(in, origin, direction, h.lanes, rng)
-                          : shading.radiance(in, origin, direction, h.lanes);
+        const detail::Lanes radiance = path_traced
+                                           ? path.radiance(in, origin, direction, h.lanes, rng)
+                                           : shading.radiance(in, origin, direction, h.lanes);
         return detail::Rgb(h.to_rgb * radiance.matrix());
     }
 
