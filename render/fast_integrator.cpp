@@ -791,16 +791,17 @@ LanesN<N> FastIntegrator::spectral_at(const std::vector<float>& values, const st
 template <int N>
 LanesN<N> FastIntegrator::shade(const EmbreeScene& scene, const Vec3& p, const Lookup<N>& at,
                                 const LanesN<N>& indirect, const LaneOptics<N>& lanes,
-                                PixelRng& rng, double u_led) const {
+                                PixelRng& rng, const ShadowDraw& shadow) const {
     // E / pi per unit LED emission: the cached indirect term, plus the direct term with the
     // markers' shadows, sum_k G_k T_k, estimated by one LED k drawn with probability
     // G_k / sum G (one shadow ray; exact where the LEDs' shadows agree).
     double total = 0.0;
     for (int k = 0; k < m_cache->leds; ++k)
         total += at.direct[std::size_t(k)];
-    const double u_draw = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
-    const double u = (u_led >= 0.0 ? u_led : u_draw) * total;
     if (!(total > 0.0)) return indirect;
+    ShadowDraw draw = shadow;
+    if (!(draw.u_led >= 0.0)) draw = {rng.uniform(), rng.uniform(), rng.uniform()};
+    const double u = draw.u_led * total, u1 = draw.u1, u2 = draw.u2;
     int k = 0;
     for (double acc = at.direct[0]; acc <= u && k + 1 < m_cache->leds;)
         acc += at.direct[std::size_t(++k)];
@@ -907,8 +908,8 @@ bool FastIntegrator::shadow_free(std::uint32_t prim, int k, const Vec3& p, const
 template <int N>
 LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, const Vec3& d,
                                  double tnear, const LaneOptics<N>& lanes,
-                                 const LanesN<N>* lambda_nm, PixelRng& rng, double u_led,
-                                 const RayHit* first) const {
+                                 const LanesN<N>* lambda_nm, PixelRng& rng,
+                                 const ShadowDraw& shadow, const RayHit* first) const {
     constexpr double inf = std::numeric_limits<double>::infinity();
     const OpticsParams& optics = m_shading.optics();
     LanesN<N> beta = LanesN<N>::Ones();
@@ -958,10 +959,10 @@ LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, c
                                           diffuse_transmittance<N>(lanes.outer_absorption_per_mm *
                                                                    (chord * std::abs(cos_g))) *
                                           above;
-                L *= shade(scene, p, at, through, lanes, rng, u_led) /
+                L *= shade(scene, p, at, through, lanes, rng, shadow) /
                      (1.0 - s * lanes.outer_albedo * lanes.coating_albedo);
             } else {
-                L *= shade(scene, p, at, cached(m_cache->indirect), lanes, rng, u_led);
+                L *= shade(scene, p, at, cached(m_cache->indirect), lanes, rng, shadow);
             }
             for (int k = 0; k < pending; ++k)
                 L += scatters[std::size_t(k)].weight * lanes.led *
@@ -989,13 +990,14 @@ LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, c
 template <int N>
 LanesN<N> FastIntegrator::radiance(const EmbreeScene& scene, const Vec3& origin,
                                    const Vec3& direction, const LaneOptics<N>& lanes,
-                                   const LanesN<N>* lambda_nm, PixelRng& rng, double u_led) const {
+                                   const LanesN<N>* lambda_nm, PixelRng& rng,
+                                   ShadowDraw shadow) const {
     // One sample through radiance16 (its rays go to Embree one by one).
     const LaneOptics<N>* lane_sets[1] = {&lanes};
     const LanesN<N>* lambdas[1] = {lambda_nm};
     LanesN<N> out[1];
     radiance16<N>(scene, origin, std::span<const Vec3>(&direction, 1), lane_sets, lambdas,
-                  std::span<const double>(&u_led, 1), rng, out);
+                  std::span<const ShadowDraw>(&shadow, 1), rng, out);
     return out[0];
 }
 
@@ -1004,12 +1006,12 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
                                 std::span<const Vec3> directions,
                                 std::span<const LaneOptics<N>* const> lanes,
                                 std::span<const LanesN<N>* const> lambda_nm,
-                                std::span<const double> u_led, PixelRng& rng,
+                                std::span<const ShadowDraw> shadow, PixelRng& rng,
                                 std::span<LanesN<N>> out) const {
     if (!m_cache || m_direct.empty())
         throw std::logic_error("FastIntegrator::radiance called before build_cache/set_frame");
     const std::size_t n = directions.size();
-    if (n > 16 || lanes.size() != n || lambda_nm.size() != n || u_led.size() != n ||
+    if (n > 16 || lanes.size() != n || lambda_nm.size() != n || shadow.size() != n ||
         out.size() != n)
         throw std::invalid_argument("FastIntegrator::radiance16: " + std::to_string(n) +
                                     " directions; allowed: at most 16, one lane set, "
@@ -1120,7 +1122,7 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
         const LaneOptics<N>& l = *lanes[i];
         const LanesN<N> led_radiance = l.led / m_path.led_area_mm2();
         const auto layers = [&](const Vec3& o, const Vec3& d, double tnear, const RayHit& hit) {
-            return inside(scene, o, d, tnear, l, lambda_nm[i], rng, u_led[i], &hit);
+            return inside(scene, o, d, tnear, l, lambda_nm[i], rng, shadow[i], &hit);
         };
         LanesN<N> L = LanesN<N>::Zero();
         const Level& a = near[i];
@@ -1147,22 +1149,22 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
 template void FastIntegrator::radiance16(const EmbreeScene&, const Vec3&, std::span<const Vec3>,
                                          std::span<const LaneOptics<kRgbLanes>* const>,
                                          std::span<const LanesN<kRgbLanes>* const>,
-                                         std::span<const double>, PixelRng&,
+                                         std::span<const ShadowDraw>, PixelRng&,
                                          std::span<LanesN<kRgbLanes>>) const;
 template void FastIntegrator::radiance16(const EmbreeScene&, const Vec3&, std::span<const Vec3>,
                                          std::span<const LaneOptics<kSpectralLanes>* const>,
                                          std::span<const LanesN<kSpectralLanes>* const>,
-                                         std::span<const double>, PixelRng&,
+                                         std::span<const ShadowDraw>, PixelRng&,
                                          std::span<LanesN<kSpectralLanes>>) const;
 
 template LanesN<kRgbLanes> FastIntegrator::radiance(const EmbreeScene&, const Vec3&, const Vec3&,
                                                     const LaneOptics<kRgbLanes>&,
                                                     const LanesN<kRgbLanes>*, PixelRng&,
-                                                    double) const;
+                                                    ShadowDraw) const;
 template LanesN<kSpectralLanes> FastIntegrator::radiance(const EmbreeScene&, const Vec3&,
                                                          const Vec3&,
                                                          const LaneOptics<kSpectralLanes>&,
                                                          const LanesN<kSpectralLanes>*, PixelRng&,
-                                                         double) const;
+                                                         ShadowDraw) const;
 
 } // namespace chromasim::render::detail

@@ -101,6 +101,14 @@ inline constexpr double kCacheLambdaStep_nm = 20.0;
 /// 2.14 and 2.37 % at 5 N (docs/VALIDATION.md).
 inline constexpr double kCacheBsdfPerNee = 4.0;
 
+/// A camera sample's uniforms for its coating hit's shadow ray: u_led picks the LED (with
+/// probability G_k / sum G), (u1, u2) the point on it (PathIntegrator::led_point). The renderer
+/// stratifies them jointly over a pixel's samples (shadow_uniforms); u_led < 0: all three
+/// drawn from the pixel's stream.
+struct ShadowDraw {
+    double u_led = -1.0, u1 = 0.0, u2 = 0.0;
+};
+
 class FastIntegrator {
 public:
     FastIntegrator(const ShadingModel& shading, const PathIntegrator& path);
@@ -125,23 +133,22 @@ public:
     void check_topology(const SensorFrame& frame) const;
 
     /// Radiance along the camera ray, per lane, in the path integrator's units. `lambda_nm`:
-    /// the lanes' wavelengths (spectral), nullptr in RGB mode. `u_led` in [0, 1): the uniform
-    /// that picks the LED of the coating hit's shadow ray (the renderer stratifies it over a
-    /// pixel's samples); negative: drawn from `rng`.
+    /// the lanes' wavelengths (spectral), nullptr in RGB mode. `shadow`: the uniforms of the
+    /// coating hit's shadow ray (default: drawn from `rng`).
     template <int N>
     LanesN<N> radiance(const EmbreeScene& scene, const Vec3& origin_mm, const Vec3& direction,
                        const LaneOptics<N>& lanes, const LanesN<N>* lambda_nm, PixelRng& rng,
-                       double u_led = -1.0) const;
+                       ShadowDraw shadow = {}) const;
 
     /// The radiance along up to 16 camera rays from one origin (a pixel's samples, in order),
     /// as radiance() gives each: their first hits, their refracted and reflected rays and the
     /// reflected rays' refraction into the far wall go to Embree as coherent packets of 16;
     /// the rest (markers, shading, shadow rays) runs per sample, in order, from `rng`.
-    /// lanes[i], lambda_nm[i], u_led[i]: sample i's, as radiance() takes them.
+    /// lanes[i], lambda_nm[i], shadow[i]: sample i's, as radiance() takes them.
     template <int N>
     void radiance16(const EmbreeScene& scene, const Vec3& origin_mm,
                     std::span<const Vec3> directions, std::span<const LaneOptics<N>* const> lanes,
-                    std::span<const LanesN<N>* const> lambda_nm, std::span<const double> u_led,
+                    std::span<const LanesN<N>* const> lambda_nm, std::span<const ShadowDraw> shadow,
                     PixelRng& rng, std::span<LanesN<N>> out) const;
 
     /// The shadow ray's direction from `p_mm`, the point of coating triangle `prim` at
@@ -180,7 +187,7 @@ private:
     template <int N>
     LanesN<N> shade(const EmbreeScene& scene, const Vec3& p, const Lookup<N>& at,
                     const LanesN<N>& indirect, const LaneOptics<N>& lanes, PixelRng& rng,
-                    double u_led = -1.0) const;
+                    const ShadowDraw& shadow = {}) const;
     /// The shadow ray's direction from the coating hit `p` towards `led_point` of LED k: the
     /// sphere model's refraction, plus the frame's correction to it interpolated over the
     /// hit triangle (m_shadow).
@@ -210,7 +217,7 @@ private:
     template <int N>
     LanesN<N> inside(const EmbreeScene& scene, const Vec3& origin, const Vec3& direction,
                      double tnear_mm, const LaneOptics<N>& lanes, const LanesN<N>* lambda_nm,
-                     PixelRng& rng, double u_led, const RayHit* first = nullptr) const;
+                     PixelRng& rng, const ShadowDraw& shadow, const RayHit* first = nullptr) const;
 
     const ShadingModel& m_shading;
     const PathIntegrator& m_path;

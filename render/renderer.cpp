@@ -188,16 +188,16 @@ struct Renderer::Impl {
         const auto [nx, ny] = detail::strata_grid(count);
         const std::uint64_t index = std::uint64_t(y) * std::uint64_t(camera.width_px()) + x;
         detail::PixelRng rng(settings.seed, index);
-        const std::uint32_t led_seed = detail::led_permutation_seed(settings.seed, index);
         const std::uint32_t lambda_seed = detail::wavelength_permutation_seed(settings.seed, index);
         detail::Rgb sum = detail::Rgb::Zero();
         if (settings.integrator == Integrator::fast) {
-            sample_pixel_fast(x, y, nx, ny, rng, led_seed, lambda_seed, scale, sum, sum2);
+            sample_pixel_fast(x, y, nx, ny, rng, detail::shadow_seed(settings.seed, index),
+                              lambda_seed, scale, sum, sum2);
             return sum;
         }
         for (int sy = 0; sy < ny; ++sy) {
             for (int sx = 0; sx < nx; ++sx) {
-                const Draw d = draw(x, y, sy * nx + sx, nx, ny, rng, led_seed, lambda_seed);
+                const Draw d = draw(x, y, sy * nx + sx, nx, ny, rng, lambda_seed);
                 if (!d.direction) continue;
                 const detail::Rgb value = sample_rgb(scene, camera.origin_mm(), *d.direction,
                                                      settings.integrator, d.u_lambda, rng);
@@ -209,15 +209,14 @@ struct Renderer::Impl {
     }
 
     /// Sample k of a pixel's nx x ny: its camera ray through its position stratum (none outside
-    /// the camera's field), its hero-wavelength uniform (a stratum by a per-pixel permutation,
-    /// so that position and wavelength strata do not pair up along the pixel's rows; zero in
-    /// RGB mode, which draws none) and the fast integrator's shadow-ray LED uniform (a stratum
-    /// by another permutation), drawn from `rng` in that order.
+    /// the camera's field) and its hero-wavelength uniform (a stratum by a per-pixel
+    /// permutation, so that position and wavelength strata do not pair up along the pixel's
+    /// rows; zero in RGB mode, which draws none), drawn from `rng` in that order.
     struct Draw {
         std::optional<Vec3> direction;
-        double u_lambda = 0.0, u_led = 0.0;
+        double u_lambda = 0.0;
     };
-    Draw draw(int x, int y, int k, int nx, int ny, detail::PixelRng& rng, std::uint32_t led_seed,
+    Draw draw(int x, int y, int k, int nx, int ny, detail::PixelRng& rng,
               std::uint32_t lambda_seed) const {
         const int count = nx * ny, sx = k % nx, sy = k / nx;
         Draw d;
@@ -227,29 +226,28 @@ struct Renderer::Impl {
         if (wavelengths)
             d.u_lambda =
                 (detail::wavelength_stratum(k, count, lambda_seed) + rng.uniform()) / count;
-        d.u_led =
-            (detail::permute(std::uint32_t(k), std::uint32_t(count), led_seed) + rng.uniform()) /
-            count;
         return d;
     }
 
-    /// sample_pixel for the fast integrator: the same strata and draws per sample, the
-    /// samples taken 16 at a time through FastIntegrator::radiance16 (coherent packets).
+    /// sample_pixel for the fast integrator: the same strata and draws per sample, plus the
+    /// shadow rays' uniforms, jointly stratified over the pixel's samples (shadow_uniforms:
+    /// no draws from `rng`); the samples taken 16 at a time through
+    /// FastIntegrator::radiance16 (coherent packets).
     void sample_pixel_fast(int x, int y, int nx, int ny, detail::PixelRng& rng,
-                           std::uint32_t led_seed, std::uint32_t lambda_seed, double scale,
+                           std::uint32_t shadow_seed, std::uint32_t lambda_seed, double scale,
                            detail::Rgb& sum, detail::Rgb* sum2) const {
         const int count = nx * ny;
         if (hero_sets.empty())
-            batches<detail::kRgbLanes>(x, y, nx, ny, count, rng, led_seed, lambda_seed, scale, sum,
-                                       sum2);
+            batches<detail::kRgbLanes>(x, y, nx, ny, count, rng, shadow_seed, lambda_seed, scale,
+                                       sum, sum2);
         else
-            batches<detail::kSpectralLanes>(x, y, nx, ny, count, rng, led_seed, lambda_seed, scale,
-                                            sum, sum2);
+            batches<detail::kSpectralLanes>(x, y, nx, ny, count, rng, shadow_seed, lambda_seed,
+                                            scale, sum, sum2);
     }
     template <int N>
     void batches(int x, int y, int nx, int ny, int count, detail::PixelRng& rng,
-                 std::uint32_t led_seed, std::uint32_t lambda_seed, double scale, detail::Rgb& sum,
-                 detail::Rgb* sum2) const {
+                 std::uint32_t shadow_seed, std::uint32_t lambda_seed, double scale,
+                 detail::Rgb& sum, detail::Rgb* sum2) const {
         const detail::LaneOptics<N> rgb = [&] {
             if constexpr (N == detail::kRgbLanes)
                 return shading.rgb_lanes();
@@ -260,15 +258,16 @@ struct Renderer::Impl {
         std::array<const detail::LaneOptics<N>*, 16> lanes;
         std::array<const detail::LanesN<N>*, 16> lambda;
         std::array<const HeroSet*, 16> sets;
-        std::array<double, 16> u_led;
+        std::array<detail::ShadowDraw, 16> shadow;
         std::array<detail::LanesN<N>, 16> radiance;
         for (int first = 0; first < count; first += 16) {
             std::size_t m = 0;
             for (int k = first; k < std::min(count, first + 16); ++k) {
-                const Draw d = draw(x, y, k, nx, ny, rng, led_seed, lambda_seed);
+                const Draw d = draw(x, y, k, nx, ny, rng, lambda_seed);
                 if (!d.direction) continue;
                 directions[m] = *d.direction;
-                u_led[m] = d.u_led;
+                const std::array<double, 3> u = detail::shadow_uniforms(k, count, shadow_seed);
+                shadow[m] = {u[0], u[1], u[2]};
                 if constexpr (N == detail::kSpectralLanes) {
                     const HeroSet& h = hero_sets[std::size_t(
                         std::clamp(int(d.u_lambda * kHeroSets), 0, kHeroSets - 1))];
@@ -281,7 +280,7 @@ struct Renderer::Impl {
             fast.radiance16<N>(scene, camera.origin_mm(), std::span(directions.data(), m),
                                std::span<const detail::LaneOptics<N>* const>(lanes.data(), m),
                                std::span<const detail::LanesN<N>* const>(lambda.data(), m),
-                               std::span<const double>(u_led.data(), m), rng,
+                               std::span<const detail::ShadowDraw>(shadow.data(), m), rng,
                                std::span(radiance.data(), m));
             for (std::size_t i = 0; i < m; ++i) {
                 detail::Rgb value;

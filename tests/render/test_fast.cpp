@@ -454,21 +454,23 @@ TEST_CASE("fast integrator: a pixel's samples traced 16 at a time in Embree pack
         for (const double azimuth : {0.0, 33.0, 190.0}) {
             for (const std::size_t n : {std::size_t(16), std::size_t(5)}) {
                 std::vector<Vec3> directions;
-                std::vector<double> u_led;
+                std::vector<ShadowDraw> shadow;
                 for (std::size_t i = 0; i < n; ++i) {
                     directions.push_back(unit_from_angles(polar + 0.25 * double(i % 4),
                                                           azimuth + 0.25 * double(i / 4)));
-                    u_led.push_back((double(i) + 0.5) / double(n));
+                    // Half the samples with their shadow uniforms given, half drawing them.
+                    shadow.push_back(i % 2 ? ShadowDraw{}
+                                           : ShadowDraw{(double(i) + 0.5) / double(n), 0.3, 0.8});
                 }
                 const std::vector<const LaneOptics<kRgbLanes>*> lane_sets(n, &lanes);
                 const std::vector<const RgbLanes*> lambdas(n, nullptr);
                 std::vector<RgbLanes> packed(n);
                 PixelRng a(7, std::uint64_t(polar * 1000 + azimuth)), b = a;
                 fast.radiance16<kRgbLanes>(scene, Vec3::Zero(), directions, lane_sets, lambdas,
-                                           u_led, a, packed);
+                                           shadow, a, packed);
                 for (std::size_t i = 0; i < n; ++i) {
                     const RgbLanes one = fast.radiance<kRgbLanes>(
-                        scene, Vec3::Zero(), directions[i], lanes, nullptr, b, u_led[i]);
+                        scene, Vec3::Zero(), directions[i], lanes, nullptr, b, shadow[i]);
                     INFO("polar " << polar << ", azimuth " << azimuth << ", sample " << i << " of "
                                   << n);
                     CHECK((packed[i] == one).all());

@@ -584,9 +584,61 @@ TEST_CASE("a pixel's samples take every hero-wavelength stratum once, whatever t
             INFO(n << " samples, pixel " << pixel);
             CHECK(std::all_of(taken.begin(), taken.end(), [](int t) { return t == 1; }));
         }
-    // Not the LEDs' permutation: the two draws of a sample are not paired.
+    // Not the shadow rays' seed: the two draws of a sample are not paired.
     CHECK(chromasim::render::detail::wavelength_permutation_seed(1, 2) !=
-          chromasim::render::detail::led_permutation_seed(1, 2));
+          chromasim::render::detail::shadow_seed(1, 2));
+}
+
+TEST_CASE("a pixel's shadow-ray uniforms are stratified jointly and uniform over pixels",
+          "[render]") {
+    using chromasim::render::detail::shadow_seed;
+    using chromasim::render::detail::shadow_uniforms;
+    // 16 samples, after the per-pixel scrambling: (u1, u2), the point on the LED, one point in
+    // each of the 16 boxes of 2^a x 2^(4 - a) (a (0, 4, 2)-net); with u_led, two in each box
+    // of 2^a x 2^(3 - a) (a (1, 4, 2)-net).
+    for (const std::uint64_t pixel : {0ull, 17ull, 50175ull}) {
+        std::vector<std::array<double, 3>> u;
+        for (int k = 0; k < 16; ++k)
+            u.push_back(shadow_uniforms(k, 16, shadow_seed(0x5EEDull, pixel)));
+        for (int d0 = 0; d0 < 3; ++d0)
+            for (int d1 = d0 + 1; d1 < 3; ++d1) {
+                const int t = d0 == 0 ? 1 : 0, m = 4 - t; // u_led is dimension 0 here
+                for (int a = 0; a <= m; ++a) {
+                    const int nx = 1 << a, ny = (1 << m) >> a;
+                    std::vector<int> in_box(std::size_t(1 << m), 0);
+                    for (const auto& p : u)
+                        ++in_box[std::size_t(int(p[std::size_t(d0)] * nx) * ny +
+                                             int(p[std::size_t(d1)] * ny))];
+                    INFO("pixel " << pixel << ", dimensions " << d0 << ", " << d1 << ", boxes "
+                                  << nx << " x " << ny);
+                    CHECK(std::all_of(in_box.begin(), in_box.end(),
+                                      [t](int count) { return count == 1 << t; }));
+                }
+            }
+    }
+    // Any count: in [0, 1); over many pixels each sample's uniforms are uniform (the
+    // scrambling is what makes the estimate unbiased): the means of 20000 pixels within 4.5
+    // standard errors (0.0092) of 1/2, and a quarter of them below 1/4.
+    for (const int n : {1, 5, 24}) {
+        for (int k = 0; k < n; k += 2) {
+            std::array<double, 3> mean{}, below{};
+            const int pixels = 20000;
+            for (int pixel = 0; pixel < pixels; ++pixel) {
+                const auto u = shadow_uniforms(k, n, shadow_seed(9, std::uint64_t(pixel)));
+                for (std::size_t d = 0; d < 3; ++d) {
+                    REQUIRE(u[d] >= 0.0);
+                    REQUIRE(u[d] < 1.0);
+                    mean[d] += u[d] / pixels;
+                    below[d] += (u[d] < 0.25) / double(pixels);
+                }
+            }
+            for (std::size_t d = 0; d < 3; ++d) {
+                INFO(n << " samples, sample " << k << ", dimension " << d);
+                CHECK(mean[d] == Approx(0.5).margin(0.0092));
+                CHECK(below[d] == Approx(0.25).margin(0.0138));
+            }
+        }
+    }
 }
 
 TEST_CASE("determinism: the same bytes with 1 and 2 threads, spectral and RGB", "[render]") {
