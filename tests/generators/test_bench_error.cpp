@@ -56,8 +56,28 @@ TEST_CASE("bench error: a known bias recovered through noisy references", "[gene
     const auto raw = error_against(image, mean, {});
     CHECK(raw.less_reference_noise == Approx(raw.rms));
     CHECK(raw.rms > 2.0 * bias);
+    // Every pixel lit: the circle is the whole image (less the one value of 40,000 that makes
+    // no pixel).
+    CHECK(e.in_circle == Approx(e.less_reference_noise).epsilon(1e-4));
     // A reference identical to the image: no error at all.
     const auto none = error_against(image, image, {});
     CHECK(none.rms == 0.0);
     CHECK(none.max == 0.0);
+}
+
+TEST_CASE("bench error: 'in the circle' leaves out the pixels the reference leaves black",
+          "[generators][bench]") {
+    // Two pixels lit, off by 0.1 in every channel; two black in both images. The image's RMS
+    // is 0.1 / sqrt(2); the circle's 0.1; with a reference variance of 0.0019 on the lit values
+    // (and none on the black ones), sqrt(0.01 - 0.0019) = 0.09.
+    const std::vector<float> reference = {0.5f, 0.5f, 0.5f, 0.0f, 0.0f, 0.0f,
+                                          0.0f, 0.2f, 0.0f, 0.0f, 0.0f, 0.0f};
+    std::vector<float> image = reference, variance(12, 0.0f);
+    for (const std::size_t i : {0, 1, 2, 6, 7, 8}) {
+        image[i] += 0.1f;
+        variance[i] = 0.0019f;
+    }
+    const auto e = error_against(image, reference, variance);
+    CHECK(e.rms == Approx(0.1 / std::sqrt(2.0)).epsilon(1e-5));
+    CHECK(e.in_circle == Approx(0.09).epsilon(1e-4));
 }
