@@ -179,25 +179,25 @@ struct Renderer::Impl {
     }
 
     /// The sum over the pixel's samples (unscaled camera RGB; samples outside the image
-    /// circle are black), from the stream (seed, pixel index): one per stratum of the pixel's
-    /// grid, the wavelength set's and the shadow-ray LED's strata paired with them by a fixed
-    /// and a per-pixel permutation. `sum2` gets the squares of the scaled samples.
+    /// circle are black), from the stream (seed, pixel index) and the pixel's seeds: one per
+    /// cell of the pixel's multi-jittered grid, the wavelength strata paired with them by a
+    /// per-pixel permutation (and the fast integrator's shadow-ray uniforms,
+    /// sample_pixel_fast). `sum2` gets the squares of the scaled samples.
     detail::Rgb sample_pixel(int x, int y, const RenderSettings& settings, double scale,
                              detail::Rgb* sum2) const {
         const int count = settings.samples_per_pixel;
         const auto [nx, ny] = detail::strata_grid(count);
         const std::uint64_t index = std::uint64_t(y) * std::uint64_t(camera.width_px()) + x;
         detail::PixelRng rng(settings.seed, index);
-        const std::uint32_t lambda_seed = detail::wavelength_permutation_seed(settings.seed, index);
+        const detail::PixelSeeds seeds(settings.seed, index);
         detail::Rgb sum = detail::Rgb::Zero();
         if (settings.integrator == Integrator::fast) {
-            sample_pixel_fast(x, y, nx, ny, rng, detail::shadow_seed(settings.seed, index),
-                              lambda_seed, scale, sum, sum2);
+            sample_pixel_fast(x, y, nx, ny, rng, seeds, scale, sum, sum2);
             return sum;
         }
         for (int sy = 0; sy < ny; ++sy) {
             for (int sx = 0; sx < nx; ++sx) {
-                const Draw d = draw(x, y, sy * nx + sx, nx, ny, rng, lambda_seed);
+                const Draw d = draw(x, y, sy * nx + sx, nx, ny, rng, seeds);
                 if (!d.direction) continue;
                 const detail::Rgb value = sample_rgb(scene, camera.origin_mm(), *d.direction,
                                                      settings.integrator, d.u_lambda, rng);
@@ -208,24 +208,24 @@ struct Renderer::Impl {
         return sum;
     }
 
-    /// Sample k of a pixel's nx x ny: its camera ray through its position stratum (none outside
-    /// the camera's field) and its hero-wavelength uniform (a stratum by a per-pixel
-    /// permutation, so that position and wavelength strata do not pair up along the pixel's
-    /// rows; zero in RGB mode, which draws none), drawn from `rng` in that order.
+    /// Sample k of a pixel's nx x ny: its camera ray through its position (multi_jittered;
+    /// none outside the camera's field) and its hero-wavelength uniform (a stratum by a
+    /// per-pixel permutation, so that position and wavelength strata do not pair up along the
+    /// pixel's rows; zero in RGB mode, which draws none), drawn from `rng` in that order.
     struct Draw {
         std::optional<Vec3> direction;
         double u_lambda = 0.0;
     };
     Draw draw(int x, int y, int k, int nx, int ny, detail::PixelRng& rng,
-              std::uint32_t lambda_seed) const {
-        const int count = nx * ny, sx = k % nx, sy = k / nx;
+              const detail::PixelSeeds& seeds) const {
+        const int count = nx * ny;
         Draw d;
-        const double u = (sx + rng.uniform()) / nx;
-        const double v = (sy + rng.uniform()) / ny;
+        const double jx = rng.uniform(), jy = rng.uniform();
+        const auto [u, v] = detail::multi_jittered(k, nx, ny, seeds.position, jx, jy);
         d.direction = camera.direction(Eigen::Vector2d(x + u, y + v));
         if (wavelengths)
             d.u_lambda =
-                (detail::wavelength_stratum(k, count, lambda_seed) + rng.uniform()) / count;
+                (detail::wavelength_stratum(k, count, seeds.wavelength) + rng.uniform()) / count;
         return d;
     }
 
@@ -234,20 +234,18 @@ struct Renderer::Impl {
     /// no draws from `rng`); the samples taken 16 at a time through
     /// FastIntegrator::radiance16 (coherent packets).
     void sample_pixel_fast(int x, int y, int nx, int ny, detail::PixelRng& rng,
-                           std::uint32_t shadow_seed, std::uint32_t lambda_seed, double scale,
-                           detail::Rgb& sum, detail::Rgb* sum2) const {
-        const int count = nx * ny;
+                           const detail::PixelSeeds& seeds, double scale, detail::Rgb& sum,
+                           detail::Rgb* sum2) const {
         if (hero_sets.empty())
-            batches<detail::kRgbLanes>(x, y, nx, ny, count, rng, shadow_seed, lambda_seed, scale,
-                                       sum, sum2);
+            batches<detail::kRgbLanes>(x, y, nx, ny, rng, seeds, scale, sum, sum2);
         else
-            batches<detail::kSpectralLanes>(x, y, nx, ny, count, rng, shadow_seed, lambda_seed,
-                                            scale, sum, sum2);
+            batches<detail::kSpectralLanes>(x, y, nx, ny, rng, seeds, scale, sum, sum2);
     }
     template <int N>
-    void batches(int x, int y, int nx, int ny, int count, detail::PixelRng& rng,
-                 std::uint32_t shadow_seed, std::uint32_t lambda_seed, double scale,
-                 detail::Rgb& sum, detail::Rgb* sum2) const {
+    void batches(int x, int y, int nx, int ny, detail::PixelRng& rng,
+                 const detail::PixelSeeds& seeds, double scale, detail::Rgb& sum,
+                 detail::Rgb* sum2) const {
+        const int count = nx * ny;
         const detail::LaneOptics<N> rgb = [&] {
             if constexpr (N == detail::kRgbLanes)
                 return shading.rgb_lanes();
@@ -263,10 +261,10 @@ struct Renderer::Impl {
         for (int first = 0; first < count; first += 16) {
             std::size_t m = 0;
             for (int k = first; k < std::min(count, first + 16); ++k) {
-                const Draw d = draw(x, y, k, nx, ny, rng, lambda_seed);
+                const Draw d = draw(x, y, k, nx, ny, rng, seeds);
                 if (!d.direction) continue;
                 directions[m] = *d.direction;
-                const std::array<double, 3> u = detail::shadow_uniforms(k, count, shadow_seed);
+                const std::array<double, 3> u = detail::shadow_uniforms(k, count, seeds.shadow);
                 shadow[m] = {u[0], u[1], u[2]};
                 if constexpr (N == detail::kSpectralLanes) {
                     const HeroSet& h = hero_sets[std::size_t(

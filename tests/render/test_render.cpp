@@ -589,6 +589,39 @@ TEST_CASE("a pixel's samples take every hero-wavelength stratum once, whatever t
           chromasim::render::detail::shadow_seed(1, 2));
 }
 
+TEST_CASE("a pixel's positions are multi-jittered: one per cell, one per column and row",
+          "[render]") {
+    using chromasim::render::detail::multi_jittered;
+    using chromasim::render::detail::position_seed;
+    chromasim::render::detail::PixelRng rng(3, 4);
+    for (const auto& [nx, ny] : {std::pair{4, 4}, {4, 6}, {1, 7}, {3, 3}, {5, 5}})
+        for (const std::uint64_t pixel : {0ull, 17ull, 50175ull}) {
+            const int n = nx * ny;
+            std::vector<int> cell(std::size_t(n), 0), column(std::size_t(n), 0),
+                row(std::size_t(n), 0);
+            for (int k = 0; k < n; ++k) {
+                const auto [u, v] = multi_jittered(k, nx, ny, position_seed(0x5EEDull, pixel),
+                                                   rng.uniform(), rng.uniform());
+                REQUIRE(u >= 0.0);
+                REQUIRE(u < 1.0);
+                REQUIRE(v >= 0.0);
+                REQUIRE(v < 1.0);
+                CHECK(int(u * nx) == k % nx); // sample k in cell k of the jittered grid
+                CHECK(int(v * ny) == k / nx);
+                ++cell[std::size_t(int(v * ny) * nx + int(u * nx))];
+                ++column[std::size_t(int(u * n))];
+                ++row[std::size_t(int(v * n))];
+            }
+            INFO(nx << " x " << ny << ", pixel " << pixel);
+            const auto once = [](const std::vector<int>& c) {
+                return std::all_of(c.begin(), c.end(), [](int t) { return t == 1; });
+            };
+            CHECK(once(cell));
+            CHECK(once(column));
+            CHECK(once(row));
+        }
+}
+
 TEST_CASE("a pixel's shadow-ray uniforms are stratified jointly and uniform over pixels",
           "[render]") {
     using chromasim::render::detail::shadow_seed;
