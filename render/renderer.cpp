@@ -264,7 +264,7 @@ struct Renderer::Impl {
                 const Draw d = draw(x, y, k, nx, ny, rng, seeds);
                 if (!d.direction) continue;
                 directions[m] = *d.direction;
-                const std::array<double, 3> u = detail::shadow_uniforms(k, count, seeds.shadow);
+                const std::array<double, 3> u = detail::shadow_uniforms(k, count, seeds);
                 shadow[m] = {u[0], u[1], u[2]};
                 if constexpr (N == detail::kSpectralLanes) {
                     const HeroSet& h = hero_sets[std::size_t(

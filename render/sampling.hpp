@@ -101,8 +101,12 @@ inline std::uint32_t position_seed(std::uint64_t seed, std::uint64_t pixel) {
 struct PixelSeeds {
     PixelSeeds(std::uint64_t seed, std::uint64_t pixel)
         : position(position_seed(seed, pixel)),
-          wavelength(wavelength_permutation_seed(seed, pixel)), shadow(shadow_seed(seed, pixel)) {}
+          wavelength(wavelength_permutation_seed(seed, pixel)), shadow(shadow_seed(seed, pixel)) {
+        for (std::size_t d = 0; d < scramble.size(); ++d)
+            scramble[d] = std::uint32_t(mix64(shadow + 0x9E3779B9u * (d + 1)));
+    }
     std::uint32_t position, wavelength, shadow;
+    std::array<std::uint32_t, 3> scramble; ///< the shadow rays' Owen scrambling per dimension
 };
 
 /// Sample k's position in the pixel ([0, 1)^2) of its nx x ny: correlated multi-jittered
@@ -166,17 +170,16 @@ inline std::array<std::uint32_t, 3> sobol3(std::uint32_t i) {
 
 /// The uniforms (u_led, u1, u2) of the shadow ray of sample k of a pixel's n (the fast
 /// integrator: which LED, which point on it): point permute(k) of the first n of the 3-D
-/// Sobol sequence, Owen-scrambled per pixel and dimension (`seed`: the pixel's). The point on
+/// Sobol sequence, Owen-scrambled per pixel and dimension (`seeds`: the pixel's). The point on
 /// the LED (u1, u2) takes dimensions 0 and 1, whose strata are the finest, and the samples
 /// that pick one LED spread over its area. (Up to 0.7.0: u_led stratified alone, the LED
 /// point drawn at random; at 1.5 N + 0.6 N, 224 px, the joint strata take the noise from
 /// 1.27 to 1.10 % at 16 spp, docs/VALIDATION.md.)
-inline std::array<double, 3> shadow_uniforms(int k, int n, std::uint32_t seed) {
+inline std::array<double, 3> shadow_uniforms(int k, int n, const PixelSeeds& seeds) {
     const std::array<std::uint32_t, 3> x =
-        sobol3(std::uint32_t(permute(std::uint32_t(k), std::uint32_t(n), seed)));
+        sobol3(std::uint32_t(permute(std::uint32_t(k), std::uint32_t(n), seeds.shadow)));
     const auto scrambled = [&](std::size_t d) {
-        return double(owen_scramble(x[d], std::uint32_t(mix64(seed + 0x9E3779B9u * (d + 1))))) *
-               0x1.0p-32;
+        return double(owen_scramble(x[d], seeds.scramble[d])) * 0x1.0p-32;
     };
     return {scrambled(2), scrambled(0), scrambled(1)};
 }

@@ -624,7 +624,7 @@ TEST_CASE("a pixel's positions are multi-jittered: one per cell, one per column 
 
 TEST_CASE("a pixel's shadow-ray uniforms are stratified jointly and uniform over pixels",
           "[render]") {
-    using chromasim::render::detail::shadow_seed;
+    using chromasim::render::detail::PixelSeeds;
     using chromasim::render::detail::shadow_uniforms;
     // 16 samples, after the per-pixel scrambling: (u1, u2), the point on the LED, one point in
     // each of the 16 boxes of 2^a x 2^(4 - a) (a (0, 4, 2)-net); with u_led, two in each box
@@ -632,7 +632,7 @@ TEST_CASE("a pixel's shadow-ray uniforms are stratified jointly and uniform over
     for (const std::uint64_t pixel : {0ull, 17ull, 50175ull}) {
         std::vector<std::array<double, 3>> u;
         for (int k = 0; k < 16; ++k)
-            u.push_back(shadow_uniforms(k, 16, shadow_seed(0x5EEDull, pixel)));
+            u.push_back(shadow_uniforms(k, 16, PixelSeeds(0x5EEDull, pixel)));
         for (int d0 = 0; d0 < 3; ++d0)
             for (int d1 = d0 + 1; d1 < 3; ++d1) {
                 const int t = d0 == 0 ? 1 : 0, m = 4 - t; // u_led is dimension 0 here
@@ -657,7 +657,7 @@ TEST_CASE("a pixel's shadow-ray uniforms are stratified jointly and uniform over
             std::array<double, 3> mean{}, below{};
             const int pixels = 20000;
             for (int pixel = 0; pixel < pixels; ++pixel) {
-                const auto u = shadow_uniforms(k, n, shadow_seed(9, std::uint64_t(pixel)));
+                const auto u = shadow_uniforms(k, n, PixelSeeds(9, std::uint64_t(pixel)));
                 for (std::size_t d = 0; d < 3; ++d) {
                     REQUIRE(u[d] >= 0.0);
                     REQUIRE(u[d] < 1.0);
