@@ -163,7 +163,7 @@ inline std::array<std::uint32_t, 3> sobol3(std::uint32_t i) {
     }();
     std::array<std::uint32_t, 3> out = {reverse_bits(i), 0u, 0u};
     std::uint32_t v1 = 1u << 31;
-    for (std::size_t q = 0; i >> q; ++q, v1 ^= v1 >> 1)
+    for (std::size_t q = 0; q < 32 && i >> q; ++q, v1 ^= v1 >> 1)
         if (i >> q & 1u) out[1] ^= v1, out[2] ^= dim2[q];
     return out;
 }

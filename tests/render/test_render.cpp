@@ -649,6 +649,20 @@ TEST_CASE("a pixel's shadow-ray uniforms are stratified jointly and uniform over
                 }
             }
     }
+    // The unscrambled points, by hand from the direction numbers (1/2; 1/2, 1/4, ...; and
+    // 1/2, 3/4, 3/8 for x^2 + x + 1), in the natural order; and an index with its top bit set.
+    const double by_hand[8][3] = {{0, 0, 0},
+                                  {0.5, 0.5, 0.5},
+                                  {0.25, 0.75, 0.75},
+                                  {0.75, 0.25, 0.25},
+                                  {0.125, 0.625, 0.375},
+                                  {0.625, 0.125, 0.875},
+                                  {0.375, 0.375, 0.625},
+                                  {0.875, 0.875, 0.125}};
+    for (std::uint32_t i = 0; i < 8; ++i)
+        for (std::size_t d = 0; d < 3; ++d)
+            CHECK(chromasim::render::detail::sobol3(i)[d] * 0x1.0p-32 == by_hand[i][d]);
+    CHECK(chromasim::render::detail::sobol3(1u << 31)[0] == 1u);
     // Any count: in [0, 1); over many pixels each sample's uniforms are uniform (the
     // scrambling is what makes the estimate unbiased): the means of 20000 pixels within 4.5
     // standard errors (0.0092) of 1/2, and a quarter of them below 1/4.
