@@ -5,11 +5,12 @@
 // -------------------------------------------------------------------------------
 // Camera. FisheyeCamera: by default the equidistant fisheye at the origin looking along +z;
 // or OpenCV's Kannala-Brandt model, at any pose in the dome frame. Each pixel averages
-// `samples_per_pixel` jittered samples, one per stratum of an nx x ny grid (nx the largest
-// divisor of the count not above its square root). Samples outside the field (the image
-// circle) are black. The sample positions come from a SplitMix64 stream seeded with
-// (settings.seed, pixel index), so an image depends on neither the thread count nor the
-// order in which TBB runs the rows.
+// `samples_per_pixel` samples, one per cell of an nx x ny grid (nx the largest divisor of the
+// count not above its square root), multi-jittered so that they also fall one per column and
+// row of the pixel (detail::multi_jittered). Samples outside the field (the image circle) are
+// black. The jitters come from a SplitMix64 stream and the permutations from seeds, both from
+// (settings.seed, pixel index), so an image depends on neither the thread count nor the order
+// in which TBB runs the rows.
 //
 // Camera ray. Traced from the camera position through the scene, surface after surface (closest
 // hit, then again from kHitGap_mm past it, at most kMaxHits surfaces), with an RGB throughput that

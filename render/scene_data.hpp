@@ -184,8 +184,9 @@ struct LightCache {
 };
 
 struct RenderSettings {
-    /// Stratified jittered samples per pixel (positions, wavelengths, the LED of the shadow
-    /// ray, fast integrator).
+    /// Samples per pixel, stratified over the pixel's samples: multi-jittered positions,
+    /// wavelength strata, and (fast integrator) the shadow ray's LED and point on it from a
+    /// scrambled Sobol set (render/sampling.hpp).
     int samples_per_pixel = 4;
     std::uint64_t seed = 1; ///< same seed, same frame -> identical image
     /// Extra channels, computed only when asked for (Image).
