@@ -195,10 +195,11 @@ std::optional<Vec3> FisheyeCamera::camera_direction(const Eigen::Vector2d& pixel
     if (m_model == CameraModel::equidistant) {
         const double r_px = offset.norm();
         if (r_px > m_circle_radius_px) return std::nullopt;
+        if (r_px == 0.0) return Vec3(0.0, 0.0, 1.0);
+        // (cos phi, sin phi) is the offset over its length: no atan2, sin and cos per ray.
         const double theta = r_px / m_circle_radius_px * m_half_fov_rad;
-        const double phi = std::atan2(offset.y(), offset.x());
-        const double sin_theta = std::sin(theta);
-        return Vec3(sin_theta * std::cos(phi), sin_theta * std::sin(phi), std::cos(theta));
+        const double sin_theta_over_r = std::sin(theta) / r_px;
+        return Vec3(sin_theta_over_r * offset.x(), sin_theta_over_r * offset.y(), std::cos(theta));
     }
     const Eigen::Vector2d distorted = offset.cwiseQuotient(m_focal_px); // (x_d, y_d)
     const double theta_d = distorted.norm();
