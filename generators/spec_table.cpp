@@ -545,8 +545,8 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                           "Samples per pixel (multi-jittered positions, stratified "
                           "wavelengths and, for the fast integrator, the shadow ray's LED and "
                           "point on it from a scrambled Sobol set). Fast integrator at 224 px "
-                          "on 2 cores: 4 spp gives 2.8 % RMS of the white level in 0.14 s, "
-                          "16 spp 1.04 % in 0.41 s, 24 spp 0.82 % in 0.64 s (its own noise over "
+                          "on 2 cores: 4 spp gives 2.6 % RMS of the white level in 0.13 s, "
+                          "16 spp 0.89 % in 0.41 s, 24 spp 0.72 % in 0.65 s (its own noise over "
                           "the image; over the fisheye's circle 1.12 times that; "
                           "docs/VALIDATION.md); the path integrator needs thousands for 1 %.",
                           CHROMASIM_FIELD(render.samples_per_pixel)));
