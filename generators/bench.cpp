@@ -273,6 +273,7 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
         s.samples_per_pixel = spp;
         s.seed = seed;
         s.integrator = integrator_of(integrator);
+        s.batch_pixels = o.batch_pixels;
         return s;
     };
     render::Image ref;

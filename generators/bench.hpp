@@ -55,6 +55,9 @@ struct RenderBenchOptions {
     /// Seed of the rendered reference (the timed renders use 7). Two references with
     /// different seeds measure the reference's noise without trusting its variance channel.
     std::uint64_t reference_seed = 1;
+    /// Fast integrator below 16 spp: neighbouring pixels' samples in one packet
+    /// (RenderSettings::batch_pixels; false: each pixel alone, the same image).
+    bool batch_pixels = true;
 };
 
 /// Independent renders of one image averaged: per value, their mean and the variance of

@@ -996,8 +996,9 @@ LanesN<N> FastIntegrator::radiance(const EmbreeScene& scene, const Vec3& origin,
     const LaneOptics<N>* lane_sets[1] = {&lanes};
     const LanesN<N>* lambdas[1] = {lambda_nm};
     LanesN<N> out[1];
+    PixelRng* rngs[1] = {&rng};
     radiance16<N>(scene, origin, std::span<const Vec3>(&direction, 1), lane_sets, lambdas,
-                  std::span<const ShadowDraw>(&shadow, 1), rng, out);
+                  std::span<const ShadowDraw>(&shadow, 1), rngs, out);
     return out[0];
 }
 
@@ -1006,16 +1007,17 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
                                 std::span<const Vec3> directions,
                                 std::span<const LaneOptics<N>* const> lanes,
                                 std::span<const LanesN<N>* const> lambda_nm,
-                                std::span<const ShadowDraw> shadow, PixelRng& rng,
+                                std::span<const ShadowDraw> shadow, std::span<PixelRng* const> rng,
                                 std::span<LanesN<N>> out) const {
     if (!m_cache || m_direct.empty())
         throw std::logic_error("FastIntegrator::radiance called before build_cache/set_frame");
     const std::size_t n = directions.size();
     if (n > 16 || lanes.size() != n || lambda_nm.size() != n || shadow.size() != n ||
-        out.size() != n)
+        rng.size() != n || out.size() != n)
         throw std::invalid_argument("FastIntegrator::radiance16: " + std::to_string(n) +
                                     " directions; allowed: at most 16, one lane set, "
-                                    "wavelength set, LED uniform and result per direction");
+                                    "wavelength set, LED uniform, stream and result per "
+                                    "direction");
     constexpr double inf = std::numeric_limits<double>::infinity();
     const double eta = m_shading.optics().refractive_index;
     // The cavity level by level: a ray from o along d brings back an LED's light, nothing
@@ -1122,7 +1124,7 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
         const LaneOptics<N>& l = *lanes[i];
         const LanesN<N> led_radiance = l.led / m_path.led_area_mm2();
         const auto layers = [&](const Vec3& o, const Vec3& d, double tnear, const RayHit& hit) {
-            return inside(scene, o, d, tnear, l, lambda_nm[i], rng, shadow[i], &hit);
+            return inside(scene, o, d, tnear, l, lambda_nm[i], *rng[i], shadow[i], &hit);
         };
         LanesN<N> L = LanesN<N>::Zero();
         const Level& a = near[i];
@@ -1149,12 +1151,12 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
 template void FastIntegrator::radiance16(const EmbreeScene&, const Vec3&, std::span<const Vec3>,
                                          std::span<const LaneOptics<kRgbLanes>* const>,
                                          std::span<const LanesN<kRgbLanes>* const>,
-                                         std::span<const ShadowDraw>, PixelRng&,
+                                         std::span<const ShadowDraw>, std::span<PixelRng* const>,
                                          std::span<LanesN<kRgbLanes>>) const;
 template void FastIntegrator::radiance16(const EmbreeScene&, const Vec3&, std::span<const Vec3>,
                                          std::span<const LaneOptics<kSpectralLanes>* const>,
                                          std::span<const LanesN<kSpectralLanes>* const>,
-                                         std::span<const ShadowDraw>, PixelRng&,
+                                         std::span<const ShadowDraw>, std::span<PixelRng* const>,
                                          std::span<LanesN<kSpectralLanes>>) const;
 
 template LanesN<kRgbLanes> FastIntegrator::radiance(const EmbreeScene&, const Vec3&, const Vec3&,

@@ -140,16 +140,17 @@ public:
                        const LaneOptics<N>& lanes, const LanesN<N>* lambda_nm, PixelRng& rng,
                        ShadowDraw shadow = {}) const;
 
-    /// The radiance along up to 16 camera rays from one origin (a pixel's samples, in order),
-    /// as radiance() gives each: their first hits, their refracted and reflected rays and the
-    /// reflected rays' refraction into the far wall go to Embree as coherent packets of 16;
-    /// the rest (markers, shading, shadow rays) runs per sample, in order, from `rng`.
+    /// The radiance along up to 16 camera rays from one origin (the samples of a pixel, or of
+    /// a few neighbouring pixels, in order), as radiance() gives each: their first hits, their
+    /// refracted and reflected rays and the reflected rays' refraction into the far wall go to
+    /// Embree as coherent packets of 16; the rest (markers, shading, shadow rays) runs per
+    /// sample, in order, sample i drawing from *rng[i] (its pixel's stream).
     /// lanes[i], lambda_nm[i], shadow[i]: sample i's, as radiance() takes them.
     template <int N>
     void radiance16(const EmbreeScene& scene, const Vec3& origin_mm,
                     std::span<const Vec3> directions, std::span<const LaneOptics<N>* const> lanes,
                     std::span<const LanesN<N>* const> lambda_nm, std::span<const ShadowDraw> shadow,
-                    PixelRng& rng, std::span<LanesN<N>> out) const;
+                    std::span<PixelRng* const> rng, std::span<LanesN<N>> out) const;
 
     /// The shadow ray's direction from `p_mm`, the point of coating triangle `prim` at
     /// barycentric coordinates (u, v), towards `led_point_mm` on LED k, as the samples take it

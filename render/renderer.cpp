@@ -180,8 +180,8 @@ struct Renderer::Impl {
     /// The sum over the pixel's samples (unscaled camera RGB; samples outside the image
     /// circle are black), from the stream (seed, pixel index) and the pixel's seeds: one per
     /// cell of the pixel's multi-jittered grid, the wavelength strata paired with them by a
-    /// per-pixel permutation (and the fast integrator's shadow-ray uniforms,
-    /// sample_pixel_fast). `sum2` gets the squares of the scaled samples.
+    /// per-pixel permutation. `sum2` gets the squares of the scaled samples. (The fast
+    /// integrator's pixels: sample_pixels_fast.)
     detail::Rgb sample_pixel(int x, int y, const RenderSettings& settings, double scale,
                              detail::Rgb* sum2) const {
         const int count = settings.samples_per_pixel;
@@ -190,10 +190,6 @@ struct Renderer::Impl {
         detail::PixelRng rng(settings.seed, index);
         const detail::PixelSeeds seeds(settings.seed, index);
         detail::Rgb sum = detail::Rgb::Zero();
-        if (settings.integrator == Integrator::fast) {
-            sample_pixel_fast(x, y, nx, ny, rng, seeds, scale, sum, sum2);
-            return sum;
-        }
         for (int sy = 0; sy < ny; ++sy) {
             for (int sx = 0; sx < nx; ++sx) {
                 const Draw d = draw(x, y, sy * nx + sx, nx, ny, rng, seeds);
@@ -228,22 +224,26 @@ struct Renderer::Impl {
         return d;
     }
 
-    /// sample_pixel for the fast integrator: the same strata and draws per sample, plus the
-    /// shadow rays' uniforms, jointly stratified over the pixel's samples (shadow_uniforms:
-    /// no draws from `rng`); the samples taken 16 at a time through
-    /// FastIntegrator::radiance16 (coherent packets).
-    void sample_pixel_fast(int x, int y, int nx, int ny, detail::PixelRng& rng,
-                           const detail::PixelSeeds& seeds, double scale, detail::Rgb& sum,
-                           detail::Rgb* sum2) const {
+    /// sample_pixel for the fast integrator, for `pixels` neighbouring pixels of row y from x
+    /// (sums[j], sum2[j]: pixel x + j's, sum2 empty without the variance): the same strata and
+    /// draws per sample, each pixel from its own stream and seeds, plus the shadow rays'
+    /// uniforms, jointly stratified over the pixel's samples (shadow_uniforms: no draws from
+    /// the stream). The samples, pixel after pixel, go 16 at a time through
+    /// FastIntegrator::radiance16 (coherent packets); a pixel's draws come in the same order
+    /// however many pixels share a packet, so the image does not depend on it.
+    void sample_pixels_fast(int x, int y, int pixels, int nx, int ny,
+                            const RenderSettings& settings, double scale,
+                            std::span<detail::Rgb> sums, std::span<detail::Rgb> sum2) const {
         if (hero_sets.empty())
-            batches<detail::kRgbLanes>(x, y, nx, ny, rng, seeds, scale, sum, sum2);
+            batches<detail::kRgbLanes>(x, y, pixels, nx, ny, settings, scale, sums, sum2);
         else
-            batches<detail::kSpectralLanes>(x, y, nx, ny, rng, seeds, scale, sum, sum2);
+            batches<detail::kSpectralLanes>(x, y, pixels, nx, ny, settings, scale, sums, sum2);
     }
+    /// The most pixels sample_pixels_fast takes at once: 16 samples' worth.
+    static constexpr int kMaxBatchPixels = 16;
     template <int N>
-    void batches(int x, int y, int nx, int ny, detail::PixelRng& rng,
-                 const detail::PixelSeeds& seeds, double scale, detail::Rgb& sum,
-                 detail::Rgb* sum2) const {
+    void batches(int x, int y, int pixels, int nx, int ny, const RenderSettings& settings,
+                 double scale, std::span<detail::Rgb> sums, std::span<detail::Rgb> sum2) const {
         const int count = nx * ny;
         const detail::LaneOptics<N> rgb = [&] {
             if constexpr (N == detail::kRgbLanes)
@@ -251,20 +251,38 @@ struct Renderer::Impl {
             else
                 return detail::LaneOptics<N>{};
         }();
+        std::array<std::optional<detail::PixelRng>, kMaxBatchPixels> rngs;
+        std::array<std::optional<detail::PixelSeeds>, kMaxBatchPixels> seeds;
+        for (int j = 0; j < pixels; ++j) {
+            const std::uint64_t index =
+                std::uint64_t(y) * std::uint64_t(camera.width_px()) + std::uint64_t(x + j);
+            rngs[std::size_t(j)].emplace(settings.seed, index);
+            seeds[std::size_t(j)].emplace(settings.seed, index);
+            sums[std::size_t(j)] = detail::Rgb::Zero();
+            if (!sum2.empty()) sum2[std::size_t(j)] = detail::Rgb::Zero();
+        }
         std::array<Vec3, 16> directions;
         std::array<const detail::LaneOptics<N>*, 16> lanes;
         std::array<const detail::LanesN<N>*, 16> lambda;
         std::array<const HeroSet*, 16> sets;
         std::array<detail::ShadowDraw, 16> shadow;
+        std::array<detail::PixelRng*, 16> streams;
+        std::array<int, 16> owner; // the sample's pixel, 0 .. pixels - 1
         std::array<detail::LanesN<N>, 16> radiance;
-        for (int first = 0; first < count; first += 16) {
+        const int total = pixels * count;
+        for (int first = 0; first < total; first += 16) {
             std::size_t m = 0;
-            for (int k = first; k < std::min(count, first + 16); ++k) {
-                const Draw d = draw(x, y, k, nx, ny, rng, seeds);
+            for (int s = first; s < std::min(total, first + 16); ++s) {
+                const int j = s / count, k = s % count;
+                detail::PixelRng& rng = *rngs[std::size_t(j)];
+                const detail::PixelSeeds& seed = *seeds[std::size_t(j)];
+                const Draw d = draw(x + j, y, k, nx, ny, rng, seed);
                 if (!d.direction) continue;
                 directions[m] = *d.direction;
-                const std::array<double, 3> u = detail::shadow_uniforms(k, count, seeds);
+                const std::array<double, 3> u = detail::shadow_uniforms(k, count, seed);
                 shadow[m] = {u[0], u[1], u[2]};
+                streams[m] = &rng;
+                owner[m] = j;
                 if constexpr (N == detail::kSpectralLanes) {
                     const HeroSet& h = hero_sets[std::size_t(
                         std::clamp(int(d.u_lambda * kHeroSets), 0, kHeroSets - 1))];
@@ -277,7 +295,8 @@ struct Renderer::Impl {
             fast.radiance16<N>(scene, camera.origin_mm(), std::span(directions.data(), m),
                                std::span<const detail::LaneOptics<N>* const>(lanes.data(), m),
                                std::span<const detail::LanesN<N>* const>(lambda.data(), m),
-                               std::span<const detail::ShadowDraw>(shadow.data(), m), rng,
+                               std::span<const detail::ShadowDraw>(shadow.data(), m),
+                               std::span<detail::PixelRng* const>(streams.data(), m),
                                std::span(radiance.data(), m));
             for (std::size_t i = 0; i < m; ++i) {
                 detail::Rgb value;
@@ -285,8 +304,9 @@ struct Renderer::Impl {
                     value = detail::Rgb(sets[i]->to_rgb * radiance[i].matrix());
                 else
                     value = detail::Rgb(radiance[i].template head<3>());
-                sum += value;
-                if (sum2) *sum2 += (value * scale).square();
+                const auto j = std::size_t(owner[i]);
+                sums[j] += value;
+                if (!sum2.empty()) sum2[j] += (value * scale).square();
             }
         }
     }
@@ -436,29 +456,50 @@ Image Renderer::render(const RenderSettings& settings) const {
     const Impl& m = *m_impl;
     const double scale = m.scale_for(settings);
     const int n = settings.samples_per_pixel;
+    // The fast integrator takes up to 16 / n pixels of a row at once (batch_pixels).
+    const bool fast = settings.integrator == Integrator::fast;
+    const int batch =
+        fast && settings.batch_pixels ? std::max(1, std::min(Impl::kMaxBatchPixels, 16 / n)) : 1;
+    const auto [nx, ny] = detail::strata_grid(n);
+    // Pixel (x, y)'s value from its sample sum (and sum of squares).
+    const auto write = [&](int x, int y, const detail::Rgb& sum, const detail::Rgb& sum2) {
+        const std::size_t p = std::size_t(y) * image.width + x;
+        const detail::Rgb value = sum * (scale / n);
+        float* out = image.pixel(x, y);
+        for (int c = 0; c < 3; ++c)
+            out[c] = float(value[c]);
+        if (settings.variance && n > 1) {
+            // Sample variance (n - 1 in the denominator) over n, floored at 0 against
+            // round-off.
+            const detail::Rgb var = ((sum2 - n * value.square()) / (n - 1.0) / n).max(0.0);
+            for (int c = 0; c < 3; ++c)
+                image.variance[3 * p + std::size_t(c)] = float(var[c]);
+        }
+        if (settings.marker_ids) {
+            const auto [inner, outer] = m.marker_ids(x, y);
+            image.inner_marker_id[p] = inner;
+            image.outer_marker_id[p] = outer;
+        }
+    };
     tbb::parallel_for(tbb::blocked_range<int>(0, image.height), [&](const auto& rows) {
+        std::array<detail::Rgb, Impl::kMaxBatchPixels> sums, sum2;
         for (int y = rows.begin(); y != rows.end(); ++y) {
-            for (int x = 0; x < image.width; ++x) {
-                const std::size_t p = std::size_t(y) * image.width + x;
-                detail::Rgb sum2 = detail::Rgb::Zero();
-                const detail::Rgb value =
-                    m.sample_pixel(x, y, settings, scale, settings.variance ? &sum2 : nullptr) *
-                    (scale / n);
-                float* out = image.pixel(x, y);
-                for (int c = 0; c < 3; ++c)
-                    out[c] = float(value[c]);
-                if (settings.variance && n > 1) {
-                    // Sample variance (n - 1 in the denominator) over n, floored at 0 against
-                    // round-off.
-                    const detail::Rgb var = ((sum2 - n * value.square()) / (n - 1.0) / n).max(0.0);
-                    for (int c = 0; c < 3; ++c)
-                        image.variance[3 * p + std::size_t(c)] = float(var[c]);
+            for (int x = 0; x < image.width; x += batch) {
+                const int pixels = std::min(batch, image.width - x);
+                if (fast) {
+                    m.sample_pixels_fast(x, y, pixels, nx, ny, settings, scale,
+                                         std::span(sums.data(), std::size_t(pixels)),
+                                         settings.variance
+                                             ? std::span(sum2.data(), std::size_t(pixels))
+                                             : std::span<detail::Rgb>{});
+                } else {
+                    sum2[0] = detail::Rgb::Zero();
+                    sums[0] = m.sample_pixel(x, y, settings, scale,
+                                             settings.variance ? &sum2[0] : nullptr);
                 }
-                if (settings.marker_ids) {
-                    const auto [inner, outer] = m.marker_ids(x, y);
-                    image.inner_marker_id[p] = inner;
-                    image.outer_marker_id[p] = outer;
-                }
+                for (int j = 0; j < pixels; ++j)
+                    write(x + j, y, sums[std::size_t(j)],
+                          settings.variance ? sum2[std::size_t(j)] : detail::Rgb::Zero());
             }
         }
     });

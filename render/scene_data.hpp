@@ -193,6 +193,12 @@ struct RenderSettings {
     bool marker_ids = false; ///< the marker seen through each pixel's centre, per layer
     bool variance = false;   ///< per-pixel variance estimate of the mean
     Integrator integrator = Integrator::direct;
+    /// Fast integrator below 16 samples per pixel: trace the samples of up to 16 / n
+    /// neighbouring pixels of a row together, so that their rays go to Embree as packets of 16
+    /// (at 4 spp a pixel's 4 rays alone are too few for a packet). Each pixel keeps its own
+    /// stream and strata, so the image is the same bytes either way; false: each pixel alone
+    /// (for tests and `bench render`).
+    bool batch_pixels = true;
 };
 
 /// Linear RGB image, row-major, top row first, 3 floats per pixel; extra channels are empty

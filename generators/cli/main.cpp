@@ -257,6 +257,10 @@ int main(int argc, char** argv) {
     bench_render->add_flag("!--no-shadow-cull", render_bench.light_cache.cull_shadows,
                            "fast integrator: trace every shadow ray, also those that provably "
                            "meet no marker (the same image; to measure what the culling saves)");
+    bench_render->add_flag("!--no-batch-pixels", render_bench.batch_pixels,
+                           "fast integrator: trace each pixel's samples alone, never with its "
+                           "neighbours' in one packet (the same image; to measure what the "
+                           "batching saves below 16 spp)");
     bench_render
         ->add_option("--reference-in", render_bench.reference_in,
                      "read the reference from this EXR (written by --reference-out); two or "

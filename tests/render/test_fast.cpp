@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <numbers>
 
 using namespace chromasim::render;
@@ -386,6 +387,50 @@ TEST_CASE("fast integrator: the light cache's LED light does not depend on how m
     CHECK(few == more); // the same streams per vertex and LED: the same bytes
 }
 
+TEST_CASE("fast integrator: neighbouring pixels traced together give each pixel the bytes it "
+          "gets alone, in RGB and spectral mode, with variance and marker ids",
+          "[render][fast]") {
+    SensorFrame rest = clear_dome(16, 64, 24, 96);
+    rest.inner_markers = box_markers(10.75, 0.5, 1.0);
+    rest.outer_markers = box_markers(12.45, 0.5, 1.0);
+    rest.triangles_per_marker = 12;
+    const SensorFrame pressed = pressed_flat(rest);
+    OpticsParams spectral;
+    spectral.spectra = load_sensor_spectra(SensorSpectraFiles::in_directory(
+        std::filesystem::path(CHROMASIM_SOURCE_DIR) / "assets" / "spectra"));
+    for (const OpticsParams& optics : {OpticsParams{}, spectral}) {
+        // 23 px wide: batches of 16 / n pixels end part-way along each row.
+        Renderer renderer(CameraParams{23, 17, 84.0}, optics);
+        LightCacheSettings cache;
+        cache.paths_per_vertex = 8;
+        cache.direct_samples = 4;
+        renderer.set_light_cache(rest, cache);
+        renderer.set_frame(pressed);
+        for (const int spp : {1, 3, 4, 5, 8, 16, 20}) {
+            RenderSettings settings{spp, 11};
+            settings.integrator = Integrator::fast;
+            settings.variance = true;
+            settings.marker_ids = true;
+            settings.batch_pixels = true;
+            const Image together = renderer.render(settings);
+            settings.batch_pixels = false;
+            const Image alone = renderer.render(settings);
+            INFO("spectral " << bool(optics.spectra) << ", " << spp << " spp");
+            double lit = 0.0;
+            for (const float v : alone.rgb)
+                lit += v;
+            CHECK(lit > 0.0);
+            CHECK(together.rgb == alone.rgb);
+            CHECK(together.variance == alone.variance);
+            CHECK(together.inner_marker_id == alone.inner_marker_id);
+            CHECK(together.outer_marker_id == alone.outer_marker_id);
+            // And another seed gives another image: the comparison can fail.
+            settings.seed = 12;
+            CHECK(renderer.render(settings).rgb != alone.rgb);
+        }
+    }
+}
+
 TEST_CASE("fast integrator: shadow rays culled where they provably meet nothing leave the image "
           "as it was, at rest, pressed and where the coating folds inwards",
           "[render][fast]") {
@@ -465,12 +510,19 @@ TEST_CASE("fast integrator: a pixel's samples traced 16 at a time in Embree pack
                 const std::vector<const LaneOptics<kRgbLanes>*> lane_sets(n, &lanes);
                 const std::vector<const RgbLanes*> lambdas(n, nullptr);
                 std::vector<RgbLanes> packed(n);
+                // Two pixels' streams: the first half of the samples draws from one, the
+                // rest from the other (a packet of two neighbouring pixels' samples).
                 PixelRng a(7, std::uint64_t(polar * 1000 + azimuth)), b = a;
+                PixelRng a2(8, std::uint64_t(polar * 1000 + azimuth)), b2 = a2;
+                std::vector<PixelRng*> streams(n, &a);
+                for (std::size_t i = n / 2; i < n; ++i)
+                    streams[i] = &a2;
                 fast.radiance16<kRgbLanes>(scene, Vec3::Zero(), directions, lane_sets, lambdas,
-                                           shadow, a, packed);
+                                           shadow, streams, packed);
                 for (std::size_t i = 0; i < n; ++i) {
-                    const RgbLanes one = fast.radiance<kRgbLanes>(
-                        scene, Vec3::Zero(), directions[i], lanes, nullptr, b, shadow[i]);
+                    const RgbLanes one =
+                        fast.radiance<kRgbLanes>(scene, Vec3::Zero(), directions[i], lanes, nullptr,
+                                                 i < n / 2 ? b : b2, shadow[i]);
                     INFO("polar " << polar << ", azimuth " << azimuth << ", sample " << i << " of "
                                   << n);
                     CHECK((packed[i] == one).all());
@@ -478,13 +530,14 @@ TEST_CASE("fast integrator: a pixel's samples traced 16 at a time in Embree pack
                     reflected += polar >= 75.0 && one.maxCoeff() > 0.0;
                 }
                 CHECK(a.uniform() == b.uniform()); // the same draws, in the same order
+                CHECK(a2.uniform() == b2.uniform());
             }
         }
     }
     CHECK(compared == 8 * 3 * 21);
     CHECK(reflected > 0);
-    CHECK_THROWS_WITH(fast.radiance16<kRgbLanes>(
-                          scene, Vec3::Zero(), std::vector<Vec3>(17, Vec3::UnitZ()), {}, {}, {},
-                          *std::make_unique<PixelRng>(1, 1), std::span<RgbLanes>{}),
+    CHECK_THROWS_WITH(fast.radiance16<kRgbLanes>(scene, Vec3::Zero(),
+                                                 std::vector<Vec3>(17, Vec3::UnitZ()), {}, {}, {},
+                                                 {}, std::span<RgbLanes>{}),
                       Catch::Contains("allowed: at most 16"));
 }
