@@ -269,10 +269,13 @@ struct Renderer::Impl {
         std::array<detail::PixelRng*, 16> streams;
         std::array<int, 16> owner; // the sample's pixel, 0 .. pixels - 1
         std::array<detail::LanesN<N>, 16> radiance;
+        // Packets of equal size: 20 samples as 10 + 10, not 16 + 4 (a packet of 4 costs
+        // nearly what one of 16 does).
         const int total = pixels * count;
-        for (int first = 0; first < total; first += 16) {
+        const int packets = (total + 15) / 16, size = (total + packets - 1) / packets;
+        for (int first = 0; first < total; first += size) {
             std::size_t m = 0;
-            for (int s = first; s < std::min(total, first + 16); ++s) {
+            for (int s = first; s < std::min(total, first + size); ++s) {
                 const int j = s / count, k = s % count;
                 detail::PixelRng& rng = *rngs[std::size_t(j)];
                 const detail::PixelSeeds& seed = *seeds[std::size_t(j)];
