@@ -52,6 +52,15 @@ std::vector<Vec3> frame_vectors(const FastIntegrator& fast, int vertices, int le
 
 } // namespace
 
+/// The coarse clear dome with a ring of box markers in each layer (12 triangles each).
+SensorFrame dome_with_box_markers() {
+    SensorFrame rest = clear_dome(16, 64, 24, 96);
+    rest.inner_markers = box_markers(10.75, 0.5, 1.0);
+    rest.outer_markers = box_markers(12.45, 0.5, 1.0);
+    rest.triangles_per_marker = 12;
+    return rest;
+}
+
 TEST_CASE("fast integrator: on a dome without markers it agrees with the path integrator",
           "[render][fast]") {
     const SensorFrame frame = clear_dome(16, 64, 24, 96);
@@ -390,10 +399,7 @@ TEST_CASE("fast integrator: the light cache's LED light does not depend on how m
 TEST_CASE("fast integrator: neighbouring pixels traced together give each pixel the bytes it "
           "gets alone, in RGB and spectral mode, with variance and marker ids",
           "[render][fast]") {
-    SensorFrame rest = clear_dome(16, 64, 24, 96);
-    rest.inner_markers = box_markers(10.75, 0.5, 1.0);
-    rest.outer_markers = box_markers(12.45, 0.5, 1.0);
-    rest.triangles_per_marker = 12;
+    const SensorFrame rest = dome_with_box_markers();
     const SensorFrame pressed = pressed_flat(rest);
     OpticsParams spectral;
     spectral.spectra = load_sensor_spectra(SensorSpectraFiles::in_directory(
@@ -434,10 +440,7 @@ TEST_CASE("fast integrator: neighbouring pixels traced together give each pixel 
 TEST_CASE("fast integrator: shadow rays culled where they provably meet nothing leave the image "
           "as it was, at rest, pressed and where the coating folds inwards",
           "[render][fast]") {
-    SensorFrame rest = clear_dome(16, 64, 24, 96);
-    rest.inner_markers = box_markers(10.75, 0.5, 1.0);
-    rest.outer_markers = box_markers(12.45, 0.5, 1.0);
-    rest.triangles_per_marker = 12;
+    const SensorFrame rest = dome_with_box_markers();
     // A groove 1.8 mm deep on the coating's ring at 61.9 degrees: shadow rays from above it
     // meet its wall (the culling that leaves out the folds fails here, 0.08 off).
     const SensorFrame groove = grooved(rest, 60.0, 63.0, 1.8);
@@ -477,10 +480,7 @@ TEST_CASE("fast integrator: shadow rays culled where they provably meet nothing 
 TEST_CASE("fast integrator: a pixel's samples traced 16 at a time in Embree packets bring back "
           "what they bring back one by one, to the bit",
           "[render][fast]") {
-    SensorFrame rest = clear_dome(16, 64, 24, 96);
-    rest.inner_markers = box_markers(10.75, 0.5, 1.0);
-    rest.outer_markers = box_markers(12.45, 0.5, 1.0);
-    rest.triangles_per_marker = 12;
+    const SensorFrame rest = dome_with_box_markers();
     const SensorFrame pressed = pressed_flat(rest);
     FastOnFrame on(pressed);
     auto& [scene, shading, path, fast] = on;
