@@ -228,9 +228,9 @@ struct Renderer::Impl {
     /// (sums[j], sum2[j]: pixel x + j's, sum2 empty without the variance): the same strata and
     /// draws per sample, each pixel from its own stream and seeds, plus the shadow rays'
     /// uniforms, jointly stratified over the pixel's samples (shadow_uniforms: no draws from
-    /// the stream). The samples, pixel after pixel, go 16 at a time through
-    /// FastIntegrator::radiance16 (coherent packets); a pixel's draws come in the same order
-    /// however many pixels share a packet, so the image does not depend on it.
+    /// the stream). The samples, pixel after pixel, go through FastIntegrator::radiance16 in
+    /// packets of equal size, at most 16 (coherent packets); a pixel's draws come in the same
+    /// order however many pixels share a packet, so the image does not depend on it.
     void sample_pixels_fast(int x, int y, int pixels, int nx, int ny,
                             const RenderSettings& settings, double scale,
                             std::span<detail::Rgb> sums, std::span<detail::Rgb> sum2) const {
@@ -269,8 +269,8 @@ struct Renderer::Impl {
         std::array<detail::PixelRng*, 16> streams;
         std::array<int, 16> owner; // the sample's pixel, 0 .. pixels - 1
         std::array<detail::LanesN<N>, 16> radiance;
-        // Packets of equal size: 20 samples as 10 + 10, not 16 + 4 (a packet of 4 costs
-        // nearly what one of 16 does).
+        // Packets of equal size: 20 samples as 10 + 10, not 16 + 4 (a part-empty packet
+        // wastes Embree's lanes; docs/VALIDATION.md, session 15).
         const int total = pixels * count;
         const int packets = (total + 15) / 16, size = (total + packets - 1) / packets;
         for (int first = 0; first < total; first += size) {
