@@ -182,10 +182,8 @@ struct Renderer::Impl {
     /// cell of the pixel's multi-jittered grid, the wavelength strata paired with them by a
     /// per-pixel permutation. `sum2` gets the squares of the scaled samples. (The fast
     /// integrator's pixels: sample_pixels_fast.)
-    detail::Rgb sample_pixel(int x, int y, const RenderSettings& settings, double scale,
-                             detail::Rgb* sum2) const {
-        const int count = settings.samples_per_pixel;
-        const auto [nx, ny] = detail::strata_grid(count);
+    detail::Rgb sample_pixel(int x, int y, int nx, int ny, const RenderSettings& settings,
+                             double scale, detail::Rgb* sum2) const {
         const std::uint64_t index = std::uint64_t(y) * std::uint64_t(camera.width_px()) + x;
         detail::PixelRng rng(settings.seed, index);
         const detail::PixelSeeds seeds(settings.seed, index);
@@ -461,8 +459,7 @@ Image Renderer::render(const RenderSettings& settings) const {
     const int n = settings.samples_per_pixel;
     // The fast integrator takes up to 16 / n pixels of a row at once (batch_pixels).
     const bool fast = settings.integrator == Integrator::fast;
-    const int batch =
-        fast && settings.batch_pixels ? std::max(1, std::min(Impl::kMaxBatchPixels, 16 / n)) : 1;
+    const int batch = fast && settings.batch_pixels ? std::max(1, Impl::kMaxBatchPixels / n) : 1;
     const auto [nx, ny] = detail::strata_grid(n);
     // Pixel (x, y)'s value from its sample sum (and sum of squares).
     const auto write = [&](int x, int y, const detail::Rgb& sum, const detail::Rgb& sum2) {
@@ -497,7 +494,7 @@ Image Renderer::render(const RenderSettings& settings) const {
                                              : std::span<detail::Rgb>{});
                 } else {
                     sum2[0] = detail::Rgb::Zero();
-                    sums[0] = m.sample_pixel(x, y, settings, scale,
+                    sums[0] = m.sample_pixel(x, y, nx, ny, settings, scale,
                                              settings.variance ? &sum2[0] : nullptr);
                 }
                 for (int j = 0; j < pixels; ++j)
