@@ -365,25 +365,35 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
                 out << "| fast | " << mode << " | frame update | " << std::setprecision(1)
                     << 1e3 * update_s << " (once per frame) | | | | |\n";
             }
-            for (int spp : o.samples_per_pixel) {
-                render::Image img;
-                const double t = time_median(o.repeats, [&] {
-                    img = renderer.render(settings(spp, kTimedSeed, integrator));
-                });
-                const ErrorAgainstReference error = error_against(img.rgb, ref.rgb, ref.variance);
-                if (spp == o.samples_per_pixel.front()) { // rays of one render, counted once
-                    renderer.count_rays(true);
-                    renderer.render(settings(spp, kTimedSeed, integrator));
-                    rays[integrator + " " + mode] = {double(renderer.rays_counted()), t};
-                    renderer.count_rays(false);
+            // The shadow filters apply to the fast integrator only.
+            const std::vector<double> filters =
+                integrator == "fast" ? o.shadow_filter_px : std::vector<double>{0.0};
+            for (const double filter : filters)
+                for (int spp : o.samples_per_pixel) {
+                    render::RenderSettings rs = settings(spp, kTimedSeed, integrator);
+                    rs.shadow_filter_px = filter;
+                    render::Image img;
+                    const double t = time_median(o.repeats, [&] { img = renderer.render(rs); });
+                    const ErrorAgainstReference error =
+                        error_against(img.rgb, ref.rgb, ref.variance);
+                    if (spp == o.samples_per_pixel.front() && filter == filters.front()) {
+                        // rays of one render, counted once
+                        renderer.count_rays(true);
+                        renderer.render(rs);
+                        rays[integrator + " " + mode] = {double(renderer.rays_counted()), t};
+                        renderer.count_rays(false);
+                    }
+                    std::ostringstream name;
+                    name << integrator;
+                    if (filter > 0.0)
+                        name << ", shadow filter " << std::setprecision(2) << filter << " px";
+                    out << "| " << name.str() << " | " << mode << " | " << spp << " | "
+                        << std::setprecision(1) << 1e3 * t << " | " << std::setprecision(3)
+                        << 100 * error.rms / kWhite << " | "
+                        << 100 * error.less_reference_noise / kWhite << " | "
+                        << 100 * error.in_circle / kWhite << " | " << 100 * error.max / kWhite
+                        << " |\n";
                 }
-                out << "| " << integrator << " | " << mode << " | " << spp << " | "
-                    << std::setprecision(1) << 1e3 * t << " | " << std::setprecision(3)
-                    << 100 * error.rms / kWhite << " | "
-                    << 100 * error.less_reference_noise / kWhite << " | "
-                    << 100 * error.in_circle / kWhite << " | " << 100 * error.max / kWhite
-                    << " |\n";
-            }
         }
     // Embree's raw rate on the same scene: incoherent rays from the camera and the LEDs in
     // uniformly random directions, nothing but closest_hit, in parallel as the renderer does.

@@ -159,6 +159,7 @@ render::RenderSettings render_settings(const Spec& spec) {
     s.integrator = spec.render.integrator == "path"   ? render::Integrator::path
                    : spec.render.integrator == "fast" ? render::Integrator::fast
                                                       : render::Integrator::direct;
+    s.shadow_filter_px = spec.render.fast.shadow_filter_px;
     return s;
 }
 

@@ -149,6 +149,7 @@ struct Spec {
             bool refresh_direct = true;
             double refresh_threshold = 0.5;
             bool scale_indirect = true;
+            double shadow_filter_px = 0.7; ///< render::RenderSettings::shadow_filter_px
         } fast;
         /// The camera sensor model (render/sensor_model.hpp); the PNG only, the EXR stays the
         /// noise-free render.

@@ -545,10 +545,13 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                           "Samples per pixel (multi-jittered positions, stratified "
                           "wavelengths and, for the fast integrator, the shadow ray's LED and "
                           "point on it from a scrambled Sobol set). Fast integrator at 224 px "
-                          "on 2 cores: 4 spp gives 2.6 % RMS of the white level in 0.13 s, "
-                          "16 spp 0.89 % in 0.41 s, 24 spp 0.72 % in 0.65 s (its own noise over "
-                          "the image; over the fisheye's circle 1.12 times that; "
-                          "docs/VALIDATION.md); the path integrator needs thousands for 1 %.",
+                          "on 2 cores, with the default shadow filter "
+                          "(render.fast.shadow_filter_px): 4 spp gives 1.8 % RMS of the white "
+                          "level in 0.11 s, 8 spp 1.1 % in 0.21 s, 12 spp 0.83 % in 0.32 s, "
+                          "16 spp 0.69 % in 0.41 s (its own noise and the filter's bias over "
+                          "the image; over the fisheye's circle 1.12 times that; unfiltered, "
+                          "4 spp 2.6 %, 16 spp 0.89 %; docs/VALIDATION.md); the path "
+                          "integrator needs thousands for 1 %.",
                           CHROMASIM_FIELD(render.samples_per_pixel)));
     out.push_back(number("render.exposure", 1, left_open(0, 100), "",
                          "Linear scale applied to the rendered radiance before writing.",
@@ -623,6 +626,19 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                           "per frame "
                           "(docs/VALIDATION.md).",
                           CHROMASIM_FIELD(render.fast.scale_indirect)));
+    out.push_back(
+        number("render.fast.shadow_filter_px", 0.7, closed(0, render::kMaxShadowFilterPx), "px",
+               "Fast integrator: standard deviation of the shadow filter, in pixels; 0: none. The "
+               "LEDs' direct light in a pixel is taken without the shadow rays' noise (the light "
+               "cache's unshadowed light) times the fraction that gets through the markers' "
+               "shadows, that fraction averaged over the neighbouring pixels' shadow rays with "
+               "Gaussian weights (a ratio estimator). It blurs the shadows' edges by about this "
+               "width and leaves the markers' own edges sharp. At 224 px, 1.5 N + 0.6 N (RMS of "
+               "white, noise and bias): 4 spp 2.6 % unfiltered, 1.8 % at 0.7 px; 8 spp 1.5, 1.1 %; "
+               "16 spp 0.9, 0.7 %; the bias alone 0.4 % at 0.7 px, 0.6 % at 1 px. Larger images "
+               "want a wider filter: at 896 px, 4 spp, 2.1 % unfiltered, 1.1 % at 0.7 px, 0.9 % at "
+               "1.5 px (its bias about 0.2 %) (docs/VALIDATION.md).",
+               CHROMASIM_FIELD(render.fast.shadow_filter_px)));
     add_render_sensor(out);
     out.push_back(boolean("outputs.images", true,
                           "Write a PNG per frame (8-bit sRGB); with outputs.exr false too, the "

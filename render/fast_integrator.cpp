@@ -791,14 +791,18 @@ LanesN<N> FastIntegrator::spectral_at(const std::vector<float>& values, const st
 template <int N>
 LanesN<N> FastIntegrator::shade(const EmbreeScene& scene, const Vec3& p, const Lookup<N>& at,
                                 const LanesN<N>& indirect, const LaneOptics<N>& lanes,
-                                PixelRng& rng, const ShadowDraw& shadow) const {
+                                PixelRng& rng, const ShadowDraw& shadow,
+                                DirectLight<N>* direct) const {
     // E / pi per unit LED emission: the cached indirect term, plus the direct term with the
     // markers' shadows, sum_k G_k T_k, estimated by one LED k drawn with probability
     // G_k / sum G (one shadow ray; exact where the LEDs' shadows agree).
     double total = 0.0;
     for (int k = 0; k < m_cache->leds; ++k)
         total += at.direct[std::size_t(k)];
-    if (!(total > 0.0)) return indirect;
+    if (!(total > 0.0)) {
+        if (direct) *direct = {LanesN<N>::Zero(), LanesN<N>::Zero()};
+        return indirect;
+    }
     ShadowDraw draw = shadow;
     if (!(draw.u_led >= 0.0)) draw = {rng.uniform(), rng.uniform(), rng.uniform()};
     const double u = draw.u_led * total, u1 = draw.u1, u2 = draw.u2;
@@ -810,6 +814,7 @@ LanesN<N> FastIntegrator::shade(const EmbreeScene& scene, const Vec3& p, const L
         T = m_shading.transmittance(scene, m_path.led_point(k, u1, u2), p, lanes);
     else if (at.radius_mm > 0.0)
         T = shadow_transmittance(scene, p, at, k, u1, u2, lanes);
+    if (direct) *direct = {LanesN<N>::Constant(total * kInvPi), (total * kInvPi) * T};
     return (total * kInvPi) * T + indirect;
 }
 
@@ -909,7 +914,8 @@ template <int N>
 LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, const Vec3& d,
                                  double tnear, const LaneOptics<N>& lanes,
                                  const LanesN<N>* lambda_nm, PixelRng& rng,
-                                 const ShadowDraw& shadow, const RayHit* first) const {
+                                 const ShadowDraw& shadow, const RayHit* first,
+                                 DirectLight<N>* direct, double weight) const {
     constexpr double inf = std::numeric_limits<double>::infinity();
     const OpticsParams& optics = m_shading.optics();
     LanesN<N> beta = LanesN<N>::Ones();
@@ -954,19 +960,33 @@ LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, c
             const LanesN<N> above =
                 chord > 0.0 || pending > 0 ? cached(m_cache->indirect_above) : LanesN<N>::Zero();
             LanesN<N> L = beta * lanes.coating_albedo * lanes.led;
+            // The direct light's part, when asked for: each shade()'s times its factor.
+            DirectLight<N> part;
+            DirectLight<N>* const want = direct ? &part : nullptr;
+            const auto add = [&](const LanesN<N>& factor) {
+                direct->lit += factor * part.lit;
+                direct->shadowed += factor * part.shadowed;
+            };
             if (chord > 0.0) {
                 const LanesN<N> through = (1.0 - s) *
                                           diffuse_transmittance<N>(lanes.outer_absorption_per_mm *
                                                                    (chord * std::abs(cos_g))) *
                                           above;
-                L *= shade(scene, p, at, through, lanes, rng, shadow) /
-                     (1.0 - s * lanes.outer_albedo * lanes.coating_albedo);
+                const LanesN<N> below = 1.0 - s * lanes.outer_albedo * lanes.coating_albedo;
+                const LanesN<N> factor = L / below;
+                L *= shade(scene, p, at, through, lanes, rng, shadow, want) / below;
+                if (direct) add(weight * factor);
             } else {
-                L *= shade(scene, p, at, cached(m_cache->indirect), lanes, rng, shadow);
+                const LanesN<N> factor = L;
+                L *= shade(scene, p, at, cached(m_cache->indirect), lanes, rng, shadow, want);
+                if (direct) add(weight * factor);
             }
-            for (int k = 0; k < pending; ++k)
-                L += scatters[std::size_t(k)].weight * lanes.led *
-                     shade(scene, scatters[std::size_t(k)].p, at, above, lanes, rng);
+            for (int k = 0; k < pending; ++k) {
+                const LanesN<N> factor = scatters[std::size_t(k)].weight * lanes.led;
+                L += factor *
+                     shade(scene, scatters[std::size_t(k)].p, at, above, lanes, rng, {}, want);
+                if (direct) add(weight * factor);
+            }
             return L;
         }
         if (hit.kind != SurfaceKind::inner_marker && hit.kind != SurfaceKind::outer_marker)
@@ -1008,16 +1028,16 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
                                 std::span<const LaneOptics<N>* const> lanes,
                                 std::span<const LanesN<N>* const> lambda_nm,
                                 std::span<const ShadowDraw> shadow, std::span<PixelRng* const> rng,
-                                std::span<LanesN<N>> out) const {
+                                std::span<LanesN<N>> out, std::span<DirectLight<N>> direct) const {
     if (!m_cache || m_direct.empty())
         throw std::logic_error("FastIntegrator::radiance called before build_cache/set_frame");
     const std::size_t n = directions.size();
     if (n > 16 || lanes.size() != n || lambda_nm.size() != n || shadow.size() != n ||
-        rng.size() != n || out.size() != n)
+        rng.size() != n || out.size() != n || !(direct.empty() || direct.size() == n))
         throw std::invalid_argument("FastIntegrator::radiance16: " + std::to_string(n) +
                                     " directions; allowed: at most 16, one lane set, "
                                     "wavelength set, LED uniform, stream and result per "
-                                    "direction");
+                                    "direction, and none or one direct light per direction");
     constexpr double inf = std::numeric_limits<double>::infinity();
     const double eta = m_shading.optics().refractive_index;
     // The cavity level by level: a ray from o along d brings back an LED's light, nothing
@@ -1123,25 +1143,32 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
     for (std::size_t i = 0; i < n; ++i) {
         const LaneOptics<N>& l = *lanes[i];
         const LanesN<N> led_radiance = l.led / m_path.led_area_mm2();
-        const auto layers = [&](const Vec3& o, const Vec3& d, double tnear, const RayHit& hit) {
-            return inside(scene, o, d, tnear, l, lambda_nm[i], *rng[i], shadow[i], &hit);
+        DirectLight<N>* const split = direct.empty() ? nullptr : &direct[i];
+        if (split) *split = {LanesN<N>::Zero(), LanesN<N>::Zero()};
+        // The layers' radiance; `weight`: the share of it the sample takes.
+        const auto layers = [&](const Vec3& o, const Vec3& d, double tnear, const RayHit& hit,
+                                double weight) {
+            return inside(scene, o, d, tnear, l, lambda_nm[i], *rng[i], shadow[i], &hit, split,
+                          weight);
         };
         LanesN<N> L = LanesN<N>::Zero();
         const Level& a = near[i];
         if (a.then == Then::led) {
             L = led_radiance;
         } else if (a.then == Then::straight) {
-            L = layers(origin, directions[i], 0.0, first[i]);
+            L = layers(origin, directions[i], 0.0, first[i], 1.0);
         } else if (a.then == Then::split) {
-            if (a.refract) L += (1.0 - a.F) * layers(a.p, a.refracted, kHitGap_mm, into[i]);
+            if (a.refract)
+                L += (1.0 - a.F) * layers(a.p, a.refracted, kHitGap_mm, into[i], 1.0 - a.F);
             if (a.reflect) {
                 const Level& b = far[i];
                 if (b.then == Then::led)
                     L += a.F * led_radiance;
                 else if (b.then == Then::straight)
-                    L += a.F * layers(a.p, a.reflected, kHitGap_mm, back[i]);
+                    L += a.F * layers(a.p, a.reflected, kHitGap_mm, back[i], a.F);
                 else if (b.then == Then::split && b.refract)
-                    L += a.F * ((1.0 - b.F) * layers(b.p, b.refracted, kHitGap_mm, far_wall[i]));
+                    L += a.F * ((1.0 - b.F) * layers(b.p, b.refracted, kHitGap_mm, far_wall[i],
+                                                     a.F * (1.0 - b.F)));
             }
         }
         out[i] = L;
@@ -1152,12 +1179,14 @@ template void FastIntegrator::radiance16(const EmbreeScene&, const Vec3&, std::s
                                          std::span<const LaneOptics<kRgbLanes>* const>,
                                          std::span<const LanesN<kRgbLanes>* const>,
                                          std::span<const ShadowDraw>, std::span<PixelRng* const>,
-                                         std::span<LanesN<kRgbLanes>>) const;
+                                         std::span<LanesN<kRgbLanes>>,
+                                         std::span<DirectLight<kRgbLanes>>) const;
 template void FastIntegrator::radiance16(const EmbreeScene&, const Vec3&, std::span<const Vec3>,
                                          std::span<const LaneOptics<kSpectralLanes>* const>,
                                          std::span<const LanesN<kSpectralLanes>* const>,
                                          std::span<const ShadowDraw>, std::span<PixelRng* const>,
-                                         std::span<LanesN<kSpectralLanes>>) const;
+                                         std::span<LanesN<kSpectralLanes>>,
+                                         std::span<DirectLight<kSpectralLanes>>) const;
 
 template LanesN<kRgbLanes> FastIntegrator::radiance(const EmbreeScene&, const Vec3&, const Vec3&,
                                                     const LaneOptics<kRgbLanes>&,

@@ -109,6 +109,15 @@ struct ShadowDraw {
     double u_led = -1.0, u1 = 0.0, u2 = 0.0;
 };
 
+/// The LEDs' direct light in a camera sample's radiance, apart (the renderer's shadow filter,
+/// RenderSettings::shadow_filter_px): `lit` as if no marker or fold cast a shadow (sum_k G_k
+/// times the path's factors), `shadowed` with the shadow ray's transmittance (the share of the
+/// radiance the shadow ray estimated); the rest of the radiance (indirect light, LEDs seen
+/// directly) is neither. Not zeroed on construction (the renderer keeps 16 per batch of
+/// pixels, which would cost 4 KB of zeroing per pixel at 16 spp, with the filter or without):
+/// radiance16 sets each one it is given.
+template <int N> struct DirectLight { LanesN<N> lit, shadowed; };
+
 class FastIntegrator {
 public:
     FastIntegrator(const ShadingModel& shading, const PathIntegrator& path);
@@ -145,12 +154,14 @@ public:
     /// refracted and reflected rays and the reflected rays' refraction into the far wall go to
     /// Embree as coherent packets of 16; the rest (markers, shading, shadow rays) runs per
     /// sample, in order, sample i drawing from *rng[i] (its pixel's stream).
-    /// lanes[i], lambda_nm[i], shadow[i]: sample i's, as radiance() takes them.
+    /// lanes[i], lambda_nm[i], shadow[i]: sample i's, as radiance() takes them. `direct`
+    /// (empty, or one per sample): also each sample's direct light apart (out is the same).
     template <int N>
     void radiance16(const EmbreeScene& scene, const Vec3& origin_mm,
                     std::span<const Vec3> directions, std::span<const LaneOptics<N>* const> lanes,
                     std::span<const LanesN<N>* const> lambda_nm, std::span<const ShadowDraw> shadow,
-                    std::span<PixelRng* const> rng, std::span<LanesN<N>> out) const;
+                    std::span<PixelRng* const> rng, std::span<LanesN<N>> out,
+                    std::span<DirectLight<N>> direct = {}) const;
 
     /// The shadow ray's direction from `p_mm`, the point of coating triangle `prim` at
     /// barycentric coordinates (u, v), towards `led_point_mm` on LED k, as the samples take it
@@ -185,10 +196,11 @@ private:
                    std::uint64_t stream) const;
     template <int N>
     Lookup<N> lookup(std::uint32_t prim, double u, double v, const Vec3& normal) const;
+    /// `direct`: if given, set to the direct light's part of the result (DirectLight).
     template <int N>
     LanesN<N> shade(const EmbreeScene& scene, const Vec3& p, const Lookup<N>& at,
                     const LanesN<N>& indirect, const LaneOptics<N>& lanes, PixelRng& rng,
-                    const ShadowDraw& shadow = {}) const;
+                    const ShadowDraw& shadow, DirectLight<N>* direct) const;
     /// The shadow ray's direction from the coating hit `p` towards `led_point` of LED k: the
     /// sphere model's refraction, plus the frame's correction to it interpolated over the
     /// hit triangle (m_shadow).
@@ -215,10 +227,13 @@ private:
     template <int N>
     LanesN<N> spectral_at(const std::vector<float>& values, const std::uint32_t* triangle,
                           const double* weights, const LanesN<N>* lambda_nm) const;
+    /// `direct`: if given, the direct light's part of the result times `weight` is added
+    /// to it (DirectLight); the result does not change.
     template <int N>
     LanesN<N> inside(const EmbreeScene& scene, const Vec3& origin, const Vec3& direction,
                      double tnear_mm, const LaneOptics<N>& lanes, const LanesN<N>* lambda_nm,
-                     PixelRng& rng, const ShadowDraw& shadow, const RayHit* first = nullptr) const;
+                     PixelRng& rng, const ShadowDraw& shadow, const RayHit* first,
+                     DirectLight<N>* direct, double weight) const;
 
     const ShadingModel& m_shading;
     const PathIntegrator& m_path;

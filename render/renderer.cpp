@@ -48,6 +48,7 @@
 #include "render/path_integrator.hpp"
 #include "render/sampling.hpp"
 #include "render/shading.hpp"
+#include "render/shadow_filter.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -223,26 +224,32 @@ struct Renderer::Impl {
     }
 
     /// sample_pixel for the fast integrator, for `pixels` neighbouring pixels of row y from x
-    /// (sums[j], sum2[j]: pixel x + j's, sum2 empty without the variance): the same strata and
-    /// draws per sample, each pixel from its own stream and seeds, plus the shadow rays'
+    /// (sums[j], sum2[j]: pixel x + j's, sum2 empty without the variance; lit[j],
+    /// shadowed[j]: the sums of its samples' direct light apart, DirectLight, empty without
+    /// the shadow filter): the same strata and draws per sample, each pixel from its own
+    /// stream and seeds, plus the shadow rays'
     /// uniforms, jointly stratified over the pixel's samples (shadow_uniforms: no draws from
     /// the stream). The samples, pixel after pixel, go through FastIntegrator::radiance16 in
     /// packets of equal size, at most 16 (coherent packets); a pixel's draws come in the same
     /// order however many pixels share a packet, so the image does not depend on it.
+    struct PixelSums {
+        std::span<detail::Rgb> sums, sum2, lit, shadowed;
+    };
     void sample_pixels_fast(int x, int y, int pixels, int nx, int ny,
                             const RenderSettings& settings, double scale,
-                            std::span<detail::Rgb> sums, std::span<detail::Rgb> sum2) const {
+                            const PixelSums& out) const {
         if (hero_sets.empty())
-            batches<detail::kRgbLanes>(x, y, pixels, nx, ny, settings, scale, sums, sum2);
+            batches<detail::kRgbLanes>(x, y, pixels, nx, ny, settings, scale, out);
         else
-            batches<detail::kSpectralLanes>(x, y, pixels, nx, ny, settings, scale, sums, sum2);
+            batches<detail::kSpectralLanes>(x, y, pixels, nx, ny, settings, scale, out);
     }
     /// The most pixels sample_pixels_fast takes at once: 16 samples' worth.
     static constexpr int kMaxBatchPixels = 16;
     template <int N>
     void batches(int x, int y, int pixels, int nx, int ny, const RenderSettings& settings,
-                 double scale, std::span<detail::Rgb> sums, std::span<detail::Rgb> sum2) const {
+                 double scale, const PixelSums& out) const {
         const int count = nx * ny;
+        const bool split = !out.lit.empty();
         const detail::LaneOptics<N> rgb = [&] {
             if constexpr (N == detail::kRgbLanes)
                 return shading.rgb_lanes();
@@ -256,8 +263,9 @@ struct Renderer::Impl {
                 std::uint64_t(y) * std::uint64_t(camera.width_px()) + std::uint64_t(x + j);
             rngs[std::size_t(j)].emplace(settings.seed, index);
             seeds[std::size_t(j)].emplace(settings.seed, index);
-            sums[std::size_t(j)] = detail::Rgb::Zero();
-            if (!sum2.empty()) sum2[std::size_t(j)] = detail::Rgb::Zero();
+            out.sums[std::size_t(j)] = detail::Rgb::Zero();
+            if (!out.sum2.empty()) out.sum2[std::size_t(j)] = detail::Rgb::Zero();
+            if (split) out.lit[std::size_t(j)] = out.shadowed[std::size_t(j)] = detail::Rgb::Zero();
         }
         std::array<Vec3, 16> directions;
         std::array<const detail::LaneOptics<N>*, 16> lanes;
@@ -267,6 +275,7 @@ struct Renderer::Impl {
         std::array<detail::PixelRng*, 16> streams;
         std::array<int, 16> owner; // the sample's pixel, 0 .. pixels - 1
         std::array<detail::LanesN<N>, 16> radiance;
+        std::array<detail::DirectLight<N>, 16> direct;
         // Packets of equal size: 20 samples as 10 + 10, not 16 + 4 (a part-empty packet
         // wastes Embree's lanes; docs/VALIDATION.md, session 15).
         const int total = pixels * count;
@@ -298,16 +307,24 @@ struct Renderer::Impl {
                                std::span<const detail::LanesN<N>* const>(lambda.data(), m),
                                std::span<const detail::ShadowDraw>(shadow.data(), m),
                                std::span<detail::PixelRng* const>(streams.data(), m),
-                               std::span(radiance.data(), m));
+                               std::span(radiance.data(), m),
+                               split ? std::span(direct.data(), m)
+                                     : std::span<detail::DirectLight<N>>{});
             for (std::size_t i = 0; i < m; ++i) {
-                detail::Rgb value;
-                if constexpr (N == detail::kSpectralLanes)
-                    value = detail::Rgb(sets[i]->to_rgb * radiance[i].matrix());
-                else
-                    value = detail::Rgb(radiance[i].template head<3>());
+                const auto rgb_of = [&](const detail::LanesN<N>& lanes_value) {
+                    if constexpr (N == detail::kSpectralLanes)
+                        return detail::Rgb(sets[i]->to_rgb * lanes_value.matrix());
+                    else
+                        return detail::Rgb(lanes_value.template head<3>());
+                };
+                const detail::Rgb value = rgb_of(radiance[i]);
                 const auto j = std::size_t(owner[i]);
-                sums[j] += value;
-                if (!sum2.empty()) sum2[j] += (value * scale).square();
+                out.sums[j] += value;
+                if (!out.sum2.empty()) out.sum2[j] += (value * scale).square();
+                if (split) {
+                    out.lit[j] += rgb_of(direct[i].lit);
+                    out.shadowed[j] += rgb_of(direct[i].shadowed);
+                }
             }
         }
     }
@@ -441,6 +458,11 @@ Image Renderer::render(const RenderSettings& settings) const {
     if (!m_impl->scene.has_frame()) {
         throw std::logic_error("Renderer::render called before set_frame");
     }
+    if (!(settings.shadow_filter_px >= 0.0 && settings.shadow_filter_px <= kMaxShadowFilterPx)) {
+        throw std::invalid_argument(
+            "RenderSettings: shadow_filter_px = " + std::to_string(settings.shadow_filter_px) +
+            " is invalid; allowed: 0 (none) to " + std::to_string(kMaxShadowFilterPx) + " px");
+    }
     if (settings.integrator == Integrator::fast && !m_impl->fast.has_cache()) {
         throw std::logic_error("Renderer::render: Integrator::fast needs set_light_cache first");
     }
@@ -461,13 +483,23 @@ Image Renderer::render(const RenderSettings& settings) const {
     const bool fast = settings.integrator == Integrator::fast;
     const int batch = fast && settings.batch_pixels ? std::max(1, Impl::kMaxBatchPixels / n) : 1;
     const auto [nx, ny] = detail::strata_grid(n);
-    // Pixel (x, y)'s value from its sample sum (and sum of squares).
-    const auto write = [&](int x, int y, const detail::Rgb& sum, const detail::Rgb& sum2) {
+    // The shadow filter's inputs: each pixel's direct light with and without the shadows.
+    const bool filter = fast && settings.shadow_filter_px > 0.0;
+    std::vector<float> lit(filter ? 3 * pixels : 0), shadowed(filter ? 3 * pixels : 0);
+    // Pixel (x, y)'s value from its sample sum (and sum of squares, and the direct light's).
+    const auto write = [&](int x, int y, const detail::Rgb& sum, const detail::Rgb& sum2,
+                           const detail::Rgb& lit_sum, const detail::Rgb& shadowed_sum) {
         const std::size_t p = std::size_t(y) * image.width + x;
         const detail::Rgb value = sum * (scale / n);
         float* out = image.pixel(x, y);
         for (int c = 0; c < 3; ++c)
             out[c] = float(value[c]);
+        if (filter) {
+            for (int c = 0; c < 3; ++c) {
+                lit[3 * p + std::size_t(c)] = float(lit_sum[c] * (scale / n));
+                shadowed[3 * p + std::size_t(c)] = float(shadowed_sum[c] * (scale / n));
+            }
+        }
         if (settings.variance && n > 1) {
             // Sample variance (n - 1 in the denominator) over n, floored at 0 against
             // round-off.
@@ -482,16 +514,20 @@ Image Renderer::render(const RenderSettings& settings) const {
         }
     };
     tbb::parallel_for(tbb::blocked_range<int>(0, image.height), [&](const auto& rows) {
-        std::array<detail::Rgb, Impl::kMaxBatchPixels> sums, sum2;
+        std::array<detail::Rgb, Impl::kMaxBatchPixels> sums, sum2, lit_sums, shadowed_sums;
+        lit_sums.fill(detail::Rgb::Zero());
+        shadowed_sums.fill(detail::Rgb::Zero());
         for (int y = rows.begin(); y != rows.end(); ++y) {
             for (int x = 0; x < image.width; x += batch) {
                 const int pixels = std::min(batch, image.width - x);
+                const auto some = [&](auto& a, bool wanted) {
+                    return wanted ? std::span(a.data(), std::size_t(pixels))
+                                  : std::span<detail::Rgb>{};
+                };
                 if (fast) {
                     m.sample_pixels_fast(x, y, pixels, nx, ny, settings, scale,
-                                         std::span(sums.data(), std::size_t(pixels)),
-                                         settings.variance
-                                             ? std::span(sum2.data(), std::size_t(pixels))
-                                             : std::span<detail::Rgb>{});
+                                         {some(sums, true), some(sum2, settings.variance),
+                                          some(lit_sums, filter), some(shadowed_sums, filter)});
                 } else {
                     sum2[0] = detail::Rgb::Zero();
                     sums[0] = m.sample_pixel(x, y, nx, ny, settings, scale,
@@ -499,10 +535,14 @@ Image Renderer::render(const RenderSettings& settings) const {
                 }
                 for (int j = 0; j < pixels; ++j)
                     write(x + j, y, sums[std::size_t(j)],
-                          settings.variance ? sum2[std::size_t(j)] : detail::Rgb::Zero());
+                          settings.variance ? sum2[std::size_t(j)] : detail::Rgb::Zero(),
+                          lit_sums[std::size_t(j)], shadowed_sums[std::size_t(j)]);
             }
         }
     });
+    if (filter)
+        detail::shadow_filter(image.width, image.height, image.rgb, lit, shadowed,
+                              settings.shadow_filter_px);
     return image;
 }
 

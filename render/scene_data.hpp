@@ -199,7 +199,18 @@ struct RenderSettings {
     /// stream and strata, so the image is the same bytes either way; false: each pixel alone
     /// (for tests and `bench render`).
     bool batch_pixels = true;
+    /// Fast integrator: the shadow filter's standard deviation, px; 0: none. The LEDs'
+    /// direct light in a pixel is its unshadowed value (no noise from the shadow rays) times
+    /// the fraction that gets through the shadows, that fraction taken as a Gaussian-weighted
+    /// ratio over the neighbouring pixels' samples (sum w shadowed / sum w unshadowed, per
+    /// channel; the ratio estimator of Heitz et al. 2018). It removes most of the shadow rays'
+    /// noise where the shadows change slowly, and blurs their edges by about this much
+    /// (docs/VALIDATION.md: error against time). The variance channel stays that of the
+    /// unfiltered pixel.
+    double shadow_filter_px = 0.0;
 };
+/// The largest RenderSettings::shadow_filter_px, px.
+inline constexpr double kMaxShadowFilterPx = 8.0;
 
 /// Linear RGB image, row-major, top row first, 3 floats per pixel; extra channels are empty
 /// unless RenderSettings asked for them.

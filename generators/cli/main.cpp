@@ -262,6 +262,11 @@ int main(int argc, char** argv) {
                            "neighbours' in one packet (the same image; to measure what the "
                            "batching saves below 16 spp)");
     bench_render
+        ->add_option("--shadow-filter", render_bench.shadow_filter_px,
+                     "fast integrator: the shadow filters to time, px, each at every spp "
+                     "(render.fast.shadow_filter_px; 0: none); the reference has none")
+        ->check(CLI::Range(0.0, chromasim::render::kMaxShadowFilterPx));
+    bench_render
         ->add_option("--reference-in", render_bench.reference_in,
                      "read the reference from this EXR (written by --reference-out); two or "
                      "more: independent renders (--reference-seed), averaged, their spread "

@@ -1,0 +1,158 @@
+// Tests of the shadow filter (render/shadow_filter.hpp): the ratio estimator keeps an image
+// whose shadow fraction is uniform, blurs a step in it by the Gaussian's own sums, takes out
+// most of the noise of the shadowed light, and refuses bad input.
+#include "render/scene_data.hpp"
+#include "render/shadow_filter.hpp"
+
+#include <catch2/catch.hpp>
+#include <tbb/global_control.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+using namespace chromasim::render;
+using namespace chromasim::render::detail;
+
+namespace {
+
+/// A test image: the rest A, the unshadowed direct light U and the shadowed S, per value.
+struct Parts {
+    int width, height;
+    std::vector<float> rest, lit, shadowed;
+    std::vector<float> image() const {
+        std::vector<float> rgb(rest.size());
+        for (std::size_t i = 0; i < rgb.size(); ++i)
+            rgb[i] = rest[i] + shadowed[i];
+        return rgb;
+    }
+};
+
+/// U varies smoothly over the image and by channel, A too; S = U r(x, y, c).
+template <typename Fraction> Parts parts(int width, int height, Fraction fraction) {
+    Parts p{width, height, {}, {}, {}};
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x)
+            for (int c = 0; c < 3; ++c) {
+                const float u = 0.3f + 0.01f * float(x) + 0.02f * float(y) + 0.1f * float(c);
+                p.rest.push_back(0.2f + 0.005f * float(x + c));
+                p.lit.push_back(u);
+                p.shadowed.push_back(u * float(fraction(x, y, c)));
+            }
+    return p;
+}
+
+} // namespace
+
+TEST_CASE("shadow filter: where the fraction that gets through the shadows is the same "
+          "everywhere, the image is kept, up to the image's edges",
+          "[render][shadow_filter]") {
+    for (const double sigma : {0.3, 1.0, 2.5}) {
+        const Parts p = parts(13, 9, [](int, int, int c) { return 0.25 + 0.2 * c; });
+        std::vector<float> rgb = p.image();
+        const std::vector<float> before = rgb;
+        shadow_filter(p.width, p.height, rgb, p.lit, p.shadowed, sigma);
+        double worst = 0.0;
+        for (std::size_t i = 0; i < rgb.size(); ++i)
+            worst = std::max(worst, double(std::abs(rgb[i] - before[i])));
+        INFO("sigma " << sigma);
+        CHECK(worst < 2e-6);
+    }
+}
+
+TEST_CASE("shadow filter: a step in the shadow fraction comes out as the Gaussian's partial "
+          "sums, along the row, whatever the unshadowed light",
+          "[render][shadow_filter]") {
+    // r = 1 left of x = 8, 0.2 from there; U the same along each column, so the ratio along a
+    // row is sum_{q < 8} w + 0.2 sum_{q >= 8} w over sum w, the weights over the row's
+    // pixels within 3 sigma (the column sums cancel).
+    const double sigma = 1.3;
+    // U must not change along a column for the column sums to cancel: set per column.
+    Parts q = parts(16, 7, [](int x, int, int) { return x < 8 ? 1.0 : 0.2; });
+    for (int y = 0; y < q.height; ++y)
+        for (int x = 0; x < q.width; ++x)
+            for (int c = 0; c < 3; ++c) {
+                const std::size_t i = 3 * (std::size_t(y) * q.width + x) + c;
+                q.lit[i] = 0.4f + 0.03f * float(x) + 0.1f * float(c);
+                q.shadowed[i] = q.lit[i] * (x < 8 ? 1.0f : 0.2f);
+            }
+    std::vector<float> rgb = q.image();
+    shadow_filter(q.width, q.height, rgb, q.lit, q.shadowed, sigma);
+    const int radius = int(std::ceil(3.0 * sigma));
+    double worst = 0.0;
+    for (int y = 0; y < q.height; ++y)
+        for (int x = 0; x < q.width; ++x)
+            for (int c = 0; c < 3; ++c) {
+                double num = 0.0, den = 0.0;
+                for (int d = -radius; d <= radius; ++d) {
+                    const int xq = x + d;
+                    if (xq < 0 || xq >= q.width) continue;
+                    const std::size_t j = 3 * (std::size_t(y) * q.width + xq) + c;
+                    const double w = std::exp(-0.5 * d * d / (sigma * sigma));
+                    num += w * q.shadowed[j];
+                    den += w * q.lit[j];
+                }
+                const std::size_t i = 3 * (std::size_t(y) * q.width + x) + c;
+                const double expected = q.rest[i] + q.lit[i] * num / den;
+                worst = std::max(worst, std::abs(rgb[i] - expected));
+            }
+    CHECK(worst < 2e-6);
+    // Next to the step the light is neither side's: the blur is there.
+    const std::size_t left = 3 * (3 * std::size_t(q.width) + 7), right = left + 3;
+    CHECK(rgb[left] < q.rest[left] + 0.95f * q.lit[left]);
+    CHECK(rgb[right] > q.rest[right] + 0.25f * q.lit[right]);
+}
+
+TEST_CASE("shadow filter: noise in the shadowed light falls by about the neighbourhood's "
+          "effective count, and the same bytes come out on 1 and 2 threads",
+          "[render][shadow_filter]") {
+    // Each pixel's S a binary shadow ray's estimate: U (with probability 0.7) or 0, so the
+    // fraction is 0.7 everywhere with the noise of one shadow ray.
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<double> uniform(0.0, 1.0);
+    const Parts p = parts(64, 48, [&](int, int, int) { return uniform(rng) < 0.7 ? 1.0 : 0.0; });
+    const Parts truth = parts(64, 48, [](int, int, int) { return 0.7; });
+    const auto rms = [&](const std::vector<float>& rgb) {
+        const std::vector<float> exact = truth.image();
+        double sum = 0.0;
+        for (std::size_t i = 0; i < rgb.size(); ++i)
+            sum += (double(rgb[i]) - exact[i]) * (double(rgb[i]) - exact[i]);
+        return std::sqrt(sum / double(rgb.size()));
+    };
+    const std::vector<float> noisy = p.image();
+    const double sigma = 1.5;
+    std::vector<float> one = noisy, two = noisy;
+    {
+        tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 1);
+        shadow_filter(p.width, p.height, one, p.lit, p.shadowed, sigma);
+    }
+    {
+        tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 2);
+        shadow_filter(p.width, p.height, two, p.lit, p.shadowed, sigma);
+    }
+    CHECK(one == two);
+    // A Gaussian of sigma 1.5 px averages about 4 pi sigma^2 = 28 pixels: the noise's
+    // standard deviation should fall about 5-fold; at least 3.5-fold.
+    INFO("noise " << rms(noisy) << " -> " << rms(one));
+    CHECK(rms(one) < rms(noisy) / 3.5);
+    CHECK(rms(one) > rms(noisy) / 8.0); // and no more than averaging can give
+}
+
+TEST_CASE("shadow filter: a channel without unshadowed light is kept, bad sizes and widths "
+          "are refused",
+          "[render][shadow_filter]") {
+    Parts p = parts(5, 4, [](int x, int, int) { return x % 2 ? 0.5 : 1.0; });
+    for (std::size_t i = 2; i < p.lit.size(); i += 3)
+        p.lit[i] = p.shadowed[i] = 0.0f; // blue: no direct light
+    std::vector<float> rgb = p.image();
+    const std::vector<float> before = rgb;
+    shadow_filter(p.width, p.height, rgb, p.lit, p.shadowed, 1.0);
+    for (std::size_t i = 2; i < rgb.size(); i += 3)
+        CHECK(rgb[i] == before[i]);
+    CHECK(rgb[0] != before[0]); // red is filtered
+    CHECK_THROWS_WITH(shadow_filter(5, 4, rgb, std::vector<float>(3), p.shadowed, 1.0),
+                      Catch::Contains("allowed: width, height >= 1 and 3 values a pixel"));
+    for (const double bad : {0.0, -1.0, kMaxShadowFilterPx + 0.5, std::nan("")})
+        CHECK_THROWS_WITH(shadow_filter(5, 4, rgb, p.lit, p.shadowed, bad),
+                          Catch::Contains("allowed: 0 < sigma <= "));
+}
