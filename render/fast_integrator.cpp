@@ -959,7 +959,8 @@ LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, c
             };
             const LanesN<N> above =
                 chord > 0.0 || pending > 0 ? cached(m_cache->indirect_above) : LanesN<N>::Zero();
-            LanesN<N> L = beta * lanes.coating_albedo * lanes.led;
+            const LanesN<N> f = beta * lanes.coating_albedo * lanes.led;
+            LanesN<N> L;
             // The direct light's part, when asked for: each shade()'s times its factor.
             DirectLight<N> part;
             DirectLight<N>* const want = direct ? &part : nullptr;
@@ -973,13 +974,11 @@ LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, c
                                                                    (chord * std::abs(cos_g))) *
                                           above;
                 const LanesN<N> below = 1.0 - s * lanes.outer_albedo * lanes.coating_albedo;
-                const LanesN<N> factor = L / below;
-                L *= shade(scene, p, at, through, lanes, rng, shadow, want) / below;
-                if (direct) add(weight * factor);
+                L = f * (shade(scene, p, at, through, lanes, rng, shadow, want) / below);
+                if (direct) add(weight * (f / below));
             } else {
-                const LanesN<N> factor = L;
-                L *= shade(scene, p, at, cached(m_cache->indirect), lanes, rng, shadow, want);
-                if (direct) add(weight * factor);
+                L = f * shade(scene, p, at, cached(m_cache->indirect), lanes, rng, shadow, want);
+                if (direct) add(weight * f);
             }
             for (int k = 0; k < pending; ++k) {
                 const LanesN<N> factor = scatters[std::size_t(k)].weight * lanes.led;
