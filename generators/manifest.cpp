@@ -83,6 +83,7 @@ std::string manifest_json(const Spec& spec, const std::string& spec_text, int ma
     j["manifest_version"] = 1;
     j["name"] = spec.name;
     j["chromasim_version"] = CHROMASIM_VERSION;
+    j["instruction_set"] = CHROMASIM_ARCH; // the build's (CMakeLists.txt, CHROMASIM_ARCH)
     j["dependencies"] = deps;
     j["spec"] = Json{{"source", spec.source_path.string()},
                      {"file", "spec.resolved.yaml"},

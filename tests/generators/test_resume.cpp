@@ -149,6 +149,7 @@ TEST_CASE("manifest.json lists every file's SHA-256 and the counts per split, an
           chromasim::generators::sha256_hex(read_file(f.ref / "spec.resolved.yaml")));
     CHECK(m["spec"]["resolved_yaml"] == read_file(f.ref / "spec.resolved.yaml"));
     CHECK(m["chromasim_version"] == CHROMASIM_VERSION);
+    CHECK(m["instruction_set"] == CHROMASIM_ARCH);
     for (const char* dep :
          {"embree", "openimageio", "openexr", "eigen", "yaml-cpp", "tbb", "tinygltf"}) {
         INFO(dep);
