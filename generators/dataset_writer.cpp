@@ -115,7 +115,9 @@ bool link_or_copy(const fs::path& from, const fs::path& to) {
 } // namespace
 
 std::string stored_spec_text(const Spec& spec, int max_trials) {
-    std::string text = "# resolved by chromasim " CHROMASIM_VERSION "\n" + spec.resolved_yaml;
+    std::string text = "# resolved by chromasim " CHROMASIM_VERSION
+                       " (instruction set " CHROMASIM_ARCH ")\n" +
+                       spec.resolved_yaml;
     if (max_trials > 0)
         text += "# slice: the first " + std::to_string(max_trials) +
                 " trials of the plan (generate --max-trials)\n";
@@ -169,7 +171,8 @@ DatasetWriter::DatasetWriter(fs::path out_dir, const Spec& spec, const WriterOpt
     if (!m_overwrite &&
         inspect_output(m_out, spec, m_max_trials, m_shard) == OutputState::other_content)
         throw SpecError(m_out.string() + ": output folder already holds other content (a " +
-                        "dataset from another spec or version, or other files); allowed: a new " +
+                        "dataset from another spec, version or instruction set, or other files); "
+                        "allowed: a new " +
                         "path, or --overwrite to replace it once the new dataset is complete");
     const fs::path parent = fs::absolute(m_out).parent_path();
     make_folder(parent);

@@ -416,7 +416,7 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     const ManifestInfo info = manifest_info(spec, model, report.planned_trials);
     t0 = Clock::now();
     if (shard.sharded())
-        writer.seal_part({CHROMASIM_VERSION, shard, spec.source_path.string(),
+        writer.seal_part({CHROMASIM_VERSION, CHROMASIM_ARCH, shard, spec.source_path.string(),
                           sha256_hex(stored_spec_text(spec, slice)), slice, owned, info});
     else
         writer.assemble(info, int(plan.trials.size()));

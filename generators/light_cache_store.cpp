@@ -67,7 +67,8 @@ template <class T> bool get(std::string_view& in, std::vector<T>& v) {
 std::uint64_t light_cache_key(const render::SensorFrame& rest, const render::OpticsParams& o,
                               const render::LightCacheSettings& settings) {
     KeyHash k;
-    const std::string_view header = "chromasim " CHROMASIM_VERSION " light-cache";
+    const std::string_view header =
+        "chromasim " CHROMASIM_VERSION " " CHROMASIM_ARCH " light-cache";
     k.bytes(header.data(), header.size());
     k.value(kLayout);
     k.value(settings.paths_per_vertex);

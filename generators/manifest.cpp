@@ -119,6 +119,7 @@ std::string part_json(const PartInfo& p) {
     j["format"] = "chromasim dataset part (docs/DATASET_FORMAT.md, Shards and merge)";
     j["part_version"] = 1;
     j["chromasim_version"] = p.chromasim_version;
+    j["instruction_set"] = p.instruction_set;
     j["shard"] = Json{{"index", p.shard.index}, {"count", p.shard.count}};
     j["spec"] = Json{{"source", p.spec_source}, {"sha256", p.spec_sha256}};
     j["max_trials"] = p.max_trials;
@@ -141,6 +142,7 @@ std::optional<PartInfo> parse_part_json(const std::string& text) {
         if (j.at("part_version").get<int>() != 1) return std::nullopt;
         PartInfo p;
         p.chromasim_version = j.at("chromasim_version").get<std::string>();
+        p.instruction_set = j.at("instruction_set").get<std::string>();
         p.shard.index = j.at("shard").at("index").get<int>();
         p.shard.count = j.at("shard").at("count").get<int>();
         p.spec_source = j.at("spec").at("source").get<std::string>();

@@ -50,6 +50,7 @@ std::string manifest_json(const Spec& spec, const std::string& spec_text, int ma
 /// run writes, and to check that the parts belong together.
 struct PartInfo {
     std::string chromasim_version; ///< the version that wrote the part
+    std::string instruction_set;   ///< the build's (CMakeLists.txt, CHROMASIM_ARCH)
     Shard shard;
     std::string spec_source; ///< the spec path as given to generate (manifest spec.source)
     std::string spec_sha256; ///< of the part's spec.resolved.yaml

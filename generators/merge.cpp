@@ -66,6 +66,13 @@ Part read_part(const fs::path& dir) {
                                 ", this is " CHROMASIM_VERSION
                                 "; allowed: merge with the version that generated the parts "
                                 "(the manifest names one version)");
+    if (part.info.instruction_set != CHROMASIM_ARCH)
+        refuse(dir / kPart, "built for instruction set " + part.info.instruction_set +
+                                ", this build is for " CHROMASIM_ARCH
+                                "; allowed: merge with a build for the parts' instruction set "
+                                "(cmake -DCHROMASIM_ARCH=" +
+                                part.info.instruction_set +
+                                "): builds for two differ in the last bits of their images");
     if (!fs::is_regular_file(dir / kSpec, ec)) refuse(dir / kSpec, "missing");
     part.spec_text = read_file(dir / kSpec);
     if (sha256_hex(part.spec_text) != part.info.spec_sha256)

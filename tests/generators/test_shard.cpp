@@ -141,6 +141,7 @@ TEST_CASE("generate --shard K/N writes disjoint round-robin parts that merge int
     CHECK(image_trials(p2) == std::vector<std::string>{"trial_000001"});
     CHECK(part_json(p1)["trials"] == nlohmann::json::array({0, 2}));
     CHECK(part_json(p2)["shard"] == nlohmann::json({{"index", 2}, {"count", 2}}));
+    CHECK(part_json(p2)["instruction_set"] == CHROMASIM_ARCH);
     for (const fs::path& p : {p1, p2}) {
         INFO(p);
         // What merge needs, not what it writes; the resolved spec is the dataset's, unsharded.
@@ -173,8 +174,8 @@ TEST_CASE("generate --shard K/N writes disjoint round-robin parts that merge int
     f.merge_matches({parts4[3], parts4[1], parts4[0], parts4[2]}, f.dir.path / "merged4");
 }
 
-TEST_CASE("merge refuses a missing, duplicate or incomplete shard, parts of another spec or "
-          "shard count, and a damaged file, naming it, and writes nothing",
+TEST_CASE("merge refuses a missing, duplicate or incomplete shard, parts of another spec, "
+          "shard count or instruction set, and a damaged file, naming it, and writes nothing",
           "[generators][shard]") {
     const Fixture f("shard_refuse", false);
     const fs::path p1 = f.part("p1", "1/2"), p2 = f.part("p2", "2/2");
@@ -193,6 +194,18 @@ TEST_CASE("merge refuses a missing, duplicate or incomplete shard, parts of anot
     // Another shard count (4/4 owns no trial: quick to write).
     const fs::path of4 = f.part("of4", "4/4");
     f.merge_refused({p1, p2, of4}, (of4 / "part.json").string());
+    // A part of a build for another instruction set (its part.json says so).
+    const fs::path isa = f.dir.path / "isa";
+    fs::copy(p2, isa, fs::copy_options::recursive);
+    {
+        std::string json = chromasim::generators::read_file(isa / "part.json");
+        const std::string ours = "\"instruction_set\": \"" CHROMASIM_ARCH "\"";
+        REQUIRE(json.find(ours) != std::string::npos);
+        json.replace(json.find(ours), ours.size(), "\"instruction_set\": \"other-cpu\"");
+        chromasim::generators::write_file(isa / "part.json", json);
+    }
+    f.merge_refused({p1, isa}, "built for instruction set other-cpu");
+    f.merge_refused({p1, isa}, (isa / "part.json").string());
     // Incomplete: a shard killed at its first frame leaves PART.partial.
     const fs::path killed = f.dir.path / "killed";
     const Run k = f.generate(killed, "--shard 2/2", "CHROMASIM_TEST_KILL_AT=1");
