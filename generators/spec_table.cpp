@@ -547,8 +547,8 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                           "point on it from a scrambled Sobol set). Fast integrator at 224 px "
                           "on 2 cores, with the default shadow filter "
                           "(render.fast.shadow_filter_px): 4 spp gives 1.8 % RMS of the white "
-                          "level in 0.11 s, 8 spp 1.1 % in 0.21 s, 12 spp 0.83 % in 0.32 s, "
-                          "16 spp 0.69 % in 0.41 s (its own noise and the filter's bias over "
+                          "level in 0.10 s, 8 spp 1.1 % in 0.19 s, 12 spp 0.83 % in 0.29 s, "
+                          "16 spp 0.70 % in 0.37 s (its own noise and the filter's bias over "
                           "the image; over the fisheye's circle 1.12 times that; unfiltered, "
                           "4 spp 2.6 %, 16 spp 0.89 %; docs/VALIDATION.md); the path "
                           "integrator needs thousands for 1 %.",
