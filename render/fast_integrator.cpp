@@ -762,7 +762,7 @@ Vec3 FastIntegrator::shadow_direction(std::uint32_t prim, double u, double v, co
 
 template <int N>
 LanesN<N> FastIntegrator::spectral_at(const std::vector<float>& values, const std::uint32_t* f,
-                                      const double* w, const LanesN<N>* lambda_nm) const {
+                                      const double* w, const CacheLambdas<N>* lambdas) const {
     // The cached lanes at the hit, then at the sample's wavelengths.
     const int lanes = m_cache->lanes;
     std::array<double, kCacheLambdas> cached{};
@@ -773,17 +773,15 @@ LanesN<N> FastIntegrator::spectral_at(const std::vector<float>& values, const st
         cached[std::size_t(j)] = std::max(0.0, value);
     }
     LanesN<N> out;
-    if (!lambda_nm) {
+    if (!lambdas) {
         for (int j = 0; j < N; ++j)
             out[j] = j < lanes ? cached[std::size_t(j)] : 0.0;
         return out;
     }
     for (int j = 0; j < N; ++j) {
-        const double x = std::clamp(((*lambda_nm)[j] - kCacheLambdaMin_nm) / kCacheLambdaStep_nm,
-                                    0.0, double(kCacheLambdas - 1));
-        const int i0 = std::min(int(x), kCacheLambdas - 2);
-        const double t = x - i0;
-        out[j] = (1.0 - t) * cached[std::size_t(i0)] + t * cached[std::size_t(i0) + 1];
+        const auto i0 = std::size_t(lambdas->i0[std::size_t(j)]);
+        const double t = lambdas->t[j];
+        out[j] = (1.0 - t) * cached[i0] + t * cached[i0 + 1];
     }
     return out;
 }
@@ -913,7 +911,7 @@ bool FastIntegrator::shadow_free(std::uint32_t prim, int k, const Vec3& p, const
 template <int N>
 LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, const Vec3& d,
                                  double tnear, const LaneOptics<N>& lanes,
-                                 const LanesN<N>* lambda_nm, PixelRng& rng,
+                                 const CacheLambdas<N>* lambdas, PixelRng& rng,
                                  const ShadowDraw& shadow, const RayHit* first,
                                  DirectLight<N>* direct, double weight) const {
     constexpr double inf = std::numeric_limits<double>::infinity();
@@ -955,7 +953,7 @@ LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, c
             // The cached indirect light at the hit: the level above the markers only where a
             // marker is involved (E_ind / pi per unit LED emission, at the lanes).
             const auto cached = [&](const std::vector<float>& level) -> LanesN<N> {
-                return m_indirect_scale * spectral_at(level, at.triangle, at.weights, lambda_nm);
+                return m_indirect_scale * spectral_at(level, at.triangle, at.weights, lambdas);
             };
             const LanesN<N> above =
                 chord > 0.0 || pending > 0 ? cached(m_cache->indirect_above) : LanesN<N>::Zero();
@@ -1009,14 +1007,14 @@ LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, c
 template <int N>
 LanesN<N> FastIntegrator::radiance(const EmbreeScene& scene, const Vec3& origin,
                                    const Vec3& direction, const LaneOptics<N>& lanes,
-                                   const LanesN<N>* lambda_nm, PixelRng& rng,
+                                   const CacheLambdas<N>* lambdas, PixelRng& rng,
                                    ShadowDraw shadow) const {
     // One sample through radiance16 (its rays go to Embree one by one).
     const LaneOptics<N>* lane_sets[1] = {&lanes};
-    const LanesN<N>* lambdas[1] = {lambda_nm};
+    const CacheLambdas<N>* lambda_sets[1] = {lambdas};
     LanesN<N> out[1];
     PixelRng* rngs[1] = {&rng};
-    radiance16<N>(scene, origin, std::span<const Vec3>(&direction, 1), lane_sets, lambdas,
+    radiance16<N>(scene, origin, std::span<const Vec3>(&direction, 1), lane_sets, lambda_sets,
                   std::span<const ShadowDraw>(&shadow, 1), rngs, out);
     return out[0];
 }
@@ -1025,13 +1023,13 @@ template <int N>
 void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
                                 std::span<const Vec3> directions,
                                 std::span<const LaneOptics<N>* const> lanes,
-                                std::span<const LanesN<N>* const> lambda_nm,
+                                std::span<const CacheLambdas<N>* const> lambdas,
                                 std::span<const ShadowDraw> shadow, std::span<PixelRng* const> rng,
                                 std::span<LanesN<N>> out, std::span<DirectLight<N>> direct) const {
     if (!m_cache || m_direct.empty())
         throw std::logic_error("FastIntegrator::radiance called before build_cache/set_frame");
     const std::size_t n = directions.size();
-    if (n > 16 || lanes.size() != n || lambda_nm.size() != n || shadow.size() != n ||
+    if (n > 16 || lanes.size() != n || lambdas.size() != n || shadow.size() != n ||
         rng.size() != n || out.size() != n || !(direct.empty() || direct.size() == n))
         throw std::invalid_argument("FastIntegrator::radiance16: " + std::to_string(n) +
                                     " directions; allowed: at most 16, one lane set, "
@@ -1147,7 +1145,7 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
         // The layers' radiance; `weight`: the share of it the sample takes.
         const auto layers = [&](const Vec3& o, const Vec3& d, double tnear, const RayHit& hit,
                                 double weight) {
-            return inside(scene, o, d, tnear, l, lambda_nm[i], *rng[i], shadow[i], &hit, split,
+            return inside(scene, o, d, tnear, l, lambdas[i], *rng[i], shadow[i], &hit, split,
                           weight);
         };
         LanesN<N> L = LanesN<N>::Zero();
@@ -1176,25 +1174,25 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
 
 template void FastIntegrator::radiance16(const EmbreeScene&, const Vec3&, std::span<const Vec3>,
                                          std::span<const LaneOptics<kRgbLanes>* const>,
-                                         std::span<const LanesN<kRgbLanes>* const>,
+                                         std::span<const CacheLambdas<kRgbLanes>* const>,
                                          std::span<const ShadowDraw>, std::span<PixelRng* const>,
                                          std::span<LanesN<kRgbLanes>>,
                                          std::span<DirectLight<kRgbLanes>>) const;
 template void FastIntegrator::radiance16(const EmbreeScene&, const Vec3&, std::span<const Vec3>,
                                          std::span<const LaneOptics<kSpectralLanes>* const>,
-                                         std::span<const LanesN<kSpectralLanes>* const>,
+                                         std::span<const CacheLambdas<kSpectralLanes>* const>,
                                          std::span<const ShadowDraw>, std::span<PixelRng* const>,
                                          std::span<LanesN<kSpectralLanes>>,
                                          std::span<DirectLight<kSpectralLanes>>) const;
 
 template LanesN<kRgbLanes> FastIntegrator::radiance(const EmbreeScene&, const Vec3&, const Vec3&,
                                                     const LaneOptics<kRgbLanes>&,
-                                                    const LanesN<kRgbLanes>*, PixelRng&,
+                                                    const CacheLambdas<kRgbLanes>*, PixelRng&,
                                                     ShadowDraw) const;
 template LanesN<kSpectralLanes> FastIntegrator::radiance(const EmbreeScene&, const Vec3&,
                                                          const Vec3&,
                                                          const LaneOptics<kSpectralLanes>&,
-                                                         const LanesN<kSpectralLanes>*, PixelRng&,
-                                                         ShadowDraw) const;
+                                                         const CacheLambdas<kSpectralLanes>*,
+                                                         PixelRng&, ShadowDraw) const;
 
 } // namespace chromasim::render::detail

@@ -79,6 +79,7 @@
 /// against 1 mm markers) and smoothing; F F' and higher cavity reflections of camera rays.
 #include "render/path_integrator.hpp"
 
+#include <algorithm>
 #include <array>
 #include <memory>
 #include <span>
@@ -90,6 +91,23 @@ namespace chromasim::render::detail {
 inline constexpr int kCacheLambdas = 16;
 inline constexpr double kCacheLambdaMin_nm = 400.0;
 inline constexpr double kCacheLambdaStep_nm = 20.0;
+
+/// A hero-wavelength set's place on that grid, computed once per set (the renderer's table of
+/// sets): lane j interpolates the cached values at grid points i0[j] and i0[j] + 1, with
+/// weight t[j] on the second (clamped to the grid's ends). The spectral lookups of a sample
+/// then need no division, clamp or rounding per lane.
+template <int N> struct CacheLambdas {
+    std::array<int, N> i0{};
+    LanesN<N> t = LanesN<N>::Zero();
+    explicit CacheLambdas(const LanesN<N>& lambda_nm) {
+        for (int j = 0; j < N; ++j) {
+            const double x = std::clamp((lambda_nm[j] - kCacheLambdaMin_nm) / kCacheLambdaStep_nm,
+                                        0.0, double(kCacheLambdas - 1));
+            i0[std::size_t(j)] = std::min(int(x), kCacheLambdas - 2);
+            t[j] = x - i0[std::size_t(j)];
+        }
+    }
+};
 /// The ratio of indirect paths to LED points per vertex that the light cache's MIS weights
 /// between the two assume: 4, whatever the sample counts. Any fixed ratio keeps the weights a
 /// partition of unity (the sum stays unbiased); a fixed one keeps the split between the direct
@@ -141,12 +159,12 @@ public:
     /// Throws std::invalid_argument unless the frame's coating has the cache's topology.
     void check_topology(const SensorFrame& frame) const;
 
-    /// Radiance along the camera ray, per lane, in the path integrator's units. `lambda_nm`:
-    /// the lanes' wavelengths (spectral), nullptr in RGB mode. `shadow`: the uniforms of the
-    /// coating hit's shadow ray (default: drawn from `rng`).
+    /// Radiance along the camera ray, per lane, in the path integrator's units. `lambdas`:
+    /// the lanes' wavelengths on the light cache's grid (spectral), nullptr in RGB mode. `shadow`:
+    /// the uniforms of the coating hit's shadow ray (default: drawn from `rng`).
     template <int N>
     LanesN<N> radiance(const EmbreeScene& scene, const Vec3& origin_mm, const Vec3& direction,
-                       const LaneOptics<N>& lanes, const LanesN<N>* lambda_nm, PixelRng& rng,
+                       const LaneOptics<N>& lanes, const CacheLambdas<N>* lambdas, PixelRng& rng,
                        ShadowDraw shadow = {}) const;
 
     /// The radiance along up to 16 camera rays from one origin (the samples of a pixel, or of
@@ -154,14 +172,14 @@ public:
     /// refracted and reflected rays and the reflected rays' refraction into the far wall go to
     /// Embree as coherent packets of 16; the rest (markers, shading, shadow rays) runs per
     /// sample, in order, sample i drawing from *rng[i] (its pixel's stream).
-    /// lanes[i], lambda_nm[i], shadow[i]: sample i's, as radiance() takes them. `direct`
+    /// lanes[i], lambdas[i], shadow[i]: sample i's, as radiance() takes them. `direct`
     /// (empty, or one per sample): also each sample's direct light apart (out is the same).
     template <int N>
     void radiance16(const EmbreeScene& scene, const Vec3& origin_mm,
                     std::span<const Vec3> directions, std::span<const LaneOptics<N>* const> lanes,
-                    std::span<const LanesN<N>* const> lambda_nm, std::span<const ShadowDraw> shadow,
-                    std::span<PixelRng* const> rng, std::span<LanesN<N>> out,
-                    std::span<DirectLight<N>> direct = {}) const;
+                    std::span<const CacheLambdas<N>* const> lambdas,
+                    std::span<const ShadowDraw> shadow, std::span<PixelRng* const> rng,
+                    std::span<LanesN<N>> out, std::span<DirectLight<N>> direct = {}) const;
 
     /// The shadow ray's direction from `p_mm`, the point of coating triangle `prim` at
     /// barycentric coordinates (u, v), towards `led_point_mm` on LED k, as the samples take it
@@ -226,12 +244,12 @@ private:
     void build_shadow_culling(const SensorFrame& frame);
     template <int N>
     LanesN<N> spectral_at(const std::vector<float>& values, const std::uint32_t* triangle,
-                          const double* weights, const LanesN<N>* lambda_nm) const;
+                          const double* weights, const CacheLambdas<N>* lambdas) const;
     /// `direct`: if given, the direct light's part of the result times `weight` is added
     /// to it (DirectLight); the result does not change.
     template <int N>
     LanesN<N> inside(const EmbreeScene& scene, const Vec3& origin, const Vec3& direction,
-                     double tnear_mm, const LaneOptics<N>& lanes, const LanesN<N>* lambda_nm,
+                     double tnear_mm, const LaneOptics<N>& lanes, const CacheLambdas<N>* lambdas,
                      PixelRng& rng, const ShadowDraw& shadow, const RayHit* first,
                      DirectLight<N>* direct, double weight) const;
 

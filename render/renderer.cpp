@@ -162,6 +162,8 @@ struct Renderer::Impl {
         detail::Lanes lambda_nm;
         detail::LaneOptics<detail::kSpectralLanes> lanes;
         Eigen::Matrix<double, 3, detail::kSpectralLanes> to_rgb;
+        /// lambda_nm on the fast integrator's light-cache grid.
+        detail::CacheLambdas<detail::kSpectralLanes> cache_lambdas{detail::Lanes::Zero()};
     };
     std::vector<HeroSet> hero_sets;
 
@@ -173,6 +175,7 @@ struct Renderer::Impl {
             wavelengths->sample<detail::kSpectralLanes>((i + 0.5) / kHeroSets, h.lambda_nm,
                                                         pdf_per_nm);
             h.lanes = detail::spectral_lanes(spectra, h.lambda_nm, led_scale);
+            h.cache_lambdas = detail::CacheLambdas<detail::kSpectralLanes>(h.lambda_nm);
             h.to_rgb =
                 camera_rgb_weights<detail::kSpectralLanes>(spectra.camera, h.lambda_nm, pdf_per_nm);
         }
@@ -269,7 +272,7 @@ struct Renderer::Impl {
         }
         std::array<Vec3, 16> directions;
         std::array<const detail::LaneOptics<N>*, 16> lanes;
-        std::array<const detail::LanesN<N>*, 16> lambda;
+        std::array<const detail::CacheLambdas<N>*, 16> lambda;
         std::array<const HeroSet*, 16> sets;
         std::array<detail::ShadowDraw, 16> shadow;
         std::array<detail::PixelRng*, 16> streams;
@@ -296,7 +299,7 @@ struct Renderer::Impl {
                 if constexpr (N == detail::kSpectralLanes) {
                     const HeroSet& h = hero_sets[std::size_t(
                         std::clamp(int(d.u_lambda * kHeroSets), 0, kHeroSets - 1))];
-                    sets[m] = &h, lanes[m] = &h.lanes, lambda[m] = &h.lambda_nm;
+                    sets[m] = &h, lanes[m] = &h.lanes, lambda[m] = &h.cache_lambdas;
                 } else {
                     lanes[m] = &rgb, lambda[m] = nullptr;
                 }
@@ -304,7 +307,7 @@ struct Renderer::Impl {
             }
             fast.radiance16<N>(scene, camera.origin_mm(), std::span(directions.data(), m),
                                std::span<const detail::LaneOptics<N>* const>(lanes.data(), m),
-                               std::span<const detail::LanesN<N>* const>(lambda.data(), m),
+                               std::span<const detail::CacheLambdas<N>* const>(lambda.data(), m),
                                std::span<const detail::ShadowDraw>(shadow.data(), m),
                                std::span<detail::PixelRng* const>(streams.data(), m),
                                std::span(radiance.data(), m),

@@ -511,7 +511,7 @@ TEST_CASE("fast integrator: a pixel's samples traced 16 at a time in Embree pack
                                            : ShadowDraw{(double(i) + 0.5) / double(n), 0.3, 0.8});
                 }
                 const std::vector<const LaneOptics<kRgbLanes>*> lane_sets(n, &lanes);
-                const std::vector<const RgbLanes*> lambdas(n, nullptr);
+                const std::vector<const CacheLambdas<kRgbLanes>*> lambdas(n, nullptr);
                 std::vector<RgbLanes> packed(n);
                 // Two pixels' streams: the first half of the samples draws from one, the
                 // rest from the other (a packet of two neighbouring pixels' samples).
@@ -568,7 +568,7 @@ TEST_CASE("fast integrator: the shadow filter brings a noisy image nearer the co
                     shadow.push_back({(double(i) + 0.5) / double(n), 0.3, 0.7});
                 }
                 const std::vector<const LaneOptics<kRgbLanes>*> lane_sets(n, &lanes);
-                const std::vector<const RgbLanes*> lambdas(n, nullptr);
+                const std::vector<const CacheLambdas<kRgbLanes>*> lambdas(n, nullptr);
                 std::vector<RgbLanes> plain(n), split(n);
                 std::vector<DirectLight<kRgbLanes>> direct(n);
                 PixelRng a(3, 9), b = a;
