@@ -108,6 +108,7 @@ template <int N> struct CacheLambdas {
         }
     }
 };
+
 /// The ratio of indirect paths to LED points per vertex that the light cache's MIS weights
 /// between the two assume: 4, whatever the sample counts. Any fixed ratio keeps the weights a
 /// partition of unity (the sum stays unbiased); a fixed one keeps the split between the direct
