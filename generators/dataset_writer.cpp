@@ -115,9 +115,7 @@ bool link_or_copy(const fs::path& from, const fs::path& to) {
 } // namespace
 
 std::string stored_spec_text(const Spec& spec, int max_trials) {
-    std::string text = "# resolved by chromasim " CHROMASIM_VERSION
-                       " (instruction set " CHROMASIM_ARCH ")\n" +
-                       spec.resolved_yaml;
+    std::string text = "# resolved by chromasim " CHROMASIM_BUILD "\n" + spec.resolved_yaml;
     if (max_trials > 0)
         text += "# slice: the first " + std::to_string(max_trials) +
                 " trials of the plan (generate --max-trials)\n";

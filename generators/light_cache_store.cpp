@@ -67,8 +67,7 @@ template <class T> bool get(std::string_view& in, std::vector<T>& v) {
 std::uint64_t light_cache_key(const render::SensorFrame& rest, const render::OpticsParams& o,
                               const render::LightCacheSettings& settings) {
     KeyHash k;
-    const std::string_view header =
-        "chromasim " CHROMASIM_VERSION " " CHROMASIM_ARCH " light-cache";
+    const std::string_view header = "chromasim " CHROMASIM_BUILD " light-cache";
     k.bytes(header.data(), header.size());
     k.value(kLayout);
     k.value(settings.paths_per_vertex);

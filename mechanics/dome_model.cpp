@@ -83,7 +83,7 @@ std::vector<Material> material_list(const DomeModelOptions& o) {
 
 /// Everything the cached mesh and responses depend on, as text, hashed into the cache key.
 std::uint64_t cache_key(const DomeModelOptions& o) {
-    std::string text = "chromasim " CHROMASIM_VERSION " " CHROMASIM_ARCH " dome-model-cache 3\n";
+    std::string text = "chromasim " CHROMASIM_BUILD " dome-model-cache 3\n";
     char buf[128];
     for (double r : o.dome.radii_mm) {
         std::snprintf(buf, sizeof buf, "radius %.17g\n", r);

@@ -101,8 +101,7 @@ void add_cache_options(CLI::App* command, std::string& cache_dir, bool& no_cache
 
 int main(int argc, char** argv) {
     CLI::App app{"chromasim: synthetic tactile images and labels for camera-based fingertips"};
-    app.set_version_flag("--version", std::string("chromasim ") + CHROMASIM_VERSION +
-                                          " (instruction set " CHROMASIM_ARCH ")");
+    app.set_version_flag("--version", std::string("chromasim ") + CHROMASIM_BUILD);
     app.require_subcommand(1);
     int threads = 0;
     app.add_option("--threads", threads, "worker threads (0: all cores)")
