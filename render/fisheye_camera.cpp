@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 
 #include <algorithm>
+#include <array>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -164,6 +165,7 @@ FisheyeCamera::FisheyeCamera(const CameraParams& params)
     validate_common(params);
     if (m_model == CameraModel::equidistant) {
         m_circle_radius_px = 0.5 * std::min(params.width_px, params.height_px);
+        m_circle_radius_y_px = m_circle_radius_px;
         m_centre_px = Eigen::Vector2d(0.5 * params.width_px, 0.5 * params.height_px);
     } else {
         validate_kannala_brandt(params);
@@ -171,6 +173,7 @@ FisheyeCamera::FisheyeCamera(const CameraParams& params)
         m_k[0] = params.k1, m_k[1] = params.k2, m_k[2] = params.k3, m_k[3] = params.k4;
         m_theta_d_max = m_half_fov_rad * kb_factor(m_k, m_half_fov_rad * m_half_fov_rad);
         m_circle_radius_px = params.fx_px * m_theta_d_max;
+        m_circle_radius_y_px = params.fy_px * m_theta_d_max;
         m_centre_px = Eigen::Vector2d(params.cx_px + 0.5, params.cy_px + 0.5); // see header
     }
     m_rotation =
@@ -188,6 +191,48 @@ std::optional<Vec3> FisheyeCamera::direction(const Eigen::Vector2d& pixel_px) co
 std::optional<Eigen::Vector2d> FisheyeCamera::project(const Vec3& p_mm) const {
     if (!m_posed) return camera_project(p_mm);
     return camera_project(m_rotation.transpose() * (p_mm - m_origin_mm));
+}
+
+double FisheyeCamera::field_coverage(int x, int y) const {
+    // In units of the semi-axes the field is the unit disc and the pixel a rectangle
+    // [u0, u1] x [v0, v1]. (The open and closed squares have the same area.)
+    const double a = m_circle_radius_px, b = m_circle_radius_y_px;
+    const double u0 = (x - m_centre_px.x()) / a, u1 = (x + 1 - m_centre_px.x()) / a;
+    const double v0 = (y - m_centre_px.y()) / b, v1 = (y + 1 - m_centre_px.y()) / b;
+    const auto square = [](double t) { return t * t; };
+    // The rectangle's nearest and farthest points from the centre.
+    const double near2 = square(std::clamp(0.0, u0, u1)) + square(std::clamp(0.0, v0, v1));
+    if (near2 > 1.0) return 0.0;
+    const double far2 = std::max(square(u0), square(u1)) + std::max(square(v0), square(v1));
+    if (far2 <= 1.0) return 1.0;
+    // The area: the integral over u of the chord [max(v0, -h), min(v1, h)], h = sqrt(1 - u^2),
+    // piece by piece between the u where h crosses v0 or v1 (and +-1); on each piece the
+    // chord's ends are each a constant or +-h, whose integral is H(u) = (u h + asin u) / 2.
+    const auto h = [](double u) { return std::sqrt(std::max(0.0, 1.0 - u * u)); };
+    const auto H = [&](double u) {
+        const double c = std::clamp(u, -1.0, 1.0);
+        return 0.5 * (c * h(c) + std::asin(c));
+    };
+    // Unused cuts stay at u1: empty pieces.
+    std::array<double, 8> cuts{u0, -1.0, 1.0, u1, u1, u1, u1, u1};
+    for (std::size_t i = 0; i < 2; ++i) {
+        const double v = i == 0 ? v0 : v1;
+        if (std::abs(v) < 1.0) cuts[3 + 2 * i] = -h(v), cuts[4 + 2 * i] = h(v);
+    }
+    std::sort(cuts.begin(), cuts.end());
+    double area = 0.0;
+    for (std::size_t i = 0; i + 1 < cuts.size(); ++i) {
+        const double lo = std::max(cuts[i], u0), hi = std::min(cuts[i + 1], u1);
+        if (!(hi > lo)) continue;
+        const double mid = h(0.5 * (lo + hi));
+        const bool top_h = mid < v1;     // the chord's upper end at +h, else at v1
+        const bool bottom_h = -mid > v0; // its lower end at -h, else at v0
+        if (!((top_h ? mid : v1) > (bottom_h ? -mid : v0))) continue; // no chord here
+        const double top = top_h ? H(hi) - H(lo) : v1 * (hi - lo);
+        const double bottom = bottom_h ? -(H(hi) - H(lo)) : v0 * (hi - lo);
+        area += top - bottom;
+    }
+    return std::clamp(area * a * b, 0.0, 1.0);
 }
 
 std::optional<Vec3> FisheyeCamera::camera_direction(const Eigen::Vector2d& pixel_px) const {

@@ -39,6 +39,13 @@ public:
     /// outside the field (beyond the image circle, theta > half_fov): those samples stay black.
     std::optional<Vec3> direction(const Eigen::Vector2d& pixel_px) const;
 
+    /// The share of pixel (x, y) (the square [x, x+1) x [y, y+1)) inside the field, in [0, 1]:
+    /// 1 exactly where the whole square is inside, 0 where none of it is, else the area of
+    /// the square within the image circle (an ellipse of semi-axes fx theta_d(half_fov) and
+    /// fy theta_d(half_fov) for Kannala-Brandt), in closed form (round-off only). The
+    /// renderer weights a rim pixel's samples with it (render/renderer.cpp).
+    double field_coverage(int x, int y) const;
+
     /// Continuous pixel coordinates of a point (mm, dome frame); nullopt for the camera
     /// position itself and for points whose polar angle exceeds half_fov.
     std::optional<Eigen::Vector2d> project(const Vec3& p_mm) const;
@@ -71,6 +78,7 @@ private:
     int m_height_px;
     double m_half_fov_rad;
     double m_circle_radius_px;
+    double m_circle_radius_y_px; ///< along the image y axis (fy theta_d(half_fov))
     Eigen::Vector2d m_centre_px;
     // Kannala-Brandt.
     Eigen::Vector2d m_focal_px{1.0, 1.0};

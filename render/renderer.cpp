@@ -184,18 +184,20 @@ struct Renderer::Impl {
     /// The sum over the pixel's samples (unscaled camera RGB; samples outside the image
     /// circle are black), from the stream (seed, pixel index) and the pixel's seeds: one per
     /// cell of the pixel's multi-jittered grid, the wavelength strata paired with them by a
-    /// per-pixel permutation. `sum2` gets the squares of the scaled samples. (The fast
-    /// integrator's pixels: sample_pixels_fast.)
+    /// per-pixel permutation. `sum2` gets the squares of the scaled samples, `inside` the
+    /// number of samples inside the field. (The fast integrator's pixels: sample_pixels_fast.)
     detail::Rgb sample_pixel(int x, int y, int nx, int ny, const RenderSettings& settings,
-                             double scale, detail::Rgb* sum2) const {
+                             double scale, detail::Rgb* sum2, int& inside) const {
         const std::uint64_t index = std::uint64_t(y) * std::uint64_t(camera.width_px()) + x;
         detail::PixelRng rng(settings.seed, index);
         const detail::PixelSeeds seeds(settings.seed, index);
         detail::Rgb sum = detail::Rgb::Zero();
+        inside = 0;
         for (int sy = 0; sy < ny; ++sy) {
             for (int sx = 0; sx < nx; ++sx) {
                 const Draw d = draw(x, y, sy * nx + sx, nx, ny, rng, seeds);
                 if (!d.direction) continue;
+                ++inside;
                 const detail::Rgb value = sample_rgb(scene, camera.origin_mm(), *d.direction,
                                                      settings.integrator, d.u_lambda, rng);
                 sum += value;
@@ -205,10 +207,14 @@ struct Renderer::Impl {
         return sum;
     }
 
+    /// Most positions drawn anew for a sample outside the field in a pixel its edge crosses
+    /// (draw): a pixel 1 % inside keeps a sample with probability 0.47.
+    static constexpr int kFieldRedraws = 64;
     /// Sample k of a pixel's nx x ny: its camera ray through its position (multi_jittered;
-    /// none outside the camera's field) and its hero-wavelength uniform (a stratum by a
-    /// per-pixel permutation, so that position and wavelength strata do not pair up along the
-    /// pixel's rows; zero in RGB mode, which draws none), drawn from `rng` in that order.
+    /// in a pixel the field's edge crosses, drawn anew if outside; none if still outside)
+    /// and its hero-wavelength uniform (a stratum by a per-pixel permutation, so that
+    /// position and wavelength strata do not pair up along the pixel's rows; zero in RGB
+    /// mode, which draws none), drawn from `rng` in that order.
     struct Draw {
         std::optional<Vec3> direction;
         double u_lambda = 0.0;
@@ -220,6 +226,17 @@ struct Renderer::Impl {
         const double jx = rng.uniform(), jy = rng.uniform();
         const auto [u, v] = detail::multi_jittered(k, nx, ny, seeds.position, jx, jy);
         d.direction = camera.direction(Eigen::Vector2d(x + u, y + v));
+        // Outside the field in a pixel its edge crosses: a position drawn anew, uniformly
+        // over the pixel until inside (at most kFieldRedraws tries; still outside: the sample
+        // is dropped). With the pixel's value the coverage times the mean of its samples
+        // inside (render()), this keeps the estimate unbiased: stratum k's sample is uniform
+        // over the part of the stratum inside, else over the part of the pixel inside, and
+        // those two weigh in as the coverage and its complement.
+        if (!d.direction && camera.field_coverage(x, y) > 0.0)
+            for (int i = 0; i < kFieldRedraws && !d.direction; ++i) {
+                const double rx = rng.uniform(), ry = rng.uniform();
+                d.direction = camera.direction(Eigen::Vector2d(x + rx, y + ry));
+            }
         if (wavelengths)
             d.u_lambda =
                 (detail::wavelength_stratum(k, count, seeds.wavelength) + rng.uniform()) / count;
@@ -229,7 +246,8 @@ struct Renderer::Impl {
     /// sample_pixel for the fast integrator, for `pixels` neighbouring pixels of row y from x
     /// (sums[j], sum2[j]: pixel x + j's, sum2 empty without the variance; lit[j],
     /// shadowed[j]: the sums of its samples' direct light apart, DirectLight, empty without
-    /// the shadow filter): the same strata and draws per sample, each pixel from its own
+    /// the shadow filter; inside[j]: how many of its samples lie in the field): the same
+    /// strata and draws per sample, each pixel from its own
     /// stream and seeds, plus the shadow rays'
     /// uniforms, jointly stratified over the pixel's samples (shadow_uniforms: no draws from
     /// the stream). The samples, pixel after pixel, go through FastIntegrator::radiance16 in
@@ -237,6 +255,7 @@ struct Renderer::Impl {
     /// order however many pixels share a packet, so the image does not depend on it.
     struct PixelSums {
         std::span<detail::Rgb> sums, sum2, lit, shadowed;
+        std::span<int> inside;
     };
     void sample_pixels_fast(int x, int y, int pixels, int nx, int ny,
                             const RenderSettings& settings, double scale,
@@ -267,6 +286,7 @@ struct Renderer::Impl {
             rngs[std::size_t(j)].emplace(settings.seed, index);
             seeds[std::size_t(j)].emplace(settings.seed, index);
             out.sums[std::size_t(j)] = detail::Rgb::Zero();
+            out.inside[std::size_t(j)] = 0;
             if (!out.sum2.empty()) out.sum2[std::size_t(j)] = detail::Rgb::Zero();
             if (split) out.lit[std::size_t(j)] = out.shadowed[std::size_t(j)] = detail::Rgb::Zero();
         }
@@ -291,6 +311,7 @@ struct Renderer::Impl {
                 const detail::PixelSeeds& seed = *seeds[std::size_t(j)];
                 const Draw d = draw(x + j, y, k, nx, ny, rng, seed);
                 if (!d.direction) continue;
+                ++out.inside[std::size_t(j)];
                 directions[m] = *d.direction;
                 const std::array<double, 3> u = detail::shadow_uniforms(k, count, seed);
                 shadow[m] = {u[0], u[1], u[2]};
@@ -490,23 +511,39 @@ Image Renderer::render(const RenderSettings& settings) const {
     const bool filter = fast && settings.shadow_filter_px > 0.0;
     std::vector<float> lit(filter ? 3 * pixels : 0), shadowed(filter ? 3 * pixels : 0);
     // Pixel (x, y)'s value from its sample sum (and sum of squares, and the direct light's).
+    // A pixel the field's edge crosses (0 < coverage < 1): its value is the coverage times
+    // the mean of its samples inside the field, not the mean of all its samples with those
+    // outside black. Both estimate the same pixel integral; the first has no noise from how
+    // many samples happen to fall inside (at 224 px the edge's pixels held a fifth of the
+    // image's squared error at 4 spp; docs/VALIDATION.md). A pixel none of whose samples
+    // fall inside stays black.
     const auto write = [&](int x, int y, const detail::Rgb& sum, const detail::Rgb& sum2,
-                           const detail::Rgb& lit_sum, const detail::Rgb& shadowed_sum) {
+                           const detail::Rgb& lit_sum, const detail::Rgb& shadowed_sum,
+                           int inside) {
         const std::size_t p = std::size_t(y) * image.width + x;
-        const detail::Rgb value = sum * (scale / n);
+        const double coverage = m.camera.field_coverage(x, y);
+        // The weight of each sample: 1 / n (the same expression as always, so the pixels
+        // inside the field keep their bytes), coverage / inside at the edge.
+        const int count = coverage < 1.0 ? inside : n;
+        const double weight =
+            coverage < 1.0 ? (inside > 0 ? scale * coverage / inside : 0.0) : scale / n;
+        const detail::Rgb value = sum * weight;
         float* out = image.pixel(x, y);
         for (int c = 0; c < 3; ++c)
             out[c] = float(value[c]);
         if (filter) {
             for (int c = 0; c < 3; ++c) {
-                lit[3 * p + std::size_t(c)] = float(lit_sum[c] * (scale / n));
-                shadowed[3 * p + std::size_t(c)] = float(shadowed_sum[c] * (scale / n));
+                lit[3 * p + std::size_t(c)] = float(lit_sum[c] * weight);
+                shadowed[3 * p + std::size_t(c)] = float(shadowed_sum[c] * weight);
             }
         }
-        if (settings.variance && n > 1) {
-            // Sample variance (n - 1 in the denominator) over n, floored at 0 against
-            // round-off.
-            const detail::Rgb var = ((sum2 - n * value.square()) / (n - 1.0) / n).max(0.0);
+        if (settings.variance && count > 1) {
+            // Sample variance (count - 1 in the denominator) over count, floored at 0 against
+            // round-off; at the edge, of the samples inside, times coverage^2.
+            const detail::Rgb mean = coverage < 1.0 ? detail::Rgb(sum * (scale / count)) : value;
+            const detail::Rgb var =
+                (coverage < 1.0 ? coverage * coverage : 1.0) *
+                ((sum2 - count * mean.square()) / (count - 1.0) / count).max(0.0);
             for (int c = 0; c < 3; ++c)
                 image.variance[3 * p + std::size_t(c)] = float(var[c]);
         }
@@ -518,6 +555,7 @@ Image Renderer::render(const RenderSettings& settings) const {
     };
     tbb::parallel_for(tbb::blocked_range<int>(0, image.height), [&](const auto& rows) {
         std::array<detail::Rgb, Impl::kMaxBatchPixels> sums, sum2, lit_sums, shadowed_sums;
+        std::array<int, Impl::kMaxBatchPixels> inside{};
         lit_sums.fill(detail::Rgb::Zero());
         shadowed_sums.fill(detail::Rgb::Zero());
         for (int y = rows.begin(); y != rows.end(); ++y) {
@@ -530,16 +568,18 @@ Image Renderer::render(const RenderSettings& settings) const {
                 if (fast) {
                     m.sample_pixels_fast(x, y, pixels, nx, ny, settings, scale,
                                          {some(sums, true), some(sum2, settings.variance),
-                                          some(lit_sums, filter), some(shadowed_sums, filter)});
+                                          some(lit_sums, filter), some(shadowed_sums, filter),
+                                          std::span(inside.data(), std::size_t(pixels))});
                 } else {
                     sum2[0] = detail::Rgb::Zero();
                     sums[0] = m.sample_pixel(x, y, nx, ny, settings, scale,
-                                             settings.variance ? &sum2[0] : nullptr);
+                                             settings.variance ? &sum2[0] : nullptr, inside[0]);
                 }
                 for (int j = 0; j < pixels; ++j)
                     write(x + j, y, sums[std::size_t(j)],
                           settings.variance ? sum2[std::size_t(j)] : detail::Rgb::Zero(),
-                          lit_sums[std::size_t(j)], shadowed_sums[std::size_t(j)]);
+                          lit_sums[std::size_t(j)], shadowed_sums[std::size_t(j)],
+                          inside[std::size_t(j)]);
             }
         }
     });

@@ -306,3 +306,50 @@ TEST_CASE("invalid camera parameters are rejected with what is allowed", "[rende
     equidistant.k1 = nan;
     CHECK_NOTHROW(FisheyeCamera(equidistant));
 }
+
+TEST_CASE("field_coverage is the share of a pixel inside the image circle", "[render][camera]") {
+    // An equidistant camera (circle of radius 30 px about (40, 30)) and a Kannala-Brandt one
+    // with fx != fy (an ellipse of semi-axes fx theta_d_max and fy theta_d_max), both inside
+    // their images, so that the coverages add up to the ellipse's area.
+    CameraParams kb = calibrated_camera();
+    kb.fx_px = 20.0;
+    kb.fy_px = 17.0;
+    for (const CameraParams& params : {CameraParams{80, 60, 84.0}, kb}) {
+        INFO("model " << int(params.model));
+        const FisheyeCamera camera(params);
+        const double a = camera.circle_radius_px();
+        const double b = params.model == CameraModel::equidistant ? a : a * kb.fy_px / kb.fx_px;
+        double total = 0.0;
+        int edge = 0, checked = 0;
+        for (int y = 0; y < params.height_px; ++y)
+            for (int x = 0; x < params.width_px; ++x) {
+                const double c = camera.field_coverage(x, y);
+                REQUIRE(c >= 0.0);
+                REQUIRE(c <= 1.0);
+                total += c;
+                // Every corner inside: exactly 1; no point of the square inside: exactly 0.
+                const auto in = [&](double px, double py) {
+                    return bool(camera.direction(Eigen::Vector2d(px, py)));
+                };
+                if (in(x, y) && in(x + 1, y) && in(x, y + 1) && in(x + 1, y + 1)) {
+                    CHECK(c == 1.0);
+                    continue;
+                }
+                if (c == 0.0 || c == 1.0) continue;
+                // At the edge: against the share of a 200 x 200 grid's points the camera
+                // images (round-off of that count: about one row of 200, 0.005).
+                if (++edge % 5 != 0) continue;
+                ++checked;
+                int seen = 0;
+                for (int j = 0; j < 200; ++j)
+                    for (int i = 0; i < 200; ++i)
+                        seen += in(x + (i + 0.5) / 200.0, y + (j + 0.5) / 200.0) ? 1 : 0;
+                CHECK(c == Approx(seen / 40000.0).margin(3e-3));
+            }
+        CHECK(total == Approx(std::numbers::pi * a * b).epsilon(1e-12));
+        CHECK(edge > 100);
+        CHECK(checked > 20);
+        // Off the image, far from the circle: none of it.
+        CHECK(camera.field_coverage(-50, -50) == 0.0);
+    }
+}
