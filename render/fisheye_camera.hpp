@@ -36,7 +36,8 @@ public:
     explicit FisheyeCamera(const CameraParams& params);
 
     /// Unit direction (dome frame) seen at continuous pixel coordinates `pixel_px`; nullopt
-    /// outside the field (beyond the image circle, theta > half_fov): those samples stay black.
+    /// outside the field (beyond the image circle, theta > half_fov): no light from there (the
+    /// renderer draws such a sample anew in a pixel the circle's edge crosses).
     std::optional<Vec3> direction(const Eigen::Vector2d& pixel_px) const;
 
     /// The share of pixel (x, y) (the square [x, x+1) x [y, y+1)) inside the field, in [0, 1]:

@@ -182,8 +182,8 @@ struct Renderer::Impl {
     }
 
     /// The sum over the pixel's samples (unscaled camera RGB; samples outside the image
-    /// circle are black), from the stream (seed, pixel index) and the pixel's seeds: one per
-    /// cell of the pixel's multi-jittered grid, the wavelength strata paired with them by a
+    /// circle are left out, draw), from the stream (seed, pixel index) and the pixel's seeds: one
+    /// per cell of the pixel's multi-jittered grid, the wavelength strata paired with them by a
     /// per-pixel permutation. `sum2` gets the squares of the scaled samples, `inside` the
     /// number of samples inside the field. (The fast integrator's pixels: sample_pixels_fast.)
     detail::Rgb sample_pixel(int x, int y, int nx, int ny, const RenderSettings& settings,
@@ -522,11 +522,11 @@ Image Renderer::render(const RenderSettings& settings) const {
                            int inside) {
         const std::size_t p = std::size_t(y) * image.width + x;
         const double coverage = m.camera.field_coverage(x, y);
+        const bool edge = coverage < 1.0; // or outside the field: no samples inside, black
         // The weight of each sample: 1 / n (the same expression as always, so the pixels
         // inside the field keep their bytes), coverage / inside at the edge.
-        const int count = coverage < 1.0 ? inside : n;
-        const double weight =
-            coverage < 1.0 ? (inside > 0 ? scale * coverage / inside : 0.0) : scale / n;
+        const int count = edge ? inside : n;
+        const double weight = edge ? (inside > 0 ? scale * coverage / inside : 0.0) : scale / n;
         const detail::Rgb value = sum * weight;
         float* out = image.pixel(x, y);
         for (int c = 0; c < 3; ++c)
@@ -540,9 +540,9 @@ Image Renderer::render(const RenderSettings& settings) const {
         if (settings.variance && count > 1) {
             // Sample variance (count - 1 in the denominator) over count, floored at 0 against
             // round-off; at the edge, of the samples inside, times coverage^2.
-            const detail::Rgb mean = coverage < 1.0 ? detail::Rgb(sum * (scale / count)) : value;
+            const detail::Rgb mean = edge ? detail::Rgb(sum * (scale / count)) : value;
             const detail::Rgb var =
-                (coverage < 1.0 ? coverage * coverage : 1.0) *
+                (edge ? coverage * coverage : 1.0) *
                 ((sum2 - count * mean.square()) / (count - 1.0) / count).max(0.0);
             for (int c = 0; c < 3; ++c)
                 image.variance[3 * p + std::size_t(c)] = float(var[c]);
