@@ -249,10 +249,11 @@ struct Renderer::Impl {
     /// the shadow filter; inside[j]: how many of its samples lie in the field): the same
     /// strata and draws per sample, each pixel from its own
     /// stream and seeds, plus the shadow rays'
-    /// uniforms, jointly stratified over the pixel's samples (shadow_uniforms: no draws from
-    /// the stream). The samples, pixel after pixel, go through FastIntegrator::radiance16 in
-    /// packets of equal size, at most 16 (coherent packets); a pixel's draws come in the same
-    /// order however many pixels share a packet, so the image does not depend on it.
+    /// uniforms, jointly stratified over the pixel's samples and its 2 x 2 block's
+    /// (shadow_uniforms: no draws from the stream). The samples, pixel after pixel, go through
+    /// FastIntegrator::radiance16 in packets of equal size, at most 16 (coherent packets); a
+    /// pixel's draws come in the same order however many pixels share a packet, so the image does
+    /// not depend on it.
     struct PixelSums {
         std::span<detail::Rgb> sums, sum2, lit, shadowed;
         std::span<int> inside;
@@ -284,7 +285,12 @@ struct Renderer::Impl {
             const std::uint64_t index =
                 std::uint64_t(y) * std::uint64_t(camera.width_px()) + std::uint64_t(x + j);
             rngs[std::size_t(j)].emplace(settings.seed, index);
-            seeds[std::size_t(j)].emplace(settings.seed, index);
+            // The shadow rays' Sobol points shared by each 2 x 2 block of pixels
+            // (shadow_uniforms), the pixel's quad row by row within its block.
+            const std::uint64_t px = std::uint64_t(x + j), py = std::uint64_t(y);
+            const std::uint64_t blocks_per_row = (std::uint64_t(camera.width_px()) + 1) / 2;
+            seeds[std::size_t(j)].emplace(settings.seed, index, (py / 2) * blocks_per_row + px / 2,
+                                          std::uint32_t(px % 2 + 2 * (py % 2)));
             out.sums[std::size_t(j)] = detail::Rgb::Zero();
             out.inside[std::size_t(j)] = 0;
             if (!out.sum2.empty()) out.sum2[std::size_t(j)] = detail::Rgb::Zero();

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <numbers>
@@ -97,16 +98,23 @@ inline std::uint32_t position_seed(std::uint64_t seed, std::uint64_t pixel) {
     return std::uint32_t(mix64(seed ^ (pixel << 1) ^ 0x3C3C3C3C3C3C3C3Cull));
 }
 
-/// A pixel's seeds for its strata: positions, wavelengths, shadow rays.
+/// A pixel's seeds for its strata: positions, wavelengths, shadow rays. The shadow rays' Sobol
+/// points may be shared by a block of pixels (shadow_uniforms): `block` names the block (its
+/// Owen scrambling) and `quad` the pixel's place in it; by default a pixel is a block of its
+/// own.
 struct PixelSeeds {
-    PixelSeeds(std::uint64_t seed, std::uint64_t pixel)
+    PixelSeeds(std::uint64_t seed, std::uint64_t pixel) : PixelSeeds(seed, pixel, pixel, 0) {}
+    PixelSeeds(std::uint64_t seed, std::uint64_t pixel, std::uint64_t block, std::uint32_t quad)
         : position(position_seed(seed, pixel)),
-          wavelength(wavelength_permutation_seed(seed, pixel)), shadow(shadow_seed(seed, pixel)) {
+          wavelength(wavelength_permutation_seed(seed, pixel)), shadow(shadow_seed(seed, pixel)),
+          quad(quad) {
+        const std::uint32_t block_seed = shadow_seed(seed, block);
         for (std::size_t d = 0; d < scramble.size(); ++d)
-            scramble[d] = std::uint32_t(mix64(shadow + 0x9E3779B9u * (d + 1)));
+            scramble[d] = std::uint32_t(mix64(block_seed + 0x9E3779B9u * (d + 1)));
     }
     std::uint32_t position, wavelength, shadow;
-    std::array<std::uint32_t, 3> scramble; ///< the shadow rays' Owen scrambling per dimension
+    std::uint32_t quad;                    ///< the pixel's place in its block (shadow_uniforms)
+    std::array<std::uint32_t, 3> scramble; ///< the block's Owen scrambling per dimension
 };
 
 /// Sample k's position in the pixel ([0, 1)^2) of its nx x ny: correlated multi-jittered
@@ -169,15 +177,21 @@ inline std::array<std::uint32_t, 3> sobol3(std::uint32_t i) {
 }
 
 /// The uniforms (u_led, u1, u2) of the shadow ray of sample k of a pixel's n (the fast
-/// integrator: which LED, which point on it): point permute(k) of the first n of the 3-D
-/// Sobol sequence, Owen-scrambled per pixel and dimension (`seeds`: the pixel's). The point on
-/// the LED (u1, u2) takes dimensions 0 and 1, whose strata are the finest, and the samples
-/// that pick one LED spread over its area. (Up to 0.7.0: u_led stratified alone, the LED
-/// point drawn at random; at 1.5 N + 0.6 N, 224 px, the joint strata take the noise from
-/// 1.27 to 1.10 % at 16 spp, docs/VALIDATION.md.)
+/// integrator: which LED, which point on it): point quad N + permute(k) of the 3-D Sobol
+/// sequence, N the power of two at or above n, Owen-scrambled per block and dimension
+/// (`seeds`: the pixel's; the permutation is the pixel's own). The point on the LED (u1, u2)
+/// takes dimensions 0 and 1, whose strata are the finest, and the samples that pick one LED
+/// spread over its area. (Up to 0.7.0: u_led stratified alone, the LED point drawn at random;
+/// at 1.5 N + 0.6 N, 224 px, the joint strata take the noise from 1.27 to 1.10 % at 16 spp,
+/// docs/VALIDATION.md.) The renderer gives the four pixels of a 2 x 2 block one scrambled
+/// sequence, quads 0 to 3 row by row: each pixel's points are the first n of a net of N, as
+/// alone, and for n a power of two the block's 4 n points are a net four times finer, so the
+/// shadow filter, which averages neighbouring pixels' shadow rays, finds them stratified
+/// across pixels too (0.12.0; docs/VALIDATION.md, session 18).
 inline std::array<double, 3> shadow_uniforms(int k, int n, const PixelSeeds& seeds) {
     const std::array<std::uint32_t, 3> x =
-        sobol3(std::uint32_t(permute(std::uint32_t(k), std::uint32_t(n), seeds.shadow)));
+        sobol3(seeds.quad * std::bit_ceil(std::uint32_t(n)) +
+               std::uint32_t(permute(std::uint32_t(k), std::uint32_t(n), seeds.shadow)));
     const auto scrambled = [&](std::size_t d) {
         return double(owen_scramble(x[d], seeds.scramble[d])) * 0x1.0p-32;
     };

@@ -732,6 +732,45 @@ TEST_CASE("a pixel's shadow-ray uniforms are stratified jointly and uniform over
                 }
             }
     }
+    // A 2 x 2 block of pixels sharing one scrambled sequence (the renderer's), 4 samples
+    // each: in (u1, u2) every pixel's 4 points are a (0, 2, 2)-net, the block's first two
+    // pixels' 8 a (0, 3, 2)-net and all 16 a (0, 4, 2)-net; u_led alone takes each sixteenth
+    // once. Pixels of another block are scrambled otherwise.
+    const auto boxes_once = [](const std::vector<std::array<double, 3>>& points, int m) {
+        for (int a = 0; a <= m; ++a) {
+            const int nx = 1 << a, ny = (1 << m) >> a;
+            std::vector<int> in_box(std::size_t(1 << m), 0);
+            for (const auto& p : points)
+                ++in_box[std::size_t(int(p[1] * nx) * ny + int(p[2] * ny))];
+            if (!std::all_of(in_box.begin(), in_box.end(), [](int c) { return c == 1; }))
+                return false;
+        }
+        return true;
+    };
+    for (const std::uint64_t block : {0ull, 12345ull}) {
+        INFO("block " << block);
+        std::vector<std::array<double, 3>> all;
+        std::vector<double> led;
+        for (std::uint32_t quad = 0; quad < 4; ++quad) {
+            std::vector<std::array<double, 3>> mine;
+            for (int k = 0; k < 4; ++k) {
+                // The pixels' own indices (and permutations) differ; the block is shared.
+                mine.push_back(
+                    shadow_uniforms(k, 4, PixelSeeds(0x5EEDull, 4 * block + quad, block, quad)));
+                led.push_back(mine.back()[0]);
+            }
+            CHECK(boxes_once(mine, 2));
+            all.insert(all.end(), mine.begin(), mine.end());
+            if (quad == 1) CHECK(boxes_once(all, 3));
+        }
+        CHECK(boxes_once(all, 4));
+        std::vector<int> strata(16, 0);
+        for (const double u : led)
+            ++strata[std::size_t(u * 16)];
+        CHECK(std::all_of(strata.begin(), strata.end(), [](int c) { return c == 1; }));
+    }
+    CHECK(shadow_uniforms(0, 4, PixelSeeds(0x5EEDull, 0, 0, 0)) !=
+          shadow_uniforms(0, 4, PixelSeeds(0x5EEDull, 0, 1, 0)));
     // The unscrambled points, by hand from the direction numbers (1/2; 1/2, 1/4, ...; and
     // 1/2, 3/4, 3/8 for x^2 + x + 1), in the natural order; and an index with its top bit set.
     const double by_hand[8][3] = {{0, 0, 0},
