@@ -546,12 +546,12 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                           "wavelengths and, for the fast integrator, the shadow ray's LED and "
                           "point on it from a scrambled Sobol set). Fast integrator at 224 px "
                           "on 2 cores, with the default shadow filter "
-                          "(render.fast.shadow_filter_px): 4 spp gives 1.5 % RMS of the white "
-                          "level in 0.10 s, 6 spp 1.1 % in 0.15 s, 8 spp 0.89 % in 0.19 s, "
-                          "12 spp 0.72 % in 0.29 s (its own noise and the filter's bias over "
+                          "(render.fast.shadow_filter_px): 4 spp gives 1.4 % RMS of the white "
+                          "level in 0.10 s, 6 spp 1.1 % in 0.15 s, 8 spp 0.86 % in 0.19 s, "
+                          "12 spp 0.70 % in 0.29 s (its own noise and the filter's bias over "
                           "the image; over the fisheye's circle 1.12 times that; unfiltered, "
                           "4 spp 2.3 %, 12 spp 1.1 %); at 896 px, with a 1.5 px filter, 3 spp "
-                          "0.87 % in 1.1 s (docs/VALIDATION.md); the path "
+                          "0.83 % in 1.15 s (docs/VALIDATION.md); the path "
                           "integrator needs thousands for 1 %.",
                           CHROMASIM_FIELD(render.samples_per_pixel)));
     out.push_back(number("render.exposure", 1, left_open(0, 100), "",
