@@ -332,6 +332,16 @@ TEST_CASE("a pixel the field's edge crosses is its coverage times its samples in
     const FisheyeCamera camera(kNarrowCamera);
     const double radius = camera.circle_radius_px();
     const SensorFrame frame = bare_frame();
+    // The pixels compared: the edge's, where the samples split (coverage in (0.25, 0.75)),
+    // and those within 4 px inside the edge.
+    enum class Ring { none, edge, inside };
+    const auto ring = [&](int x, int y) {
+        const double c = camera.field_coverage(x, y);
+        if (c > 0.25 && c < 0.75) return Ring::edge;
+        if (c == 1.0 && std::hypot(x + 0.5 - radius, y + 0.5 - radius) > radius - 4.0)
+            return Ring::inside;
+        return Ring::none;
+    };
     for (const Integrator integrator : {Integrator::direct, Integrator::fast}) {
         INFO("integrator " << int(integrator));
         const Image reference =
@@ -350,12 +360,11 @@ TEST_CASE("a pixel the field's edge crosses is its coverage times its samples in
                     const double e2 =
                         std::pow(pixel(image, x, y).sum() - pixel(reference, x, y).sum(), 2) /
                         (light * light);
-                    if (c > 0.25 && c < 0.75) { // the edge: the samples split
+                    if (ring(x, y) == Ring::edge) {
                         edge2 += e2;
                         ++edge;
-                    } else if (c == 1.0 &&
-                               std::hypot(x + 0.5 - radius, y + 0.5 - radius) > radius - 4.0) {
-                        inner2 += e2; // within 4 px inside the edge
+                    } else if (ring(x, y) == Ring::inside) {
+                        inner2 += e2;
                         ++inner;
                     }
                 }
@@ -381,16 +390,15 @@ TEST_CASE("a pixel the field's edge crosses is its coverage times its samples in
     double edge_var = 0.0, edge_err2 = 0.0, inner_var = 0.0, inner_err2 = 0.0;
     for (int y = 0; y < image.height; ++y)
         for (int x = 0; x < image.width; ++x) {
-            const double c = camera.field_coverage(x, y);
             const std::size_t p = 3 * (std::size_t(y) * std::size_t(image.width) + std::size_t(x));
             const double var = image.variance[p] + image.variance[p + 1] + image.variance[p + 2];
             REQUIRE(std::isfinite(var));
             REQUIRE(var >= 0.0);
             const double err2 = (pixel(image, x, y) - pixel(reference, x, y)).square().sum();
-            if (c > 0.25 && c < 0.75) {
+            if (ring(x, y) == Ring::edge) {
                 edge_var += var;
                 edge_err2 += err2;
-            } else if (c == 1.0 && std::hypot(x + 0.5 - radius, y + 0.5 - radius) > radius - 4.0) {
+            } else if (ring(x, y) == Ring::inside) {
                 inner_var += var;
                 inner_err2 += err2;
             }
