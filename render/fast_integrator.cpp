@@ -644,6 +644,18 @@ void FastIntegrator::build_shadow_culling(const SensorFrame& frame) {
     // corners to the LED's corners leave the sphere, plus a margin; then the markers whose
     // balls meet it and the folds whose cones meet its cone.
     const auto markers = std::uint32_t(m_marker_balls.size());
+    // Each fold cone's half-angle b (its chord w seen as 2 asin(w / 2)) plus the margin, as
+    // cos b and sin b: a ball whose directions spread by a about its centre's meets the cone
+    // where the angle between the axes is at most a + b, i.e. cos(apart) >= cos(a + b) =
+    // cos a cos b - sin a sin b while a + b < pi; no trigonometry per triangle and LED.
+    struct ConeAngle {
+        double angle, cos_b, sin_b;
+    };
+    std::vector<ConeAngle> cone_angles(m_fold_cones.size());
+    for (std::size_t i = 0; i < m_fold_cones.size(); ++i) {
+        const double b = 2.0 * std::asin(std::min(1.0, 0.5 * m_fold_cones[i].w())) + 1e-6;
+        cone_angles[i] = {b, std::cos(b), std::sin(b)};
+    }
     std::vector<std::vector<std::uint32_t>> lists(nf * leds);
     tbb::parallel_for(std::size_t(0), nf, [&](std::size_t f) {
         const std::uint32_t* t = c.coating_triangles.data() + 3 * f;
@@ -680,17 +692,25 @@ void FastIntegrator::build_shadow_culling(const SensorFrame& frame) {
             r += kCullMargin_mm;
             m_cull_ball[f * leds + k] = Eigen::Vector4d(centre.x(), centre.y(), centre.z(), r);
             auto& list = lists[f * leds + k];
-            for (std::uint32_t m = 0; m < markers; ++m)
-                if ((m_marker_balls[m].head<3>() - centre).norm() <= m_marker_balls[m].w() + r)
+            for (std::uint32_t m = 0; m < markers; ++m) {
+                const double reach = m_marker_balls[m].w() + r + 1e-9; // round-off: never narrower
+                if ((m_marker_balls[m].head<3>() - centre).squaredNorm() <= reach * reach)
                     list.push_back(m);
-            // The ball's directions lie within asin(r / |centre|) of the centre's.
-            const double spread =
-                r < centre.norm() ? std::asin(r / centre.norm()) : std::numbers::pi;
+            }
+            // The ball's directions lie within a = asin(r / |centre|) of the centre's (all
+            // directions where the ball holds the origin).
+            const double distance = centre.norm();
+            const bool everywhere = !(r < distance);
+            const double sin_a = everywhere ? 1.0 : r / distance;
+            const double cos_a = std::sqrt(std::max(0.0, 1.0 - sin_a * sin_a));
+            const double a = everywhere ? std::numbers::pi : std::asin(sin_a);
+            const Vec3 towards = centre / distance;
             for (std::size_t i = 0; i < m_fold_cones.size(); ++i) {
-                const Eigen::Vector4d& cone = m_fold_cones[i];
-                const double apart =
-                    std::acos(std::clamp(cone.head<3>().dot(centre.normalized()), -1.0, 1.0));
-                if (apart <= spread + 2.0 * std::asin(std::min(1.0, 0.5 * cone.w())) + 1e-6)
+                const ConeAngle& b = cone_angles[i];
+                // Round-off only widens the test (1e-12), so a fold is never left out.
+                if (everywhere || a + b.angle >= std::numbers::pi ||
+                    m_fold_cones[i].head<3>().dot(towards) >=
+                        cos_a * b.cos_b - sin_a * b.sin_b - 1e-12)
                     list.push_back(markers + std::uint32_t(i));
             }
         }
