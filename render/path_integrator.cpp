@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
 
 namespace chromasim::render::detail {
 
@@ -137,22 +138,30 @@ std::vector<Vec3> sphere_reflections(const Vec3& a, const Vec3& l, double R) {
     const double cos_step = std::cos(step), sin_step = std::sin(step);
     std::vector<Vec3> points;
     double c = std::cos(kEdge), s = std::sin(kEdge); // the scan turns (c, s) by step
-    double prev_psi = kEdge, prev = mismatch_at(c, s), prev_z = c * e1.z() + s * e2.z();
+    // The mismatch at the arc's start is evaluated only when an arc needs it: about half the
+    // circle lies below the rim plane, where no arc is looked at.
+    double prev_psi = kEdge, prev_c = c, prev_s = s, prev_z = c * e1.z() + s * e2.z();
+    std::optional<double> prev;
     for (int i = 1; i <= kMirrorScan; ++i) {
         const double psi = kEdge + step * i;
         const double c_next = c * cos_step - s * sin_step;
         s = s * cos_step + c * sin_step;
         c = c_next;
-        const double f = mismatch_at(c, s), z = c * e1.z() + s * e2.z();
+        const double z = c * e1.z() + s * e2.z();
         // Mirror points below the rim plane are no use (the dome is a hemisphere): skip arcs
         // whose ends both lie there (an arc of 2 pi / kMirrorScan rises at most 0.02 mm).
-        const bool below = z <= 0.0 && prev_z <= 0.0;
-        if (!below && (f > 0.0) != (prev > 0.0)) {
-            const auto [mid, f_mid] = illinois(mismatch, prev_psi, psi, prev, f, 1e-13);
+        if (z <= 0.0 && prev_z <= 0.0) {
+            prev_psi = psi, prev_c = c, prev_s = s, prev_z = z, prev.reset();
+            continue;
+        }
+        if (!prev) prev = mismatch_at(prev_c, prev_s);
+        const double f = mismatch_at(c, s);
+        if ((f > 0.0) != (*prev > 0.0)) {
+            const auto [mid, f_mid] = illinois(mismatch, prev_psi, psi, *prev, f, 1e-13);
             // A sign change across the pole of (x - a)^ is a jump, not a root.
             if (std::abs(f_mid) < 1e-6) points.push_back(on_circle(e1, e2, R, mid).first);
         }
-        prev_psi = psi, prev = f, prev_z = z;
+        prev_psi = psi, prev_c = c, prev_s = s, prev_z = z, prev = f;
     }
     return points;
 }
