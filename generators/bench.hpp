@@ -61,6 +61,10 @@ struct RenderBenchOptions {
     /// Fast integrator: the shadow filters to time, px (RenderSettings::shadow_filter_px;
     /// 0: none), each at every spp. The reference never has one.
     std::vector<double> shadow_filter_px{0.0};
+    /// Fast integrator: the samples per pixel to time in the pixels mirroring an LED
+    /// (RenderSettings::reflection_samples_per_pixel; 0: none extra), each at every spp and
+    /// filter. The reference never has them.
+    std::vector<int> reflection_spp{0};
 };
 
 /// Independent renders of one image averaged: per value, their mean and the variance of

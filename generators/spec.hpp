@@ -150,6 +150,8 @@ struct Spec {
             double refresh_threshold = 0.5;
             bool scale_indirect = true;
             double shadow_filter_px = 0.7; ///< render::RenderSettings::shadow_filter_px
+            /// render::RenderSettings::reflection_samples_per_pixel
+            int reflection_samples_per_pixel = 16;
         } fast;
         /// The camera sensor model (render/sensor_model.hpp); the PNG only, the EXR stays the
         /// noise-free render.

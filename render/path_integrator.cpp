@@ -217,14 +217,27 @@ std::optional<std::pair<double, bool>> PathIntegrator::led_hit(const Vec3& origi
     const OpticsParams& o = m_shading.optics();
     const double t = (o.led_z_mm - origin.z()) / direction.z();
     if (!(t > tnear && t < tfar)) return std::nullopt;
-    const Vec3 q = origin + t * direction;
+    if (!near_led(origin + t * direction, 0.0)) return std::nullopt;
+    return std::make_pair(t, direction.z() < 0.0);
+}
+
+std::optional<Vec3> PathIntegrator::led_plane_crossing(const Vec3& origin,
+                                                       const Vec3& direction) const {
+    if (direction.z() == 0.0) return std::nullopt;
+    const double t = (m_shading.optics().led_z_mm - origin.z()) / direction.z();
+    if (!(t > 0.0)) return std::nullopt;
+    return origin + t * direction;
+}
+
+bool PathIntegrator::near_led(const Vec3& q, double margin_mm) const {
+    const OpticsParams& o = m_shading.optics();
     for (std::size_t k = 0; k < m_led_centres.size(); ++k) {
         const Vec3 local = q - m_led_centres[k];
-        if (std::abs(local.dot(m_led_tangents[k])) <= 0.5 * o.led_width_mm &&
-            std::abs(local.dot(m_led_radials[k])) <= 0.5 * o.led_height_mm)
-            return std::make_pair(t, direction.z() < 0.0);
+        if (std::abs(local.dot(m_led_tangents[k])) <= 0.5 * o.led_width_mm + margin_mm &&
+            std::abs(local.dot(m_led_radials[k])) <= 0.5 * o.led_height_mm + margin_mm)
+            return true;
     }
-    return std::nullopt;
+    return false;
 }
 
 std::optional<InterfaceConnection> PathIntegrator::along(const EmbreeScene& scene, Chain chain,

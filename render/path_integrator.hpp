@@ -156,6 +156,12 @@ public:
     /// the ray meets its emitting (+z) face.
     std::optional<std::pair<double, bool>> led_hit(const Vec3& origin_mm, const Vec3& direction,
                                                    double tnear_mm, double tfar_mm) const;
+    /// Where the ray from origin_mm along direction (forwards) crosses the LEDs' plane, if it
+    /// does; and whether a point of that plane lies within margin_mm of an LED's rectangle
+    /// (the renderer's choice of the pixels that mirror an LED:
+    /// RenderSettings::reflection_samples_per_pixel).
+    std::optional<Vec3> led_plane_crossing(const Vec3& origin_mm, const Vec3& direction) const;
+    bool near_led(const Vec3& q_mm, double margin_mm) const;
     /// A point on LED `k` from two uniforms.
     Vec3 led_point(int k, double u1, double u2) const;
 

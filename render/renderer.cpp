@@ -384,6 +384,52 @@ struct Renderer::Impl {
         return detail::Rgb(h.to_rgb * radiance.matrix());
     }
 
+    /// RenderSettings::reflection_samples_per_pixel's pixels, row by row (1: more samples):
+    /// those whose centre's ray, reflected off the inner surface it meets first (the
+    /// interpolated normal), crosses the LEDs' plane within kReflectionMargin_mm of an LED
+    /// plus the pixel's reach there (half the largest distance to its 4 neighbours'
+    /// crossings), and their 8 neighbours.
+    std::vector<std::uint8_t> reflection_pixels() const {
+        const int w = camera.width_px(), h = camera.height_px();
+        const auto at = [w](int x, int y) { return std::size_t(y) * std::size_t(w) + x; };
+        std::vector<std::optional<Vec3>> crossing(std::size_t(w) * std::size_t(h));
+        tbb::parallel_for(0, h, [&](int y) {
+            for (int x = 0; x < w; ++x) {
+                const auto d = camera.direction(Eigen::Vector2d(x + 0.5, y + 0.5));
+                if (!d) continue;
+                const detail::RayHit hit = scene.closest_hit(
+                    camera.origin_mm(), *d, 0.0, std::numeric_limits<double>::infinity());
+                if (!hit.hit() || hit.kind != detail::SurfaceKind::inner_surface) continue;
+                const Vec3 normal = hit.shading_normal.dot(*d) > 0.0 ? Vec3(-hit.shading_normal)
+                                                                     : hit.shading_normal;
+                const Vec3 reflected = (*d - 2.0 * d->dot(normal) * normal).normalized();
+                crossing[at(x, y)] =
+                    path.led_plane_crossing(camera.origin_mm() + hit.t_mm * *d, reflected);
+            }
+        });
+        std::vector<std::uint8_t> mirrors(crossing.size(), 0);
+        for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x) {
+                const auto& q = crossing[at(x, y)];
+                if (!q) continue;
+                double reach = 0.0;
+                for (const auto& [dx, dy] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}})
+                    if (x + dx >= 0 && x + dx < w && y + dy >= 0 && y + dy < h)
+                        if (const auto& o = crossing[at(x + dx, y + dy)])
+                            reach = std::max(reach, 0.5 * (*o - *q).norm());
+                mirrors[at(x, y)] = path.near_led(*q, kReflectionMargin_mm + reach);
+            }
+        std::vector<std::uint8_t> out(mirrors.size(), 0);
+        for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x)
+                for (int dy = -1; dy <= 1 && !out[at(x, y)]; ++dy)
+                    for (int dx = -1; dx <= 1; ++dx)
+                        if (x + dx >= 0 && x + dx < w && y + dy >= 0 && y + dy < h &&
+                            mirrors[at(x + dx, y + dy)])
+                            out[at(x, y)] = 1;
+        return out;
+    }
+
     /// The marker of each layer (index within the layer, or -1) that the ray through the
     /// pixel's centre meets first before the coating.
     std::pair<std::int32_t, std::int32_t> marker_ids(int x, int y) const {
@@ -493,6 +539,11 @@ Image Renderer::render(const RenderSettings& settings) const {
             "RenderSettings: shadow_filter_px = " + std::to_string(settings.shadow_filter_px) +
             " is invalid; allowed: 0 (none) to " + std::to_string(kMaxShadowFilterPx) + " px");
     }
+    if (settings.reflection_samples_per_pixel < 0) {
+        throw std::invalid_argument("RenderSettings: reflection_samples_per_pixel = " +
+                                    std::to_string(settings.reflection_samples_per_pixel) +
+                                    " is invalid; allowed: integer >= 0 (0: none extra)");
+    }
     if (settings.integrator == Integrator::fast && !m_impl->fast.has_cache()) {
         throw std::logic_error("Renderer::render: Integrator::fast needs set_light_cache first");
     }
@@ -513,6 +564,11 @@ Image Renderer::render(const RenderSettings& settings) const {
     const bool fast = settings.integrator == Integrator::fast;
     const int batch = fast && settings.batch_pixels ? std::max(1, Impl::kMaxBatchPixels / n) : 1;
     const auto [nx, ny] = detail::strata_grid(n);
+    // The pixels that mirror an LED, at their own count (RenderSettings).
+    const int n_mirror = settings.reflection_samples_per_pixel;
+    const std::vector<std::uint8_t> mirror =
+        fast && n_mirror > n ? m.reflection_pixels() : std::vector<std::uint8_t>{};
+    const auto [nx_mirror, ny_mirror] = detail::strata_grid(std::max(n_mirror, 1));
     // The shadow filter's inputs: each pixel's direct light with and without the shadows.
     const bool filter = fast && settings.shadow_filter_px > 0.0;
     std::vector<float> lit(filter ? 3 * pixels : 0), shadowed(filter ? 3 * pixels : 0);
@@ -524,15 +580,18 @@ Image Renderer::render(const RenderSettings& settings) const {
     // image's squared error at 4 spp; docs/VALIDATION.md). A pixel none of whose samples
     // fall inside stays black.
     const auto write = [&](int x, int y, const detail::Rgb& sum, const detail::Rgb& sum2,
-                           const detail::Rgb& lit_sum, const detail::Rgb& shadowed_sum,
-                           int inside) {
+                           const detail::Rgb& lit_sum, const detail::Rgb& shadowed_sum, int inside,
+                           int samples) {
         const std::size_t p = std::size_t(y) * image.width + x;
         const double coverage = m.camera.field_coverage(x, y);
         const bool edge = coverage < 1.0; // or outside the field: no samples inside, black
-        // The weight of each sample: 1 / n (the same expression as always, so the pixels
-        // inside the field keep their bytes), coverage / inside at the edge.
-        const int count = edge ? inside : n;
-        const double weight = edge ? (inside > 0 ? scale * coverage / inside : 0.0) : scale / n;
+        // The weight of each sample: 1 / samples (the pixel's count: samples_per_pixel, or
+        // reflection_samples_per_pixel where the pixel mirrors an LED; the same expression as
+        // always, so the pixels inside the field keep their bytes), coverage / inside at the
+        // edge.
+        const int count = edge ? inside : samples;
+        const double weight =
+            edge ? (inside > 0 ? scale * coverage / inside : 0.0) : scale / samples;
         const detail::Rgb value = sum * weight;
         float* out = image.pixel(x, y);
         for (int c = 0; c < 3; ++c)
@@ -565,14 +624,21 @@ Image Renderer::render(const RenderSettings& settings) const {
         lit_sums.fill(detail::Rgb::Zero());
         shadowed_sums.fill(detail::Rgb::Zero());
         for (int y = rows.begin(); y != rows.end(); ++y) {
-            for (int x = 0; x < image.width; x += batch) {
-                const int pixels = std::min(batch, image.width - x);
+            for (int x = 0; x < image.width;) {
+                // A pixel that mirrors an LED alone at its count; the others in runs of up to
+                // `batch` up to the next such pixel.
+                const std::size_t row = std::size_t(y) * image.width;
+                const bool more = !mirror.empty() && mirror[row + x];
+                int pixels = more ? 1 : std::min(batch, image.width - x);
+                for (int j = 1; j < pixels && !mirror.empty(); ++j)
+                    if (mirror[row + x + j]) pixels = j;
+                const int px_n = more ? nx_mirror : nx, py_n = more ? ny_mirror : ny;
                 const auto some = [&](auto& a, bool wanted) {
                     return wanted ? std::span(a.data(), std::size_t(pixels))
                                   : std::span<detail::Rgb>{};
                 };
                 if (fast) {
-                    m.sample_pixels_fast(x, y, pixels, nx, ny, settings, scale,
+                    m.sample_pixels_fast(x, y, pixels, px_n, py_n, settings, scale,
                                          {some(sums, true), some(sum2, settings.variance),
                                           some(lit_sums, filter), some(shadowed_sums, filter),
                                           std::span(inside.data(), std::size_t(pixels))});
@@ -585,7 +651,8 @@ Image Renderer::render(const RenderSettings& settings) const {
                     write(x + j, y, sums[std::size_t(j)],
                           settings.variance ? sum2[std::size_t(j)] : detail::Rgb::Zero(),
                           lit_sums[std::size_t(j)], shadowed_sums[std::size_t(j)],
-                          inside[std::size_t(j)]);
+                          inside[std::size_t(j)], px_n * py_n);
+                x += pixels;
             }
         }
     });

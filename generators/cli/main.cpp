@@ -267,6 +267,13 @@ int main(int argc, char** argv) {
                      "(render.fast.shadow_filter_px; 0: none); the reference has none")
         ->check(CLI::Range(0.0, chromasim::render::kMaxShadowFilterPx));
     bench_render
+        ->add_option("--reflection-spp", render_bench.reflection_spp,
+                     "fast integrator: the samples per pixel to time where the inner surface "
+                     "mirrors an LED, each at every spp and filter "
+                     "(render.fast.reflection_samples_per_pixel; 0: none extra); the reference "
+                     "has none")
+        ->check(CLI::Range(0, 4096));
+    bench_render
         ->add_option("--reference-in", render_bench.reference_in,
                      "read the reference from this EXR (written by --reference-out); two or "
                      "more: independent renders (--reference-seed), averaged, their spread "

@@ -3,6 +3,7 @@
 // on the thread count, and a frame of another sensor is refused.
 #include "render/embree_scene.hpp"
 #include "render/fast_integrator.hpp"
+#include "render/fisheye_camera.hpp"
 #include "render/path_integrator.hpp"
 #include "render/renderer.hpp"
 #include "render/shading.hpp"
@@ -443,6 +444,85 @@ TEST_CASE("fast integrator: neighbouring pixels traced together give each pixel 
             CHECK(renderer.render(settings).rgb != alone.rgb);
         }
     }
+}
+
+TEST_CASE("fast integrator: the pixels that mirror an LED take reflection_samples_per_pixel, "
+          "each as a render at that count would have it, and cover the LEDs' bright images; "
+          "the other pixels keep their bytes",
+          "[render][fast]") {
+    const SensorFrame rest = dome_with_box_markers();
+    const SensorFrame pressed = pressed_flat(rest);
+    Renderer renderer(CameraParams{96, 96, 84.0}, OpticsParams{});
+    LightCacheSettings cache;
+    cache.paths_per_vertex = 8;
+    cache.direct_samples = 4;
+    renderer.set_light_cache(rest, cache);
+    renderer.set_frame(pressed);
+    RenderSettings settings{4, 5};
+    settings.integrator = Integrator::fast;
+    settings.variance = true;
+    const Image four = renderer.render(settings);
+    settings.samples_per_pixel = 16;
+    const Image sixteen = renderer.render(settings);
+    settings.samples_per_pixel = 4;
+    settings.reflection_samples_per_pixel = 16;
+    const Image both = renderer.render(settings);
+    // Each pixel is to the bit the 4-spp render's or the 16-spp render's (value and variance).
+    const auto same = [](const Image& a, const Image& b, std::size_t p) {
+        for (std::size_t c = 3 * p; c < 3 * p + 3; ++c)
+            if (a.rgb[c] != b.rgb[c] || a.variance[c] != b.variance[c]) return false;
+        return true;
+    };
+    const std::size_t pixels = std::size_t(both.width) * std::size_t(both.height);
+    int more = 0, neither = 0;
+    for (std::size_t p = 0; p < pixels; ++p) {
+        if (same(both, four, p)) continue;
+        ++more;
+        neither += !same(both, sixteen, p);
+    }
+    // Every pixel some part of which sees an LED in the inner surface (found on an 8 x 8 grid
+    // of points per pixel, independently of the renderer's choice) took 16 samples.
+    const CameraParams params{96, 96, 84.0};
+    const FisheyeCamera camera(params);
+    FastOnFrame on(pressed);
+    int bright = 0, missed = 0;
+    for (int y = 0; y < params.height_px; ++y)
+        for (int x = 0; x < params.width_px; ++x) {
+            bool mirrors = false;
+            for (int i = 0; i < 64 && !mirrors; ++i) {
+                const auto d =
+                    camera.direction(Eigen::Vector2d(x + (i % 8 + 0.5) / 8, y + (i / 8 + 0.5) / 8));
+                if (!d) continue;
+                const RayHit hit =
+                    on.scene.closest_hit(Vec3::Zero(), *d, 0.0, std::numeric_limits<double>::max());
+                if (!hit.hit() || hit.kind != SurfaceKind::inner_surface) continue;
+                const Vec3 n = hit.shading_normal.dot(*d) > 0.0 ? Vec3(-hit.shading_normal)
+                                                                : hit.shading_normal;
+                const Vec3 reflected = (*d - 2.0 * d->dot(n) * n).normalized();
+                mirrors =
+                    on.path
+                        .led_hit(hit.t_mm * *d, reflected, 1e-6, std::numeric_limits<double>::max())
+                        .has_value();
+            }
+            if (!mirrors) continue;
+            ++bright;
+            missed += same(both, four, std::size_t(y) * std::size_t(params.width_px) + x);
+        }
+    INFO(more << " of " << pixels << " pixels with 16 samples; " << bright
+              << " see an LED in the inner surface, " << missed << " of them with 4");
+    CHECK(neither == 0);
+    CHECK(more > 0);
+    CHECK(more < int(pixels / 5));
+    CHECK(bright > 0);
+    CHECK(missed == 0);
+    // At most samples_per_pixel (0 included): none take more, the same bytes.
+    for (const int n : {0, 4}) {
+        settings.reflection_samples_per_pixel = n;
+        CHECK(renderer.render(settings).rgb == four.rgb);
+    }
+    settings.reflection_samples_per_pixel = -1;
+    CHECK_THROWS_WITH(renderer.render(settings),
+                      Catch::Contains("reflection_samples_per_pixel = -1 is invalid"));
 }
 
 TEST_CASE("fast integrator: shadow rays culled where they provably meet nothing leave the image "
