@@ -212,8 +212,9 @@ struct RenderSettings {
     /// LED (the bright streaks near the rim) and in their 8 neighbours; where it is at most
     /// samples_per_pixel (0 included), none take more. Which pixels: the ray through the
     /// pixel's centre, reflected off the inner surface it meets first, crosses the LEDs' plane
-    /// within kReflectionMargin_mm of an LED. A deterministic choice (no sample decides it),
-    /// so each pixel stays an unbiased estimate: such a pixel is exactly the pixel of a render
+    /// within kReflectionMargin_mm of an LED plus half the largest distance to its 4
+    /// neighbours' crossings (the pixel's reach there). A deterministic choice (no sample decides
+    /// it), so each pixel stays an unbiased estimate: such a pixel is exactly the pixel of a render
     /// at this many samples per pixel. At 224 px, 4 spp, the LEDs' images in the inner surface
     /// (1.3 % of the pixels) held a fifth of the squared error; the pixels chosen are 5 % of
     /// the image at 1.5 N + 0.6 N, 11 % at 5 N + 2 N (docs/VALIDATION.md).
