@@ -447,8 +447,8 @@ TEST_CASE("fast integrator: neighbouring pixels traced together give each pixel 
 }
 
 TEST_CASE("fast integrator: the pixels that mirror an LED take reflection_samples_per_pixel, "
-          "each as a render at that count would have it, and cover the LEDs' bright images; "
-          "the other pixels keep their bytes",
+          "each as a render at that count would have it, among them every pixel that sees an "
+          "LED in the inner surface, and the other pixels keep their bytes",
           "[render][fast]") {
     const SensorFrame rest = dome_with_box_markers();
     const SensorFrame pressed = pressed_flat(rest);
