@@ -70,6 +70,16 @@ SensorFrame dome_with_box_markers() {
     return rest;
 }
 
+/// The renderer's small light cache (8 paths, 4 LED points per vertex) built on `rest`, then
+/// `frame` loaded.
+void small_cache_on(Renderer& renderer, const SensorFrame& rest, const SensorFrame& frame) {
+    LightCacheSettings cache;
+    cache.paths_per_vertex = 8;
+    cache.direct_samples = 4;
+    renderer.set_light_cache(rest, cache);
+    renderer.set_frame(frame);
+}
+
 TEST_CASE("fast integrator: on a dome without markers it agrees with the path integrator",
           "[render][fast]") {
     const SensorFrame frame = clear_dome(16, 64, 24, 96);
@@ -416,11 +426,7 @@ TEST_CASE("fast integrator: neighbouring pixels traced together give each pixel 
     for (const OpticsParams& optics : {OpticsParams{}, spectral}) {
         // 23 px wide: batches of 16 / n pixels end part-way along each row.
         Renderer renderer(CameraParams{23, 17, 84.0}, optics);
-        LightCacheSettings cache;
-        cache.paths_per_vertex = 8;
-        cache.direct_samples = 4;
-        renderer.set_light_cache(rest, cache);
-        renderer.set_frame(pressed);
+        small_cache_on(renderer, rest, pressed);
         for (const int spp : {1, 3, 4, 5, 8, 16, 20}) {
             RenderSettings settings{spp, 11};
             settings.integrator = Integrator::fast;
@@ -453,11 +459,7 @@ TEST_CASE("fast integrator: the pixels that mirror an LED take reflection_sample
     const SensorFrame rest = dome_with_box_markers();
     const SensorFrame pressed = pressed_flat(rest);
     Renderer renderer(CameraParams{96, 96, 84.0}, OpticsParams{});
-    LightCacheSettings cache;
-    cache.paths_per_vertex = 8;
-    cache.direct_samples = 4;
-    renderer.set_light_cache(rest, cache);
-    renderer.set_frame(pressed);
+    small_cache_on(renderer, rest, pressed);
     RenderSettings settings{4, 5};
     settings.integrator = Integrator::fast;
     settings.variance = true;
@@ -678,11 +680,7 @@ TEST_CASE("fast integrator: the shadow filter brings a noisy image nearer the co
     // 4 spp, three fifths: docs/VALIDATION.md); with the direct light's parts mixed up
     // between pixels or swapped, it adds error.
     Renderer renderer(CameraParams{96, 96, 84.0}, OpticsParams{});
-    LightCacheSettings cache;
-    cache.paths_per_vertex = 8;
-    cache.direct_samples = 4;
-    renderer.set_light_cache(rest, cache);
-    renderer.set_frame(pressed);
+    small_cache_on(renderer, rest, pressed);
     RenderSettings settings{256, 3};
     settings.integrator = Integrator::fast;
     const Image converged = renderer.render(settings);
