@@ -1,5 +1,6 @@
 #include "render/fast_integrator.hpp"
 
+#include "render/sampling.hpp"
 #include "render/spectrum.hpp"
 #include "render/sphere_refraction.hpp"
 
@@ -97,10 +98,6 @@ template <int N> LanesN<N> diffuse_transmittance(const LanesN<N>& tau) {
     for (int i = 0; i < 8; ++i)
         sum += (2.0 * w[i] * x[i]) * (-tau / x[i]).exp();
     return sum;
-}
-
-Vec3 facing(const Vec3& normal, const Vec3& direction) {
-    return normal.dot(direction) > 0.0 ? Vec3(-normal) : normal;
 }
 
 /// Area-weighted vertex normals of the coating, turned to face the dome centre.

@@ -1,5 +1,6 @@
 #include "render/path_integrator.hpp"
 
+#include "render/sampling.hpp"
 #include "render/sphere_refraction.hpp"
 
 #include <Eigen/Geometry>
@@ -27,10 +28,6 @@ constexpr double kJacobianStep = 1e-6;
 double power_heuristic(double a, double b) {
     const double a2 = a * a, b2 = b * b;
     return a2 + b2 > 0.0 ? a2 / (a2 + b2) : 0.0;
-}
-
-Vec3 facing(const Vec3& normal, const Vec3& direction) {
-    return normal.dot(direction) > 0.0 ? Vec3(-normal) : normal;
 }
 
 /// A chain followed to the LED plane.

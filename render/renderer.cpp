@@ -400,8 +400,7 @@ struct Renderer::Impl {
                 const detail::RayHit hit = scene.closest_hit(
                     camera.origin_mm(), *d, 0.0, std::numeric_limits<double>::infinity());
                 if (!hit.hit() || hit.kind != detail::SurfaceKind::inner_surface) continue;
-                const Vec3 normal = hit.shading_normal.dot(*d) > 0.0 ? Vec3(-hit.shading_normal)
-                                                                     : hit.shading_normal;
+                const Vec3 normal = detail::facing(hit.shading_normal, *d);
                 const Vec3 reflected = (*d - 2.0 * d->dot(normal) * normal).normalized();
                 crossing[at(x, y)] =
                     path.led_plane_crossing(camera.origin_mm() + hit.t_mm * *d, reflected);

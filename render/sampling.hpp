@@ -230,6 +230,11 @@ inline double fresnel_dielectric(double cos_i, double eta) {
     return 0.5 * (rs * rs + rp * rp);
 }
 
+/// The normal turned to face against `direction` (towards where the ray comes from).
+inline Eigen::Vector3d facing(const Eigen::Vector3d& normal, const Eigen::Vector3d& direction) {
+    return normal.dot(direction) > 0.0 ? Eigen::Vector3d(-normal) : normal;
+}
+
 /// Refraction of the unit direction `d` through a boundary with unit normal `n` facing the
 /// incoming side (d . n < 0), eta = n_i / n_t; false on total internal reflection.
 inline bool refract(const Eigen::Vector3d& d, const Eigen::Vector3d& n, double eta,

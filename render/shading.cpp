@@ -1,5 +1,7 @@
 #include "render/shading.hpp"
 
+#include "render/sampling.hpp"
+
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -68,10 +70,6 @@ std::vector<Vec3> led_ring(const OpticsParams& optics) {
 }
 
 /// The unit normal turned to face against `direction` (towards where the ray came from).
-Vec3 facing(const Vec3& normal, const Vec3& direction) {
-    return normal.dot(direction) > 0.0 ? Vec3(-normal) : normal;
-}
-
 } // namespace
 
 LaneOptics<kSpectralLanes> spectral_lanes(const SensorSpectra& spectra, const Lanes& lambda_nm,
