@@ -33,11 +33,7 @@ constexpr double kUnderMarker_mm = 0.05;
 /// The shadow ray's refraction: the sphere model's mismatch (a difference of sines) at which
 /// to stop, about 1e-9 rad and 1e-8 mm across the layers.
 constexpr double kShadowTolerance = 1e-9;
-/// Shadow-ray culling: the bracket about the guess (in t = tan(psi / 2), about 0.02 rad of
-/// the exit point's angle), the exit points' spread at which it is tested (mm), and the
-/// margin of each triangle's ball over its corners' paths (mm).
-constexpr double kGuessHalfWidth = 0.01;
-constexpr double kCullWidth_mm = 0.05;
+/// Shadow-ray culling: the margin of each triangle's ball over its corners' paths (mm).
 constexpr double kCullMargin_mm = 0.1;
 /// An edge of the coating folds inwards where its neighbour's far corner rises more than this
 /// above a triangle's plane, seen from the cavity: ten times the vertices' float round-off at
@@ -58,30 +54,12 @@ std::optional<Vec3> sphere_exit(const Vec3& p, const Vec3& w, double R) {
     return p + t * w;
 }
 
-/// Squared distance from x to the triangle (a, b, c) (Ericson, Real-Time Collision Detection,
-/// 5.1.5: the closest point by the Voronoi regions of the corners and edges).
-double distance2_to_triangle(const Vec3& x, const Vec3& a, const Vec3& b, const Vec3& c) {
-    const Vec3 ab = b - a, ac = c - a, ax = x - a;
-    const double d1 = ab.dot(ax), d2 = ac.dot(ax);
-    if (d1 <= 0.0 && d2 <= 0.0) return ax.squaredNorm();
-    const Vec3 bx = x - b;
-    const double d3 = ab.dot(bx), d4 = ac.dot(bx);
-    if (d3 >= 0.0 && d4 <= d3) return bx.squaredNorm();
-    const double vc = d1 * d4 - d3 * d2;
-    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) return (x - (a + (d1 / (d1 - d3)) * ab)).squaredNorm();
-    const Vec3 cx = x - c;
-    const double d5 = ab.dot(cx), d6 = ac.dot(cx);
-    if (d6 >= 0.0 && d5 <= d6) return cx.squaredNorm();
-    const double vb = d5 * d2 - d1 * d6;
-    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) return (x - (a + (d2 / (d2 - d6)) * ac)).squaredNorm();
-    const double va = d3 * d6 - d5 * d4;
-    if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0)
-        return (x - (b + ((d4 - d3) / ((d4 - d3) + (d5 - d6))) * (c - b))).squaredNorm();
-    const double denom = va + vb + vc;
-    if (!(denom > 0.0)) // a degenerate triangle: the nearest of its corners, conservatively
-        return std::min({ax.squaredNorm(), bx.squaredNorm(), cx.squaredNorm()}) -
-               std::max({ab.squaredNorm(), ac.squaredNorm()});
-    return (x - (a + (vb / denom) * ab + (vc / denom) * ac)).squaredNorm();
+/// Squared distance from x to the segment [a, b].
+double distance2_to_segment(const Vec3& x, const Vec3& a, const Vec3& b) {
+    const Vec3 ab = b - a;
+    const double length2 = ab.squaredNorm();
+    const double t = length2 > 0.0 ? std::clamp((x - a).dot(ab) / length2, 0.0, 1.0) : 0.0;
+    return (a + t * ab - x).squaredNorm();
 }
 
 /// Transmittance of a slab of optical thickness tau (per lane) for light arriving with a
@@ -838,15 +816,11 @@ LanesN<N> FastIntegrator::shadow_transmittance(const EmbreeScene& scene, const V
                                                const Lookup<N>& at, int k, double u1, double u2,
                                                const LaneOptics<N>& lanes) const {
     const Vec3 l = m_path.led_point(k, u1, u2);
-    // The sphere model's refraction towards l; where the culling's bracket shows the ray
-    // cannot meet anything, it stops there.
+    // The sphere model's refraction towards l: by Newton from the frame's guess where there
+    // is one (with the culling), else over the whole bracket.
     SphereRefraction solver(p, l, at.radius_mm, m_shading.optics().refractive_index);
-    // The frame's correction (the deformed surface against the sphere), interpolated.
-    const Vec3 correction = shadow_correction(at, k);
-    Vec3 w;
-    if (m_guess.empty()) {
-        w = solver.solve(kShadowTolerance);
-    } else {
+    std::optional<Vec3> model;
+    if (!m_guess.empty()) {
         Vec3 guess = Vec3::Zero();
         for (int i = 0; i < 3; ++i) {
             const float* g =
@@ -854,72 +828,42 @@ LanesN<N> FastIntegrator::shadow_transmittance(const EmbreeScene& scene, const V
             for (int a = 0; a < 3; ++a)
                 guess[a] += at.weights[i] * (g[a] + (u1 - 0.5) * g[3 + a] + (u2 - 0.5) * g[6 + a]);
         }
-        if (!(guess.norm() > 0.0)) {
-            w = solver.solve(kShadowTolerance);
-        } else if (solver.bracket_near(guess.normalized(), kGuessHalfWidth, kCullWidth_mm,
-                                       kShadowTolerance)) {
-            if (shadow_free(at.prim, k, p, solver.exit_lo(), solver.exit_hi(), correction,
-                            at.radius_mm)) {
-                return LanesN<N>::Ones();
-            }
-            w = solver.finish(kShadowTolerance);
-        } else {
-            w = solver.solve(kShadowTolerance);
-        }
+        if (guess.norm() > 0.0) model = solver.newton(guess.normalized(), kShadowTolerance);
     }
-    w = (w + correction).normalized();
-    // Where the shadow ray towards l leaves the layers (through the sphere below).
+    // Plus the frame's correction (the deformed surface against the sphere), interpolated.
+    const Vec3 w =
+        ((model ? *model : solver.solve(kShadowTolerance)) + shadow_correction(at, k)).normalized();
+    // Where the shadow ray towards l leaves the layers (through the sphere below); from there
+    // to p it is traced, unless the culling shows it meets nothing.
     const auto exit = sphere_exit(p, w, at.radius_mm);
-    return exit ? m_shading.transmittance(scene, *exit, p, lanes, kHitGap_mm) : LanesN<N>::Ones();
+    if (!exit || (!m_guess.empty() && path_clear(at.prim, k, p, *exit))) return LanesN<N>::Ones();
+    return m_shading.transmittance(scene, *exit, p, lanes, kHitGap_mm);
 }
 
-bool FastIntegrator::shadow_free(std::uint32_t prim, int k, const Vec3& p, const Vec3& x_lo,
-                                 const Vec3& x_hi, const Vec3& correction, double radius_mm) const {
+bool FastIntegrator::path_clear(std::uint32_t prim, int k, const Vec3& p, const Vec3& q) const {
     const std::size_t i = std::size_t(prim) * std::size_t(m_cache->leds) + std::size_t(k);
     const Eigen::Vector4d& ball = m_cull_ball[i];
     if (!(ball.w() > 0.0)) return false;
-    // The paths' ends on the sphere, turned by the correction as the ray will be.
-    const auto end = [&](const Vec3& x) {
-        return sphere_exit(p, ((x - p).normalized() + correction).normalized(), radius_mm);
-    };
-    const auto q_lo = end(x_lo), q_hi = end(x_hi);
-    if (!q_lo || !q_hi) return false;
-    // The ends between the bracket's two lie on a curve near the chord q_lo q_hi: within its
-    // sagitta, generously chord^2 / R, plus round-off.
-    const double slack = (*q_lo - *q_hi).squaredNorm() / radius_mm + 1e-4;
     // Above the rim plane, so not across the frame.
-    if (!(p.z() > slack && q_lo->z() > slack && q_hi->z() > slack)) return false;
+    if (!(p.z() > 0.0 && q.z() > 0.0)) return false;
     // Inside the ball, so only its markers can be in the way.
     const Vec3 centre = ball.head<3>();
-    const double inner = ball.w() - slack;
-    for (const Vec3* x : {&p, &*q_lo, &*q_hi})
-        if (!((*x - centre).squaredNorm() < inner * inner)) return false;
-    // The path's directions from the origin: the spherical triangle of these three, within
-    // its sagitta of the flat one (generously a quarter of the longest chord squared), plus
-    // the slack's angle.
+    const double r2 = ball.w() * ball.w();
+    if (!((p - centre).squaredNorm() < r2 && (q - centre).squaredNorm() < r2)) return false;
+    // The path's directions from the origin: the arc from p's to q's, within its sagitta
+    // (generously a quarter of the chord squared) of the chord.
     const auto markers = std::uint32_t(m_marker_balls.size());
-    const Vec3 dp = p.normalized(), dlo = q_lo->normalized(), dhi = q_hi->normalized();
-    const double turn =
-        std::max({(dp - dlo).squaredNorm(), (dp - dhi).squaredNorm(), (dlo - dhi).squaredNorm()}) /
-            4.0 +
-        slack / radius_mm;
-    // The path triangle's own ball, to pass over most of the list's markers at once.
-    const Vec3 middle = (p + *q_lo + *q_hi) / 3.0;
-    const double around =
-        std::sqrt(std::max({(p - middle).squaredNorm(), (*q_lo - middle).squaredNorm(),
-                            (*q_hi - middle).squaredNorm()}));
+    const Vec3 dp = p.normalized(), dq = q.normalized();
+    const double sagitta = 0.25 * (dp - dq).squaredNorm();
     for (std::uint32_t j = m_cull_first[i]; j < m_cull_first[i + 1]; ++j) {
         const std::uint32_t index = m_cull_markers[j];
         if (index < markers) {
             const Eigen::Vector4d& m = m_marker_balls[index];
-            const double reach = m.w() + slack;
-            const double far = reach + around;
-            if ((m.head<3>() - middle).squaredNorm() > far * far) continue;
-            if (distance2_to_triangle(m.head<3>(), p, *q_lo, *q_hi) <= reach * reach) return false;
+            if (distance2_to_segment(m.head<3>(), p, q) <= m.w() * m.w()) return false;
         } else {
             const Eigen::Vector4d& cone = m_fold_cones[index - markers];
-            const double reach = cone.w() + turn;
-            if (distance2_to_triangle(cone.head<3>(), dp, dlo, dhi) <= reach * reach) return false;
+            const double reach = cone.w() + sagitta;
+            if (distance2_to_segment(cone.head<3>(), dp, dq) <= reach * reach) return false;
         }
     }
     return true;

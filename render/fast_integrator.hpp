@@ -233,13 +233,12 @@ private:
     template <int N>
     LanesN<N> shadow_transmittance(const EmbreeScene& scene, const Vec3& p, const Lookup<N>& at,
                                    int k, double u1, double u2, const LaneOptics<N>& lanes) const;
-    /// True if every shadow path from p leaving the sphere of radius `radius_mm` between the
-    /// bracket's exit points x_lo and x_hi (turned by the correction `correction`) misses the
-    /// markers, the frame and the coating: it lies in the triangle (p, q_lo, q_hi) (grown by
-    /// the arc's sagitta), which lies in triangle `prim`'s ball for LED k, and no marker of
-    /// that ball's list (markers; folds, by their cones of directions) comes that close.
-    bool shadow_free(std::uint32_t prim, int k, const Vec3& p, const Vec3& x_lo, const Vec3& x_hi,
-                     const Vec3& correction, double radius_mm) const;
+    /// True if the shadow ray's path from p to q (where it leaves the sphere model) misses
+    /// the markers, the frame and the coating: it lies above the rim plane and in triangle
+    /// `prim`'s ball for LED k, and no marker of that ball's list comes that close (markers by
+    /// their balls; folds by their cones of directions, against the path's directions from the
+    /// origin).
+    bool path_clear(std::uint32_t prim, int k, const Vec3& p, const Vec3& q) const;
     /// Per frame (LightCacheSettings::cull_shadows): the markers' balls, the coating's inward
     /// folds, and each coating triangle's ball per LED with the markers and folds near it.
     void build_shadow_culling(const SensorFrame& frame);
@@ -274,7 +273,8 @@ private:
     /// Shadow-ray culling (LightCacheSettings::cull_shadows; docs/VALIDATION.md). Per vertex
     /// and LED k, [(vertex * leds + k) * 9]: the sphere model's direction from the vertex to
     /// the LED's centre and its change across the LED's width and height (per unit of the
-    /// sample's u1, u2), the guess that brackets each shadow ray's refraction.
+    /// sample's u1, u2), interpolated over the hit triangle: the start of each shadow ray's
+    /// Newton solve (SphereRefraction::newton).
     std::vector<float> m_guess;
     /// Per coating triangle f and LED k, [f * leds + k]: a ball (centre, radius; radius < 0:
     /// no culling) meant to hold the shadow paths from f to the LED, and the markers whose

@@ -150,9 +150,11 @@ struct LightCacheSettings {
     /// 3.5 % of white too bright on average (docs/VALIDATION.md).
     bool scale_indirect = true;
     /// Per frame, not part of the stored cache: skip the fast integrator's shadow rays that
-    /// provably meet no marker (a bracket of the refraction near a per-vertex guess, tested
-    /// against the markers' bounding balls). Exact: the image is the same to the refraction
-    /// solve's tolerance; off only to measure what it saves (bench render --no-shadow-cull).
+    /// provably meet no marker (each ray's path tested against the bounding balls of the
+    /// markers near its triangle's paths, listed per frame), and start each shadow ray's
+    /// refraction solve from a per-vertex guess (Newton). Exact: the image is the same to the
+    /// refraction solve's tolerance; off only to measure what it saves (bench render
+    /// --no-shadow-cull).
     bool cull_shadows = true;
 };
 

@@ -5,11 +5,6 @@
 
 namespace chromasim::render::detail {
 
-namespace {
-/// Narrowing rounds of bracket_near (each a regula falsi step and a probe).
-constexpr int kNarrowRounds = 3;
-} // namespace
-
 SphereRefraction::SphereRefraction(const Vec3& p, const Vec3& l, double R, double eta)
     : m_p(p), m_l(l), m_R(R), m_R2(R * R), m_eta(eta) {
     // Coordinates (along e1, along e2): p = (a, 0), l = (lx, ly), x = R (c, s) and
@@ -42,16 +37,28 @@ SphereRefraction::Vec3 SphereRefraction::at(double t) const {
     return m_R * ((1.0 - t * t) * d * m_e1 + 2.0 * t * d * m_e2);
 }
 
-double SphereRefraction::mismatch(double t) {
+double SphereRefraction::mismatch(double t, double* slope) {
     ++m_evaluations;
     const double d = 1.0 / (1.0 + t * t);
     const double c = (1.0 - t * t) * d, s = 2.0 * t * d;
     const double to_x = std::sqrt(std::max(0.0, m_R2 + m_a * m_a - 2.0 * m_a * m_R * c)); // |x-p|
     const double to_l = std::sqrt(std::max(0.0, m_l2 + m_R2 - 2.0 * m_R * (m_lx * c + m_ly * s)));
     // A unit direction of zero length (x on p or on l) counts as zero, as Eigen's
-    // normalized() leaves it.
-    return (to_x > 0.0 ? m_eta * m_a * s / to_x : 0.0) -
-           (to_l > 0.0 ? (m_ly * c - m_lx * s) / to_l : 0.0);
+    // normalized() leaves it (and has no slope).
+    const double towards_l = m_ly * c - m_lx * s; // (l - x) . tau
+    if (slope) {
+        // d psi / dt = 2 d, dc = -s d psi, ds = c d psi; d|x - p| = a R s d psi / |x - p|,
+        // d|l - x| = -R (l - x) . tau d psi / |l - x|.
+        const double g = 2.0 * d;
+        const double inside =
+            to_x > 0.0 ? m_eta * m_a * g * (c - m_a * m_R * s * s / (to_x * to_x)) / to_x : 0.0;
+        const double outside =
+            to_l > 0.0
+                ? g * ((-m_ly * s - m_lx * c) + m_R * towards_l * towards_l / (to_l * to_l)) / to_l
+                : 0.0;
+        *slope = inside - outside;
+    }
+    return (to_x > 0.0 ? m_eta * m_a * s / to_x : 0.0) - (to_l > 0.0 ? towards_l / to_l : 0.0);
 }
 
 double SphereRefraction::regula_falsi(double tolerance) {
@@ -84,64 +91,31 @@ SphereRefraction::Vec3 SphereRefraction::solve(double tolerance) {
     return direction_at(regula_falsi(tolerance));
 }
 
-bool SphereRefraction::bracket_near(const Vec3& guess, double half_width_t, double width_mm,
-                                    double tolerance) {
-    if (m_degenerate) return false;
+std::optional<SphereRefraction::Vec3> SphereRefraction::newton(const Vec3& guess,
+                                                               double tolerance) {
+    if (m_degenerate) return std::nullopt;
     // Where the guessed ray leaves the sphere (from outside it: p is in the shell).
     const double b = m_p.dot(guess), c = m_a * m_a - m_R2;
     const double disc = b * b - c;
-    if (!(disc >= 0.0)) return false;
+    if (!(disc >= 0.0)) return std::nullopt;
     const double s = -b - std::sqrt(disc);
-    if (!(s > 0.0)) return false;
+    if (!(s > 0.0)) return std::nullopt;
     const Vec3 x = m_p + s * guess;
-    const double t_guess = t_of(x.dot(m_e1), x.dot(m_e2));
-    // Within the whole bracket [0, t_l] (solve's), where the mismatch has its one root.
-    const double t_l = t_of(m_lx, m_ly);
-    m_lo = std::max(0.0, t_guess - half_width_t), m_hi = std::min(t_l, t_guess + half_width_t);
-    if (!(m_lo < m_hi)) return false;
-    m_f_lo = mismatch(m_lo), m_f_hi = mismatch(m_hi);
-    if (m_f_lo * m_f_hi > 0.0) return false;
-    // Narrow: a regula falsi step, then a probe a little past it towards the root, so that
-    // both ends close in (plain regula falsi keeps one end fixed).
-    const double t_per_mm = 1.0 / m_R; // dt / d(arc) = (1 + t^2) / (2 R), t below 1
-    for (int round = 0; round < kNarrowRounds; ++round) {
-        if ((at(m_hi) - at(m_lo)).norm() <= width_mm) return true;
-        if (m_f_hi == m_f_lo) return false;
-        const double t = (m_lo * m_f_hi - m_hi * m_f_lo) / (m_f_hi - m_f_lo);
-        const double f = mismatch(t);
-        if (std::abs(f) < tolerance) {
-            m_lo = m_hi = t, m_f_lo = m_f_hi = f;
-            return true;
-        }
-        // f has m_hi's sign: the root lies in [m_lo, t], else in [t, m_hi].
-        if ((f > 0.0) == (m_f_hi > 0.0)) {
-            m_hi = t, m_f_hi = f;
-            const double probe = std::max(m_lo, t - 0.5 * width_mm * t_per_mm);
-            if (probe > m_lo) {
-                const double fp = mismatch(probe);
-                if ((fp > 0.0) == (f > 0.0))
-                    m_hi = probe, m_f_hi = fp;
-                else
-                    m_lo = probe, m_f_lo = fp;
-            }
-        } else {
-            m_lo = t, m_f_lo = f;
-            const double probe = std::min(m_hi, t + 0.5 * width_mm * t_per_mm);
-            if (probe < m_hi) {
-                const double fp = mismatch(probe);
-                if ((fp > 0.0) == (f > 0.0))
-                    m_lo = probe, m_f_lo = fp;
-                else
-                    m_hi = probe, m_f_hi = fp;
-            }
-        }
+    double t = t_of(x.dot(m_e1), x.dot(m_e2));
+    // The root lies before l's own direction (solve()'s whole bracket) and on the cap of
+    // the sphere p sees (psi up to acos(R / a)): beyond it the mismatch has other roots, of
+    // paths that would cross the cavity to reach the sphere from inside.
+    const double t_hi =
+        std::min(t_of(m_lx, m_ly), t_of(m_R, std::sqrt(std::max(0.0, m_a * m_a - m_R2))));
+    for (int i = 0; i < kNewtonSteps; ++i) {
+        double slope = 0.0;
+        const double f = mismatch(t, &slope);
+        if (std::abs(f) < tolerance) return direction_at(t);
+        if (!(slope != 0.0)) return std::nullopt;
+        t -= f / slope;
+        if (!(t >= 0.0 && t <= t_hi)) return std::nullopt;
     }
-    return (at(m_hi) - at(m_lo)).norm() <= width_mm;
-}
-
-SphereRefraction::Vec3 SphereRefraction::finish(double tolerance) {
-    if (m_lo == m_hi) return direction_at(m_lo);
-    return direction_at(regula_falsi(tolerance));
+    return std::nullopt;
 }
 
 } // namespace chromasim::render::detail

@@ -12,13 +12,14 @@
 ///
 /// Two ways in:
 ///   - solve(): the whole bracket (about 9 evaluations of the mismatch to 1e-9);
-///   - bracket_near() then finish(): a bracket around a guessed direction, narrowed until its
-///     exit points are a given distance apart (about 4 evaluations with a good guess). A caller
-///     that only needs to know the region the path lies in (the fast integrator's culling of
-///     shadow rays that can meet no marker) stops there; finish() goes on to the tolerance.
+///   - newton(): Newton's method from a guessed direction (the fast integrator's per-vertex
+///     table, a few hundredths of a radian off): about 3.4 evaluations of the mismatch and its
+///     slope to 1e-9 at the bench's frame (docs/VALIDATION.md, session 20); nothing where it
+///     would leave the bracket or does not get there, and the caller solves.
 #include <Eigen/Core>
 
 #include <cmath>
+#include <optional>
 #include <utility>
 
 namespace chromasim::render::detail {
@@ -34,23 +35,21 @@ public:
     /// the bracket has no sign change.
     Vec3 solve(double tolerance);
 
-    /// Brackets the root within t_guess +- half_width_t (t_guess: where the ray from p along
-    /// `guess` leaves the sphere), then narrows the bracket until its two exit points are at
-    /// most `width_mm` apart (at most a few evaluations). False when the guess does not
-    /// bracket the root or the plane is degenerate: use solve().
-    bool bracket_near(const Vec3& guess, double half_width_t, double width_mm, double tolerance);
-    /// After bracket_near(): the bracket's exit points on the sphere (the root's exit point
-    /// lies on the arc between them).
-    Vec3 exit_lo() const { return at(m_lo); }
-    Vec3 exit_hi() const { return at(m_hi); }
-    /// After bracket_near(): regula falsi on from the bracket to `tolerance`.
-    Vec3 finish(double tolerance);
+    /// The direction by Newton's method on the mismatch, from where the ray from p along the
+    /// unit `guess` leaves the sphere, stopping at a mismatch below `tolerance` (as solve()).
+    /// Nothing (use solve()) where the plane is degenerate, the ray does not leave the sphere,
+    /// a step leaves the bracket that holds the one root (up to l's direction and on the cap
+    /// of the sphere seen from p), the slope vanishes or kNewtonSteps evaluations do not get
+    /// there.
+    std::optional<Vec3> newton(const Vec3& guess, double tolerance);
+    static constexpr int kNewtonSteps = 8;
 
     /// Evaluations of the mismatch so far (for tests and benchmarks).
     int evaluations() const { return m_evaluations; }
 
 private:
-    double mismatch(double t);
+    /// Snell's mismatch at t; `slope`: if given, gets its derivative in t.
+    double mismatch(double t, double* slope = nullptr);
     Vec3 at(double t) const;
     /// t of the direction of a point (c, s) of the plane: tan(psi / 2) = sin / (1 + cos).
     static double t_of(double c, double s);
