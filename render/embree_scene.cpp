@@ -155,7 +155,8 @@ struct EmbreeScene::Impl {
     void release(MeshSlot& slot, unsigned id);
     void create(MeshSlot& slot, const SurfaceMesh& mesh, unsigned id);
     void refit(MeshSlot& slot, const SurfaceMesh& mesh);
-    RTCGeometry new_triangle_geometry(const MeshSlot& slot);
+    /// A triangle geometry on the slot's buffers, hit by the rays whose `kinds` hold `mask`.
+    RTCGeometry new_triangle_geometry(const MeshSlot& slot, unsigned mask);
     void set_interface(bool present, bool rebuilt);
     RayHit to_hit(const RTCRayHit& query) const;
 };
@@ -208,13 +209,14 @@ void EmbreeScene::Impl::create(MeshSlot& slot, const SurfaceMesh& mesh, unsigned
     slot.V.topRows(slot.vertex_count) = mesh.V;
     slot.V.bottomRows(1).setZero();
     slot.F = mesh.F;
-    slot.geometry = new_triangle_geometry(slot);
+    slot.geometry = new_triangle_geometry(slot, kind_bit(SurfaceKind(id + 1)));
     rtcAttachGeometryByID(scene, slot.geometry, id);
     check(device, "creating geometry " + std::to_string(id));
 }
 
-RTCGeometry EmbreeScene::Impl::new_triangle_geometry(const MeshSlot& slot) {
+RTCGeometry EmbreeScene::Impl::new_triangle_geometry(const MeshSlot& slot, unsigned mask) {
     RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    rtcSetGeometryMask(geometry, mask);
     rtcSetGeometryBuildQuality(geometry, RTC_BUILD_QUALITY_REFIT);
     rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
                                slot.V.data(), 0, 3 * sizeof(float), size_t(slot.vertex_count));
@@ -233,7 +235,8 @@ void EmbreeScene::Impl::set_interface(bool present, bool rebuilt) {
         interface_geometry = nullptr;
     }
     if (present && !interface_geometry) {
-        interface_geometry = new_triangle_geometry(slots[geometry_id(SurfaceKind::inner_surface)]);
+        interface_geometry = new_triangle_geometry(slots[geometry_id(SurfaceKind::inner_surface)],
+                                                   kind_bit(SurfaceKind::inner_surface));
         rtcAttachGeometryByID(interface_scene, interface_geometry, 0);
     } else if (present) {
         rtcUpdateGeometryBuffer(interface_geometry, RTC_BUFFER_TYPE_VERTEX, 0);
@@ -292,10 +295,11 @@ SceneUpdate EmbreeScene::set_frame(const SensorFrame& frame) {
 }
 
 RayHit EmbreeScene::closest_hit(const Vec3& origin_mm, const Vec3& direction, double tnear_mm,
-                                double tfar_mm) const {
+                                double tfar_mm, unsigned kinds) const {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     RTCRayHit query = make_query(origin_mm, direction, tnear_mm, tfar_mm);
+    query.ray.mask = kinds;
     rtcIntersect1(m_impl->scene, &context, &query);
     if (m_impl->counting) m_impl->rays.fetch_add(1, std::memory_order_relaxed);
     return m_impl->to_hit(query);

@@ -20,6 +20,13 @@ enum class SurfaceKind : std::uint8_t {
     inner_surface = 4, ///< the air / clear-layer interface (SensorFrame::inner_surface)
 };
 
+/// A set of surface kinds, one bit each (closest_hit's `kinds`: the surfaces a ray can meet;
+/// Embree's ray and geometry masks).
+constexpr unsigned kind_bit(SurfaceKind kind) {
+    return 1u << unsigned(kind);
+}
+inline constexpr unsigned kAllKinds = ~0u;
+
 /// The closest intersection along a ray segment.
 struct RayHit {
     double t_mm = 0.0;                    ///< distance along the (unit) ray direction
@@ -66,10 +73,11 @@ public:
     /// True once a frame is loaded.
     bool has_frame() const;
 
-    /// Closest hit of the ray origin + t * direction with t in [tnear_mm, tfar_mm].
+    /// Closest hit of the ray origin + t * direction with t in [tnear_mm, tfar_mm], among the
+    /// surfaces of the kinds in `kinds` (kind_bit; the others are passed through).
     /// `direction` must be unit length so that t is in mm. Pre-condition: has_frame().
     RayHit closest_hit(const Vec3& origin_mm, const Vec3& direction, double tnear_mm,
-                       double tfar_mm) const;
+                       double tfar_mm, unsigned kinds = kAllKinds) const;
 
     /// Closest hits of up to 16 rays at once, origins[i] + t * directions[i] with t in
     /// [tnear_mm, tfar_mm]: one Embree 16-wide packet flagged coherent. The answers are

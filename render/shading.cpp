@@ -152,10 +152,12 @@ LanesN<N> ShadingModel::transmittance(const EmbreeScene& scene, const Vec3& from
     LanesN<N> result = LanesN<N>::Ones();
     MarkerPath path(tnear_mm);
     for (int i = 0; i < kMaxHits; ++i) {
-        const RayHit hit = scene.closest_hit(from_mm, w, tnear_mm, tfar_mm);
+        // The direct model does not refract: the inner surface is left out of the query.
+        const RayHit hit = scene.closest_hit(from_mm, w, tnear_mm, tfar_mm,
+                                             kAllKinds & ~kind_bit(SurfaceKind::inner_surface));
         const double cos_incidence = hit.normal.dot(w);
         switch (hit.kind) {
-        case SurfaceKind::inner_surface: // the direct model does not refract: see through
+        case SurfaceKind::inner_surface: // not in the query
             break;
         case SurfaceKind::none: { // the end of the segment, maybe still inside a marker
             for (const bool outer : {false, true})

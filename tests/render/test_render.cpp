@@ -468,6 +468,37 @@ TEST_CASE("EmbreeScene refits in place when the topology is unchanged", "[render
     CHECK(scene.closest_hit(Vec3::Zero(), axis, 0.0, 100.0).kind == detail::SurfaceKind::coating);
 }
 
+TEST_CASE("EmbreeScene leaves out the surface kinds a query does not ask for", "[render]") {
+    // The dome's inner surface, then the markers on the axis, then the coating.
+    SensorFrame frame = clear_dome(12, 48, 10, 40);
+    const SensorFrame markers = marker_frame();
+    frame.inner_markers = markers.inner_markers;
+    frame.outer_markers = markers.outer_markers;
+    detail::EmbreeScene scene;
+    scene.set_frame(frame);
+    const Vec3 axis = Vec3(0.01, 0.02, 1.0).normalized();
+    using detail::kind_bit;
+    using detail::SurfaceKind;
+    const auto first = [&](unsigned kinds) {
+        return scene.closest_hit(Vec3::Zero(), axis, 0.0, 100.0, kinds);
+    };
+    const detail::RayHit all = first(detail::kAllKinds);
+    CHECK(all.kind == SurfaceKind::inner_surface);
+    const detail::RayHit no_surface =
+        first(detail::kAllKinds & ~kind_bit(SurfaceKind::inner_surface));
+    CHECK(no_surface.kind == SurfaceKind::inner_marker);
+    CHECK(no_surface.t_mm > all.t_mm);
+    // The same hit as the full query's past the surface.
+    const detail::RayHit past = scene.closest_hit(Vec3::Zero(), axis, all.t_mm + 1e-4, 100.0);
+    CHECK(past.kind == SurfaceKind::inner_marker);
+    CHECK(no_surface.t_mm == Approx(past.t_mm).epsilon(1e-6));
+    CHECK(no_surface.prim_id == past.prim_id);
+    CHECK(first(kind_bit(SurfaceKind::coating)).kind == SurfaceKind::coating);
+    CHECK(first(kind_bit(SurfaceKind::coating) | kind_bit(SurfaceKind::inner_marker)).kind ==
+          SurfaceKind::inner_marker);
+    CHECK_FALSE(first(kind_bit(SurfaceKind::none)).hit());
+}
+
 TEST_CASE("EmbreeScene packets of 16 rays answer as the rays one by one", "[render]") {
     // A dome with an inner surface and both marker layers; rays from the camera point and from
     // points in the layers, in random directions (a full packet and a partial one of 11),
