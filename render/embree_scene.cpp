@@ -3,11 +3,13 @@
 #include <Eigen/Geometry>
 #include <embree3/rtcore.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 
 namespace chromasim::render::detail {
 
@@ -174,7 +176,9 @@ EmbreeScene::Impl::Impl(const std::string& device_config) {
     // REFIT quality; ROBUST keeps rays through shared vertices and edges (marker fan centres)
     // from slipping through.
     rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_LOW);
-    rtcSetSceneFlags(scene, RTC_SCENE_FLAG_DYNAMIC | RTC_SCENE_FLAG_ROBUST);
+    // CONTEXT_FILTER_FUNCTION: markers_then_hit's filter collects the marker hits.
+    rtcSetSceneFlags(scene, RTC_SCENE_FLAG_DYNAMIC | RTC_SCENE_FLAG_ROBUST |
+                                RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
     rtcCommitScene(scene); // an empty but valid scene: queries before set_frame miss
     interface_scene = rtcNewScene(device);
     rtcSetSceneBuildQuality(interface_scene, RTC_BUILD_QUALITY_LOW);
@@ -303,6 +307,87 @@ RayHit EmbreeScene::closest_hit(const Vec3& origin_mm, const Vec3& direction, do
     rtcIntersect1(m_impl->scene, &context, &query);
     if (m_impl->counting) m_impl->rays.fetch_add(1, std::memory_order_relaxed);
     return m_impl->to_hit(query);
+}
+
+namespace {
+
+/// markers_then_hit's intersection context: Embree hands the filter a pointer to `context`,
+/// the first member, so the filter finds the rest.
+struct MarkerCollector {
+    RTCIntersectContext context;
+    std::span<RayHit> markers;
+    std::size_t count = 0;
+};
+
+/// Every marker hit Embree finds is recorded and rejected, so the traversal goes on past it;
+/// any other hit is accepted and shortens the ray as usual. Embree reports every primitive
+/// the ray meets before the accepted closest hit (its BVH only prunes beyond tfar), so every
+/// marker hit before it is recorded.
+void collect_markers(const RTCFilterFunctionNArguments* args) {
+    for (unsigned i = 0; i < args->N; ++i) {
+        if (args->valid[i] == 0) continue;
+        const auto kind = SurfaceKind(RTCHitN_geomID(args->hit, args->N, i) + 1);
+        if (kind != SurfaceKind::inner_marker && kind != SurfaceKind::outer_marker) continue;
+        auto* collector = reinterpret_cast<MarkerCollector*>(args->context);
+        if (collector->count < collector->markers.size()) {
+            RayHit& hit = collector->markers[collector->count];
+            hit.t_mm = RTCRayN_tfar(args->ray, args->N, i);
+            hit.kind = kind;
+            hit.prim_id = RTCHitN_primID(args->hit, args->N, i);
+            hit.normal =
+                Vec3(RTCHitN_Ng_x(args->hit, args->N, i), RTCHitN_Ng_y(args->hit, args->N, i),
+                     RTCHitN_Ng_z(args->hit, args->N, i))
+                    .normalized();
+            hit.shading_normal = hit.normal;
+            hit.u = RTCHitN_u(args->hit, args->N, i);
+            hit.v = RTCHitN_v(args->hit, args->N, i);
+        }
+        ++collector->count;
+        args->valid[i] = 0;
+    }
+}
+
+} // namespace
+
+RayHit EmbreeScene::markers_then_hit(const Vec3& origin_mm, const Vec3& direction, double tnear_mm,
+                                     double tfar_mm, unsigned kinds, std::span<RayHit> markers,
+                                     std::size_t& count) const {
+    MarkerCollector collector;
+    rtcInitIntersectContext(&collector.context);
+    collector.context.filter = collect_markers;
+    collector.markers = markers;
+    RTCRayHit query = make_query(origin_mm, direction, tnear_mm, tfar_mm);
+    query.ray.mask = kinds;
+    rtcIntersect1(m_impl->scene, &collector.context, &query);
+    if (m_impl->counting) m_impl->rays.fetch_add(1, std::memory_order_relaxed);
+    count = collector.count;
+    // In order of t; ties (a ray through an edge two triangles share) by kind and triangle,
+    // so the order does not depend on Embree's.
+    const auto kept = markers.first(std::min(count, markers.size()));
+    std::sort(kept.begin(), kept.end(), [](const RayHit& a, const RayHit& b) {
+        return std::tie(a.t_mm, a.kind, a.prim_id) < std::tie(b.t_mm, b.kind, b.prim_id);
+    });
+    return m_impl->to_hit(query);
+}
+
+RayHits::RayHits(const EmbreeScene& scene, const Vec3& origin_mm, const Vec3& direction,
+                 double tnear_mm, double tfar_mm, unsigned kinds)
+    : m_scene(scene), m_origin(origin_mm), m_direction(direction), m_tfar(tfar_mm), m_kinds(kinds) {
+    m_end =
+        scene.markers_then_hit(origin_mm, direction, tnear_mm, tfar_mm, kinds, m_markers, m_count);
+}
+
+RayHit RayHits::next(double tnear_mm) {
+    if (m_count <= m_markers.size()) {
+        while (m_at < m_count && m_markers[m_at].t_mm < tnear_mm)
+            ++m_at;
+        const bool before_end =
+            !m_end.hit() || (m_at < m_count && m_markers[m_at].t_mm <= m_end.t_mm);
+        if (m_at < m_count && before_end) return m_markers[m_at++];
+        if (!m_end.hit() || m_end.t_mm >= tnear_mm) return m_end;
+    }
+    // Past the traversal's end (closer than tnear_mm), or more markers than were kept.
+    return m_scene.closest_hit(m_origin, m_direction, tnear_mm, m_tfar, m_kinds);
 }
 
 void EmbreeScene::closest_hits16(std::span<const Vec3> origins_mm, std::span<const Vec3> directions,

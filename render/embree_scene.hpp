@@ -4,6 +4,7 @@
 /// queries.
 #include "render/scene_data.hpp"
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -100,7 +101,17 @@ public:
     };
     Triangle interface_triangle(std::uint32_t prim) const;
 
-    /// Counting of closest_hit calls for benchmarks (off by default; when off it costs one
+    /// The hits of the ray origin + t * direction, t in [tnear_mm, tfar_mm], among `kinds`,
+    /// in one traversal: the closest hit of a kind other than the markers (coating, inner
+    /// surface, or none), returned, and every marker hit before it, into `markers` (sorted
+    /// by t; `count` gets how many there were, more than markers.size() if they did not
+    /// fit). RayHits walks them in order. Pre-condition: has_frame().
+    RayHit markers_then_hit(const Vec3& origin_mm, const Vec3& direction, double tnear_mm,
+                            double tfar_mm, unsigned kinds, std::span<RayHit> markers,
+                            std::size_t& count) const;
+
+    /// Counting of traversals (closest_hit, markers_then_hit, and each ray of
+    /// closest_hits16) for benchmarks (off by default; when off it costs one
     /// predictable branch per ray). Switching it on resets the count.
     void count_rays(bool on);
     std::uint64_t rays_counted() const;
@@ -108,6 +119,31 @@ public:
 private:
     struct Impl;
     std::unique_ptr<Impl> m_impl;
+};
+
+/// A ray's hits in order of distance, as successive EmbreeScene::closest_hit calls with
+/// growing tnear would give them, from one traversal (markers_then_hit) while they can: a
+/// shadow ray through a marker was three traversals (entry, exit, nothing), the camera ray's
+/// path through the layers one per marker face plus the coating.
+class RayHits {
+public:
+    RayHits(const EmbreeScene& scene, const Vec3& origin_mm, const Vec3& direction, double tnear_mm,
+            double tfar_mm, unsigned kinds = kAllKinds);
+    /// The closest hit at t >= tnear_mm (at least the tnear given so far; closest_hit's
+    /// answer): from the traversal's, or, past a non-marker hit closer than tnear_mm (or
+    /// markers that did not fit), by closest_hit.
+    RayHit next(double tnear_mm);
+    /// The most marker hits kept from the traversal.
+    static constexpr std::size_t kMarkers = 8;
+
+private:
+    const EmbreeScene& m_scene;
+    Vec3 m_origin, m_direction;
+    double m_tfar;
+    unsigned m_kinds;
+    std::array<RayHit, kMarkers> m_markers;
+    std::size_t m_count = 0, m_at = 0;
+    RayHit m_end;
 };
 
 } // namespace chromasim::render::detail

@@ -889,9 +889,12 @@ LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, c
     int pending = 0;
     // The last outer marker left: where, and the chord through it.
     double outer_exit_mm = -inf, outer_chord_mm = 0.0;
+    // The hits after the first in one traversal, once they are needed.
+    std::optional<RayHits> hits;
     for (int i = 0; i < kMaxHits; ++i) {
         // The first hit may come traced already (radiance16: the same ray, in a packet).
-        const RayHit hit = i == 0 && first ? *first : scene.closest_hit(origin, d, tnear, inf);
+        if (!(i == 0 && first) && !hits) hits.emplace(scene, origin, d, tnear, inf);
+        const RayHit hit = i == 0 && first ? *first : hits->next(tnear);
         if (!hit.hit()) break;
         tnear = hit.t_mm + kHitGap_mm;
         if (!(hit.normal.squaredNorm() > 0.5)) continue; // a zero-area triangle

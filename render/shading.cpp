@@ -151,10 +151,11 @@ LanesN<N> ShadingModel::transmittance(const EmbreeScene& scene, const Vec3& from
     if (crosses_frame(from_mm, w, tnear_mm, tfar_mm)) return LanesN<N>::Zero();
     LanesN<N> result = LanesN<N>::Ones();
     MarkerPath path(tnear_mm);
+    // The direct model does not refract: the inner surface is left out of the query.
+    RayHits hits(scene, from_mm, w, tnear_mm, tfar_mm,
+                 kAllKinds & ~kind_bit(SurfaceKind::inner_surface));
     for (int i = 0; i < kMaxHits; ++i) {
-        // The direct model does not refract: the inner surface is left out of the query.
-        const RayHit hit = scene.closest_hit(from_mm, w, tnear_mm, tfar_mm,
-                                             kAllKinds & ~kind_bit(SurfaceKind::inner_surface));
+        const RayHit hit = hits.next(tnear_mm);
         const double cos_incidence = hit.normal.dot(w);
         switch (hit.kind) {
         case SurfaceKind::inner_surface: // not in the query

@@ -499,6 +499,83 @@ TEST_CASE("EmbreeScene leaves out the surface kinds a query does not ask for", "
     CHECK_FALSE(first(kind_bit(SurfaceKind::none)).hit());
 }
 
+TEST_CASE("RayHits walks a ray's hits as successive closest_hit calls do, in fewer traversals, "
+          "also past more markers than it keeps",
+          "[render]") {
+    // The dome with both marker layers, plus a stack of seven inner markers on the axis
+    // (fourteen faces, more than RayHits keeps).
+    SensorFrame frame = clear_dome(12, 48, 10, 40);
+    const SensorFrame markers = marker_frame();
+    std::vector<std::pair<Vec3, Vec3>> stack = {{Vec3(0.0, 0.0, kInnerMarkerZ_mm), Vec3::UnitZ()}};
+    for (int i = 1; i < 7; ++i)
+        stack.push_back({Vec3(3.0, 0.0, 10.6 + 0.25 * i), Vec3::UnitZ()});
+    frame.inner_markers = discs(stack);
+    frame.outer_markers = markers.outer_markers;
+    detail::EmbreeScene scene;
+    scene.set_frame(frame);
+    Eigen::Matrix<double, 3, Eigen::Dynamic> random = Eigen::MatrixXd::Random(3, 400);
+    std::vector<std::pair<Vec3, Vec3>> rays = {
+        {Vec3::Zero(), Vec3(0.01, 0.02, 1.0).normalized()},            // the apex marker
+        {Vec3(3.0, 0.0, 10.55), Vec3(0.001, 0.002, 1.0).normalized()}, // up the stack
+        {Vec3(3.0, 0.0, 13.0), Vec3(0.001, 0.002, -1.0).normalized()}, // down it
+        // The outer marker, off its fan's centre (a vertex many triangles share, where either
+        // may answer).
+        {Vec3::Zero(), (kOuterMarkerDirection + Vec3(0.003, 0.0, 0.0)).normalized()}};
+    for (Eigen::Index i = 0; i < random.cols(); i += 2)
+        rays.push_back({Vec3(random(0, i), random(1, i), 11.0 + random(2, i)),
+                        Vec3(random.col(i + 1)).normalized()});
+    std::size_t walked = 0, long_walks = 0;
+    std::uint64_t traversals[2] = {0, 0};
+    for (const unsigned kinds :
+         {detail::kAllKinds,
+          detail::kAllKinds & ~detail::kind_bit(detail::SurfaceKind::inner_surface)}) {
+        for (const auto& [origin, direction] : rays) {
+            std::vector<detail::RayHit> one_by_one, walk;
+            scene.count_rays(true);
+            for (double tnear = 0.0; one_by_one.size() < 20;) {
+                const detail::RayHit hit = scene.closest_hit(origin, direction, tnear, 30.0, kinds);
+                if (!hit.hit()) break;
+                one_by_one.push_back(hit);
+                tnear = hit.t_mm + detail::kHitGap_mm;
+            }
+            traversals[0] += scene.rays_counted();
+            scene.count_rays(true);
+            detail::RayHits hits(scene, origin, direction, 0.0, 30.0, kinds);
+            for (double tnear = 0.0; walk.size() < 20;) {
+                const detail::RayHit hit = hits.next(tnear);
+                if (!hit.hit()) break;
+                walk.push_back(hit);
+                tnear = hit.t_mm + detail::kHitGap_mm;
+            }
+            traversals[1] += scene.rays_counted();
+            INFO("ray from " << origin.transpose() << " along " << direction.transpose());
+            // Through the apex marker into the coating, the inner surface left out: its two
+            // faces and the coating in one traversal (and one more past the coating), against
+            // four.
+            if (origin == Vec3::Zero() && direction.x() == rays[0].second.x() &&
+                !(kinds & detail::kind_bit(detail::SurfaceKind::inner_surface))) {
+                CHECK(walk.size() == 3);
+                CHECK(scene.rays_counted() == 2);
+            }
+            REQUIRE(walk.size() == one_by_one.size());
+            for (std::size_t k = 0; k < walk.size(); ++k) {
+                CHECK(walk[k].kind == one_by_one[k].kind);
+                CHECK(walk[k].prim_id == one_by_one[k].prim_id);
+                CHECK(walk[k].t_mm == Approx(one_by_one[k].t_mm).epsilon(1e-6));
+                CHECK((walk[k].normal - one_by_one[k].normal).norm() < 1e-6);
+            }
+            walked += walk.size();
+            long_walks += walk.size() > detail::RayHits::kMarkers + 1;
+        }
+    }
+    scene.count_rays(false);
+    INFO(walked << " hits, " << long_walks << " walks past more markers than kept; traversals "
+                << traversals[1] << " against " << traversals[0]);
+    CHECK(walked > 600);
+    CHECK(long_walks >= 2);
+    CHECK(traversals[1] < traversals[0]);
+}
+
 TEST_CASE("EmbreeScene packets of 16 rays answer as the rays one by one", "[render]") {
     // A dome with an inner surface and both marker layers; rays from the camera point and from
     // points in the layers, in random directions (a full packet and a partial one of 11),
