@@ -475,9 +475,9 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
         // Counted in traversals: a walk past markers in one (RayHits) is one ray here, and
         // costs more than one at the raw rate, so the share outside Embree is an upper bound.
         out << mode << " at " << o.samples_per_pixel.front() << " spp: " << std::setprecision(0)
-            << counted.first << " rays (Embree traversals), " << std::setprecision(2)
-            << rate / 1e6 << " M rays/s; time outside Embree at most about "
-            << std::setprecision(0) << 100 * std::max(0.0, 1.0 - rate / raw_rate) << " %\n";
+            << counted.first << " rays (Embree traversals), " << std::setprecision(2) << rate / 1e6
+            << " M rays/s; time outside Embree at most about " << std::setprecision(0)
+            << 100 * std::max(0.0, 1.0 - rate / raw_rate) << " %\n";
     }
 }
 

@@ -548,12 +548,12 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                           "on 2 cores, with the default shadow filter "
                           "(render.fast.shadow_filter_px) and 16 spp where an LED is mirrored "
                           "(render.fast.reflection_samples_per_pixel): 4 spp gives 1.14 % RMS "
-                          "of the white level in 0.12 s, 5 spp 1.05 % in 0.14 s, 6 spp 0.92 % "
-                          "in 0.17 s, 8 spp 0.77 % in 0.20 s (its own noise and the filter's "
+                          "of the white level in 0.10 s, 5 spp 1.05 % in 0.12 s, 6 spp 0.92 % "
+                          "in 0.14 s, 8 spp 0.77 % in 0.17 s (its own noise and the filter's "
                           "bias over the image; over the fisheye's circle 1.12 times that; "
-                          "without the mirrored LEDs' samples, 4 spp 1.39 % in 0.10 s); at 896 "
-                          "px, with a 1.5 px filter, 2 spp 0.82 % in 0.93 s, 3 spp 0.65 % in "
-                          "1.31 s (docs/VALIDATION.md); the path "
+                          "without the mirrored LEDs' samples, 4 spp 1.39 % in 0.08 s); at 896 "
+                          "px, with a 1.5 px filter, 2 spp 0.82 % in 0.82 s, 3 spp 0.65 % in "
+                          "1.13 s (docs/VALIDATION.md); the path "
                           "integrator needs thousands for 1 %.",
                           CHROMASIM_FIELD(render.samples_per_pixel)));
     out.push_back(number("render.exposure", 1, left_open(0, 100), "",
@@ -650,9 +650,9 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
         "and in those pixels' 8 neighbours; at most render.samples_per_pixel (0 included): none "
         "take more. Chosen before any sample, so each pixel stays unbiased: such a pixel is the "
         "pixel a render at this count would give. At 224 px, 1.5 N + 0.6 N (5 % of the pixels; "
-        "11 % at 5 N + 2 N), RMS of white with the 0.7 px shadow filter: 4 spp 1.14 % in 0.12 s "
-        "against 1.39 % in 0.10 s without, 5 spp 1.05 % in 0.14 s, 6 spp 0.92 % in 0.17 s; at "
-        "896 px with a 1.5 px filter, 2 spp 0.82 % in 0.93 s against 1.07 % in 0.77 s "
+        "11 % at 5 N + 2 N), RMS of white with the 0.7 px shadow filter: 4 spp 1.14 % in 0.10 s "
+        "against 1.39 % in 0.08 s without, 5 spp 1.05 % in 0.12 s, 6 spp 0.92 % in 0.14 s; at "
+        "896 px with a 1.5 px filter, 2 spp 0.82 % in 0.82 s against 1.07 % in 0.66 s "
         "(docs/VALIDATION.md).",
         CHROMASIM_FIELD(render.fast.reflection_samples_per_pixel)));
     add_render_sensor(out);

@@ -13,7 +13,7 @@
 /// Two ways in:
 ///   - solve(): the whole bracket (about 9 evaluations of the mismatch to 1e-9);
 ///   - newton(): Newton's method from a guessed direction (the fast integrator's per-vertex
-///     table, a few hundredths of a radian off): about 3.4 evaluations of the mismatch and its
+///     table, a few hundredths of a radian off): about 3.5 evaluations of the mismatch and its
 ///     slope to 1e-9 at the bench's frame (docs/VALIDATION.md, session 20); nothing where it
 ///     would leave the bracket or does not get there, and the caller solves.
 #include <Eigen/Core>

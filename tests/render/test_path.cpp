@@ -178,7 +178,7 @@ TEST_CASE("the fast integrator's shadow-ray refraction through the sphere model 
 }
 
 TEST_CASE("the sphere model's refraction by Newton from a guess ends where the whole "
-          "bracket's solve does, in fewer evaluations, also a hair off the sphere; a wild "
+          "bracket's solve does, in fewer evaluations, also a hair off the sphere, and a wild "
           "guess gives the root or nothing",
           "[render][path][fast]") {
     const ShadingModel shading(OpticsParams{});
