@@ -113,6 +113,15 @@ SensorFrame marker_frame() {
     return frame;
 }
 
+/// A dome with an inner surface and marker_frame()'s two markers.
+SensorFrame dome_with_marker_frame() {
+    SensorFrame frame = clear_dome(12, 48, 10, 40);
+    const SensorFrame markers = marker_frame();
+    frame.inner_markers = markers.inner_markers;
+    frame.outer_markers = markers.outer_markers;
+    return frame;
+}
+
 /// Direct irradiance of the LED ring at p (normal facing the light), written independently
 /// of the renderer; `transmission(led, w)` gives the shadow transmittance per LED.
 template <class Transmission>
@@ -470,12 +479,8 @@ TEST_CASE("EmbreeScene refits in place when the topology is unchanged", "[render
 
 TEST_CASE("EmbreeScene leaves out the surface kinds a query does not ask for", "[render]") {
     // The dome's inner surface, then the markers on the axis, then the coating.
-    SensorFrame frame = clear_dome(12, 48, 10, 40);
-    const SensorFrame markers = marker_frame();
-    frame.inner_markers = markers.inner_markers;
-    frame.outer_markers = markers.outer_markers;
     detail::EmbreeScene scene;
-    scene.set_frame(frame);
+    scene.set_frame(dome_with_marker_frame());
     const Vec3 axis = Vec3(0.01, 0.02, 1.0).normalized();
     using detail::kind_bit;
     using detail::SurfaceKind;
@@ -504,13 +509,11 @@ TEST_CASE("RayHits walks a ray's hits as successive closest_hit calls do, in few
           "[render]") {
     // The dome with both marker layers, plus a stack of seven inner markers on the axis
     // (fourteen faces, more than RayHits keeps).
-    SensorFrame frame = clear_dome(12, 48, 10, 40);
-    const SensorFrame markers = marker_frame();
+    SensorFrame frame = dome_with_marker_frame();
     std::vector<std::pair<Vec3, Vec3>> stack = {{Vec3(0.0, 0.0, kInnerMarkerZ_mm), Vec3::UnitZ()}};
     for (int i = 1; i < 7; ++i)
         stack.push_back({Vec3(3.0, 0.0, 10.6 + 0.25 * i), Vec3::UnitZ()});
     frame.inner_markers = discs(stack);
-    frame.outer_markers = markers.outer_markers;
     detail::EmbreeScene scene;
     scene.set_frame(frame);
     Eigen::Matrix<double, 3, Eigen::Dynamic> random = Eigen::MatrixXd::Random(3, 400);
@@ -580,12 +583,8 @@ TEST_CASE("EmbreeScene packets of 16 rays answer as the rays one by one", "[rend
     // A dome with an inner surface and both marker layers; rays from the camera point and from
     // points in the layers, in random directions (a full packet and a partial one of 11),
     // with a near limit that skips the first surface for some rays.
-    SensorFrame frame = clear_dome(12, 48, 10, 40);
-    const SensorFrame markers = marker_frame();
-    frame.inner_markers = markers.inner_markers;
-    frame.outer_markers = markers.outer_markers;
     detail::EmbreeScene scene;
-    scene.set_frame(frame);
+    scene.set_frame(dome_with_marker_frame());
     Eigen::Matrix<double, 3, Eigen::Dynamic> random = Eigen::MatrixXd::Random(3, 27 * 2);
     int compared = 0, hits = 0;
     for (const int count : {16, 11}) {
