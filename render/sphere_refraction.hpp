@@ -47,9 +47,11 @@ public:
     /// Evaluations of the mismatch so far (for tests and benchmarks).
     int evaluations() const { return m_evaluations; }
 
-private:
-    /// Snell's mismatch at t; `slope`: if given, gets its derivative in t.
+    /// Snell's mismatch at t (tan of half the exit point's angle from p's foot); `slope`: if
+    /// given, gets its derivative in t (newton(); public for the tests' finite differences).
     double mismatch(double t, double* slope = nullptr);
+
+private:
     Vec3 at(double t) const;
     /// t of the direction of a point (c, s) of the plane: tan(psi / 2) = sin / (1 + cos).
     static double t_of(double c, double s);

@@ -177,6 +177,31 @@ TEST_CASE("the fast integrator's shadow-ray refraction through the sphere model 
     }
 }
 
+TEST_CASE("the sphere model's mismatch slope equals its central differences", "[render][path]") {
+    const ShadingModel shading(OpticsParams{});
+    const PathIntegrator integrator(shading);
+    const double eta = shading.optics().refractive_index, R = 10.5, h = 1e-6;
+    int compared = 0;
+    for (double radius : {12.7, R + 0.05}) {
+        for (double polar : {5.0, 45.0, 80.0}) {
+            const Vec3 p = radius * unit_from_angles(polar, 30.0);
+            for (int k = 0; k < integrator.led_count(); ++k) {
+                SphereRefraction model(p, integrator.led_point(k, 0.2, 0.7), R, eta);
+                for (double t : {0.01, 0.05, 0.1, 0.2, 0.3}) {
+                    double slope = 0.0;
+                    (void)model.mismatch(t, &slope);
+                    const double fd = (model.mismatch(t + h) - model.mismatch(t - h)) / (2.0 * h);
+                    INFO("radius " << radius << ", polar " << polar << ", LED " << k << ", t "
+                                   << t);
+                    CHECK(slope == Approx(fd).epsilon(1e-6).margin(1e-6));
+                    ++compared;
+                }
+            }
+        }
+    }
+    CHECK(compared == 2 * 3 * integrator.led_count() * 5);
+}
+
 TEST_CASE("the sphere model's refraction by Newton from a guess ends where the whole "
           "bracket's solve does, in fewer evaluations, also a hair off the sphere, and a wild "
           "guess gives the root or nothing",
