@@ -198,9 +198,12 @@ LanesN<N> ShadingModel::radiance(const EmbreeScene& scene, const Vec3& origin_mm
     LanesN<N> throughput = LanesN<N>::Ones();
     MarkerPath path(0.0);
     double tnear_mm = 0.0;
+    // The direct model does not refract: the inner surface is left out of the query.
+    RayHits hits(scene, origin_mm, direction, 0.0, inf,
+                 kAllKinds & ~kind_bit(SurfaceKind::inner_surface));
     for (int i = 0; i < kMaxHits; ++i) {
         // Find the next surface; a miss sees nothing (black).
-        const RayHit hit = scene.closest_hit(origin_mm, direction, tnear_mm, inf);
+        const RayHit hit = hits.next(tnear_mm);
         if (!hit.hit()) break;
         // Shade with the geometric normal turned towards the camera: the coating's winding is
         // irrelevant; a marker face's winding says whether the ray enters or leaves.
@@ -226,7 +229,7 @@ LanesN<N> ShadingModel::radiance(const EmbreeScene& scene, const Vec3& origin_mm
             }
             break;
         }
-        case SurfaceKind::inner_surface: // the direct model does not refract: see through
+        case SurfaceKind::inner_surface: // not in the query
         case SurfaceKind::none:
             break;
         }
