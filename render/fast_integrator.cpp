@@ -643,14 +643,12 @@ void FastIntegrator::build_shadow_culling(const SensorFrame& frame) {
                 points[std::size_t(count++)] = p;
                 const double radius = m_radius[t[a]];
                 lit = lit && radius > 0.0;
-                const std::size_t vk = std::size_t(t[a]) * leds + k;
-                const float* g = m_guess.data() + 9 * vk;
-                const float* cor = m_shadow.data() + 3 * vk;
+                const float* cor = m_shadow.data() + 3 * (std::size_t(t[a]) * leds + k);
                 for (const double u1 : {-0.5, 0.5})
                     for (const double u2 : {-0.5, 0.5}) {
-                        Vec3 w;
+                        Vec3 w = guessed_direction(t[a], int(k), u1, u2);
                         for (int x = 0; x < 3; ++x)
-                            w[x] = g[x] + u1 * g[3 + x] + u2 * g[6 + x] + cor[x];
+                            w[x] += cor[x];
                         if (!(w.norm() > 0.0)) continue;
                         if (const auto q = sphere_exit(p, w.normalized(), radius))
                             points[std::size_t(count++)] = *q;
@@ -732,6 +730,14 @@ Vec3 FastIntegrator::shadow_direction(const Lookup<N>& at, const Vec3& p, int k,
                                       const Vec3& led_point) const {
     return (m_path.refracted_direction(p, led_point, at.radius_mm) + shadow_correction(at, k))
         .normalized();
+}
+
+Vec3 FastIntegrator::guessed_direction(std::uint32_t vertex, int k, double d1, double d2) const {
+    const float* g = m_guess.data() + 9 * (std::size_t(vertex) * m_cache->leds + std::size_t(k));
+    Vec3 w;
+    for (int a = 0; a < 3; ++a)
+        w[a] = g[a] + d1 * g[3 + a] + d2 * g[6 + a];
+    return w;
 }
 
 template <int N> Vec3 FastIntegrator::shadow_correction(const Lookup<N>& at, int k) const {
@@ -822,12 +828,8 @@ LanesN<N> FastIntegrator::shadow_transmittance(const EmbreeScene& scene, const V
     std::optional<Vec3> model;
     if (!m_guess.empty()) {
         Vec3 guess = Vec3::Zero();
-        for (int i = 0; i < 3; ++i) {
-            const float* g =
-                m_guess.data() + 9 * (std::size_t(at.triangle[i]) * m_cache->leds + std::size_t(k));
-            for (int a = 0; a < 3; ++a)
-                guess[a] += at.weights[i] * (g[a] + (u1 - 0.5) * g[3 + a] + (u2 - 0.5) * g[6 + a]);
-        }
+        for (int i = 0; i < 3; ++i)
+            guess += at.weights[i] * guessed_direction(at.triangle[i], k, u1 - 0.5, u2 - 0.5);
         if (guess.norm() > 0.0) model = solver.newton(guess.normalized(), kShadowTolerance);
     }
     // Plus the frame's correction (the deformed surface against the sphere), interpolated.

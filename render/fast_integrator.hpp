@@ -228,6 +228,9 @@ private:
     /// The frame's correction to the sphere model's shadow direction towards LED k (m_shadow),
     /// interpolated over the hit triangle.
     template <int N> Vec3 shadow_correction(const Lookup<N>& at, int k) const;
+    /// The culling's guess (m_guess) at coating vertex `vertex`: the sphere model's direction
+    /// towards the point of LED k offset (d1, d2) from its centre, in its width and height.
+    Vec3 guessed_direction(std::uint32_t vertex, int k, double d1, double d2) const;
     /// The shadow ray's transmittance from p towards the LED point (u1, u2) of LED k through
     /// the sphere model, one where the ray provably meets nothing (the culling below).
     template <int N>

@@ -14,6 +14,9 @@ namespace chromasim::render::detail {
 namespace {
 
 constexpr double kInvPi = 1.0 / std::numbers::pi;
+/// The surfaces the direct model's rays meet: all but the inner surface, which it does not
+/// refract at (it sees through it), so its queries leave it out.
+constexpr unsigned kSeenThroughInterface = kAllKinds & ~kind_bit(SurfaceKind::inner_surface);
 
 [[noreturn]] void reject(const std::string& name, const std::string& value,
                          const std::string& allowed) {
@@ -151,9 +154,7 @@ LanesN<N> ShadingModel::transmittance(const EmbreeScene& scene, const Vec3& from
     if (crosses_frame(from_mm, w, tnear_mm, tfar_mm)) return LanesN<N>::Zero();
     LanesN<N> result = LanesN<N>::Ones();
     MarkerPath path(tnear_mm);
-    // The direct model does not refract: the inner surface is left out of the query.
-    RayHits hits(scene, from_mm, w, tnear_mm, tfar_mm,
-                 kAllKinds & ~kind_bit(SurfaceKind::inner_surface));
+    RayHits hits(scene, from_mm, w, tnear_mm, tfar_mm, kSeenThroughInterface);
     for (int i = 0; i < kMaxHits; ++i) {
         const RayHit hit = hits.next(tnear_mm);
         const double cos_incidence = hit.normal.dot(w);
@@ -198,9 +199,7 @@ LanesN<N> ShadingModel::radiance(const EmbreeScene& scene, const Vec3& origin_mm
     LanesN<N> throughput = LanesN<N>::Ones();
     MarkerPath path(0.0);
     double tnear_mm = 0.0;
-    // The direct model does not refract: the inner surface is left out of the query.
-    RayHits hits(scene, origin_mm, direction, 0.0, inf,
-                 kAllKinds & ~kind_bit(SurfaceKind::inner_surface));
+    RayHits hits(scene, origin_mm, direction, 0.0, inf, kSeenThroughInterface);
     for (int i = 0; i < kMaxHits; ++i) {
         // Find the next surface; a miss sees nothing (black).
         const RayHit hit = hits.next(tnear_mm);

@@ -507,8 +507,8 @@ TEST_CASE("EmbreeScene leaves out the surface kinds a query does not ask for", "
 TEST_CASE("RayHits walks a ray's hits as successive closest_hit calls do, in fewer traversals, "
           "also past more markers than it keeps",
           "[render]") {
-    // The dome with both marker layers, plus a stack of seven inner markers on the axis
-    // (fourteen faces, more than RayHits keeps).
+    // The dome with both marker layers, the inner one replaced by the apex marker plus a stack
+    // of six more at x = 3 mm (twelve faces, more than RayHits keeps).
     SensorFrame frame = dome_with_marker_frame();
     std::vector<std::pair<Vec3, Vec3>> stack = {{Vec3(0.0, 0.0, kInnerMarkerZ_mm), Vec3::UnitZ()}};
     for (int i = 1; i < 7; ++i)
