@@ -393,21 +393,34 @@ struct Renderer::Impl {
         const int w = camera.width_px(), h = camera.height_px();
         const auto at = [w](int x, int y) { return std::size_t(y) * std::size_t(w) + x; };
         std::vector<std::optional<Vec3>> crossing(std::size_t(w) * std::size_t(h));
+        // The centres' rays of a row 16 at a time, as one Embree packet.
         tbb::parallel_for(0, h, [&](int y) {
-            for (int x = 0; x < w; ++x) {
-                const auto d = camera.direction(Eigen::Vector2d(x + 0.5, y + 0.5));
-                if (!d) continue;
-                const detail::RayHit hit = scene.closest_hit(
-                    camera.origin_mm(), *d, 0.0, std::numeric_limits<double>::infinity());
-                if (!hit.hit() || hit.kind != detail::SurfaceKind::inner_surface) continue;
-                const Vec3 normal = detail::facing(hit.shading_normal, *d);
-                const Vec3 reflected = (*d - 2.0 * d->dot(normal) * normal).normalized();
-                crossing[at(x, y)] =
-                    path.led_plane_crossing(camera.origin_mm() + hit.t_mm * *d, reflected);
+            std::array<Vec3, 16> origins, directions;
+            std::array<detail::RayHit, 16> hits;
+            std::array<int, 16> xs;
+            origins.fill(camera.origin_mm());
+            for (int x0 = 0; x0 < w; x0 += 16) {
+                std::size_t m = 0;
+                for (int x = x0; x < std::min(w, x0 + 16); ++x)
+                    if (const auto d = camera.direction(Eigen::Vector2d(x + 0.5, y + 0.5)))
+                        directions[m] = *d, xs[m++] = x;
+                if (m == 0) continue;
+                scene.closest_hits16(std::span(origins.data(), m), std::span(directions.data(), m),
+                                     0.0, std::numeric_limits<double>::infinity(),
+                                     std::span(hits.data(), m));
+                for (std::size_t i = 0; i < m; ++i) {
+                    const detail::RayHit& hit = hits[i];
+                    if (!hit.hit() || hit.kind != detail::SurfaceKind::inner_surface) continue;
+                    const Vec3& d = directions[i];
+                    const Vec3 normal = detail::facing(hit.shading_normal, d);
+                    const Vec3 reflected = (d - 2.0 * d.dot(normal) * normal).normalized();
+                    crossing[at(xs[i], y)] =
+                        path.led_plane_crossing(camera.origin_mm() + hit.t_mm * d, reflected);
+                }
             }
         });
         std::vector<std::uint8_t> mirrors(crossing.size(), 0);
-        for (int y = 0; y < h; ++y)
+        tbb::parallel_for(0, h, [&](int y) {
             for (int x = 0; x < w; ++x) {
                 const auto& q = crossing[at(x, y)];
                 if (!q) continue;
@@ -418,14 +431,16 @@ struct Renderer::Impl {
                             reach = std::max(reach, 0.5 * (*o - *q).norm());
                 mirrors[at(x, y)] = path.near_led(*q, kReflectionMargin_mm + reach);
             }
+        });
         std::vector<std::uint8_t> out(mirrors.size(), 0);
-        for (int y = 0; y < h; ++y)
+        tbb::parallel_for(0, h, [&](int y) {
             for (int x = 0; x < w; ++x)
                 for (int dy = -1; dy <= 1 && !out[at(x, y)]; ++dy)
                     for (int dx = -1; dx <= 1; ++dx)
                         if (x + dx >= 0 && x + dx < w && y + dy >= 0 && y + dy < h &&
                             mirrors[at(x + dx, y + dy)])
                             out[at(x, y)] = 1;
+        });
         return out;
     }
 
