@@ -450,13 +450,16 @@ struct Renderer::Impl {
         std::int32_t ids[2] = {-1, -1};
         const auto direction = camera.direction(Eigen::Vector2d(x + 0.5, y + 0.5));
         if (!direction || triangles_per_marker < 1) return {-1, -1};
+        // The hits past the inner surface (left out of the query: the ray goes straight
+        // through it), the markers before the coating from one traversal (RayHits).
         double tnear = 0.0;
+        detail::RayHits hits(
+            scene, camera.origin_mm(), *direction, tnear, std::numeric_limits<double>::infinity(),
+            detail::kAllKinds & ~detail::kind_bit(detail::SurfaceKind::inner_surface));
         for (int i = 0; i < detail::kMaxHits; ++i) {
-            const detail::RayHit hit = scene.closest_hit(camera.origin_mm(), *direction, tnear,
-                                                         std::numeric_limits<double>::infinity());
+            const detail::RayHit hit = hits.next(tnear);
             if (!hit.hit() || hit.kind == detail::SurfaceKind::coating) break;
             tnear = hit.t_mm + detail::kHitGap_mm;
-            if (hit.kind == detail::SurfaceKind::inner_surface) continue;
             std::int32_t& id = ids[hit.kind == detail::SurfaceKind::outer_marker ? 1 : 0];
             if (id < 0) id = std::int32_t(hit.prim_id / std::uint32_t(triangles_per_marker));
         }
