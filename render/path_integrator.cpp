@@ -540,6 +540,9 @@ LanesN<N> PathIntegrator::trace(const EmbreeScene& scene, const Vec3& origin, co
         tnear = kHitGap_mm;
         bounces = 1;
     }
+    // The current ray's hits (RayHits: its markers and the next other surface from one
+    // traversal), traced anew whenever the path turns.
+    std::optional<RayHits> hits;
     // Lambertian scattering at p (normal n facing the incoming ray): NEE, then a new direction.
     auto scatter = [&](const Vec3& p, const Vec3& n, const LanesN<N>& albedo) -> bool {
         at_start = false;
@@ -562,10 +565,12 @@ LanesN<N> PathIntegrator::trace(const EmbreeScene& scene, const Vec3& origin, co
         o = p;
         tnear = kHitGap_mm;
         path = MarkerPath(0.0);
+        hits.reset();
         return last.pdf_bsdf > 0.0;
     };
     for (int event = 0; event < kMaxBounces * kMaxHits; ++event) {
-        const RayHit hit = scene.closest_hit(o, d, tnear, inf);
+        if (!hits) hits.emplace(scene, o, d, tnear, inf);
+        const RayHit hit = hits->next(tnear);
         const double tfar = hit.hit() ? hit.t_mm : inf;
         if (m_shading.crosses_frame(o, d, tnear, tfar)) break; // absorbed by the black frame
         if (const auto led = led_hit(o, d, tnear, tfar)) {
@@ -660,6 +665,7 @@ LanesN<N> PathIntegrator::trace(const EmbreeScene& scene, const Vec3& origin, co
             d = next;
             tnear = kHitGap_mm;
             path = MarkerPath(0.0);
+            hits.reset();
             break;
         }
         case SurfaceKind::none:
