@@ -161,6 +161,9 @@ struct EmbreeScene::Impl {
     RTCGeometry new_triangle_geometry(const MeshSlot& slot, unsigned mask);
     void set_interface(bool present, bool rebuilt);
     RayHit to_hit(const RTCRayHit& query) const;
+    /// closest_hits16 in scene `in` (scene or interface_scene).
+    void hits16(RTCScene in, std::span<const Vec3> origins_mm, std::span<const Vec3> directions,
+                double tnear_mm, double tfar_mm, std::span<RayHit> out) const;
 };
 
 EmbreeScene::Impl::Impl(const std::string& device_config) {
@@ -392,6 +395,18 @@ RayHit RayHits::next(double tnear_mm) {
 
 void EmbreeScene::closest_hits16(std::span<const Vec3> origins_mm, std::span<const Vec3> directions,
                                  double tnear_mm, double tfar_mm, std::span<RayHit> out) const {
+    m_impl->hits16(m_impl->scene, origins_mm, directions, tnear_mm, tfar_mm, out);
+}
+
+void EmbreeScene::closest_interface_hits16(std::span<const Vec3> origins_mm,
+                                           std::span<const Vec3> directions, double tnear_mm,
+                                           double tfar_mm, std::span<RayHit> out) const {
+    m_impl->hits16(m_impl->interface_scene, origins_mm, directions, tnear_mm, tfar_mm, out);
+}
+
+void EmbreeScene::Impl::hits16(RTCScene in, std::span<const Vec3> origins_mm,
+                               std::span<const Vec3> directions, double tnear_mm, double tfar_mm,
+                               std::span<RayHit> out) const {
     const std::size_t count = origins_mm.size();
     if (directions.size() != count || out.size() != count || count > 16)
         throw std::invalid_argument("EmbreeScene::closest_hits16: " + std::to_string(count) +
@@ -424,19 +439,22 @@ void EmbreeScene::closest_hits16(std::span<const Vec3> origins_mm, std::span<con
         packet.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
         packet.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
     }
-    rtcIntersect16(valid, m_impl->scene, &context, &packet);
-    if (m_impl->counting) m_impl->rays.fetch_add(count, std::memory_order_relaxed);
+    rtcIntersect16(valid, in, &context, &packet);
+    if (counting) rays.fetch_add(count, std::memory_order_relaxed);
     for (std::size_t k = 0; k < count; ++k) {
         RTCRayHit one{};
         one.ray.tfar = packet.ray.tfar[k];
-        one.hit.geomID = packet.hit.geomID[k];
+        // The interface scene's one geometry is the inner surface.
+        one.hit.geomID = in == interface_scene && packet.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID
+                             ? geometry_id(SurfaceKind::inner_surface)
+                             : packet.hit.geomID[k];
         one.hit.primID = packet.hit.primID[k];
         one.hit.Ng_x = packet.hit.Ng_x[k];
         one.hit.Ng_y = packet.hit.Ng_y[k];
         one.hit.Ng_z = packet.hit.Ng_z[k];
         one.hit.u = packet.hit.u[k];
         one.hit.v = packet.hit.v[k];
-        out[k] = m_impl->to_hit(one);
+        out[k] = to_hit(one);
     }
 }
 

@@ -87,6 +87,12 @@ public:
     /// the three spans have one size, at most 16. Pre-condition: has_frame().
     void closest_hits16(std::span<const Vec3> origins_mm, std::span<const Vec3> directions,
                         double tnear_mm, double tfar_mm, std::span<RayHit> out) const;
+    /// closest_hits16 against the inner surface alone (closest_interface_hit's BVH): for rays
+    /// in the cavity, whose first surface can only be the inner surface (every other surface
+    /// lies in or beyond the layers it bounds).
+    void closest_interface_hits16(std::span<const Vec3> origins_mm,
+                                  std::span<const Vec3> directions, double tnear_mm, double tfar_mm,
+                                  std::span<RayHit> out) const;
 
     /// Closest hit of the inner surface alone (the other surfaces are not in this query's
     /// BVH); kind none if the ray misses it or the frame has none.

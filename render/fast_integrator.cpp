@@ -1048,7 +1048,12 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
     std::array<Vec3, 16> origins, rays;
     std::array<RayHit, 16> hits;
     std::array<std::size_t, 16> who;
-    const auto trace = [&](double tnear, auto&& wants, auto&& ray, std::array<RayHit, 16>& got) {
+    // The rays in the cavity (the camera's, and their reflections) can meet the inner surface
+    // first or nothing (the frame and the LEDs are tested apart): its BVH alone answers them.
+    const bool cavity_only = scene.has_interface();
+    const auto trace = [&](double tnear, auto&& wants, auto&& ray, std::array<RayHit, 16>& got,
+                           bool in_cavity) {
+        const bool interface = in_cavity && cavity_only;
         std::size_t m = 0;
         for (std::size_t i = 0; i < n; ++i)
             if (wants(i)) {
@@ -1056,11 +1061,15 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
                 origins[m] = o, rays[m] = d, who[m++] = i;
             }
         if (m >= kMinPacket) {
-            scene.closest_hits16(std::span(origins.data(), m), std::span(rays.data(), m), tnear,
-                                 inf, std::span(hits.data(), m));
+            const auto o = std::span(origins.data(), m), d = std::span(rays.data(), m);
+            if (interface)
+                scene.closest_interface_hits16(o, d, tnear, inf, std::span(hits.data(), m));
+            else
+                scene.closest_hits16(o, d, tnear, inf, std::span(hits.data(), m));
         } else { // a packet of a few active rays costs more than the rays alone
             for (std::size_t j = 0; j < m; ++j)
-                hits[j] = scene.closest_hit(origins[j], rays[j], tnear, inf);
+                hits[j] = interface ? scene.closest_interface_hit(origins[j], rays[j], tnear, inf)
+                                    : scene.closest_hit(origins[j], rays[j], tnear, inf);
         }
         for (std::size_t j = 0; j < m; ++j)
             got[who[j]] = hits[j];
@@ -1071,7 +1080,7 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
         [&](std::size_t i) {
             return std::pair{origin, directions[i]};
         },
-        first);
+        first, true);
     std::array<Level, 16> near{}, far{};
     for (std::size_t i = 0; i < n; ++i)
         near[i] = classify(origin, directions[i], 0.0, first[i], true);
@@ -1085,13 +1094,13 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
         [&](std::size_t i) {
             return std::pair{near[i].p, near[i].refracted};
         },
-        into);
+        into, false);
     trace(
         kHitGap_mm, splits(near, true),
         [&](std::size_t i) {
             return std::pair{near[i].p, near[i].reflected};
         },
-        back);
+        back, true);
     for (std::size_t i = 0; i < n; ++i)
         if (splits(near, true)(i))
             far[i] = classify(near[i].p, near[i].reflected, kHitGap_mm, back[i], false);
@@ -1100,7 +1109,7 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
         [&](std::size_t i) {
             return std::pair{far[i].p, far[i].refracted};
         },
-        far_wall);
+        far_wall, false);
     // Then each sample in order, as radiance() would: the refracted ray's layers first, then
     // the reflected ray's.
     for (std::size_t i = 0; i < n; ++i) {

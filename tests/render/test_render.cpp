@@ -627,6 +627,69 @@ TEST_CASE("EmbreeScene packets of 16 rays answer as the rays one by one", "[rend
                     std::invalid_argument);
 }
 
+TEST_CASE("EmbreeScene's inner-surface packets answer rays in the cavity as closest_hit does, "
+          "and see nothing but the inner surface",
+          "[render]") {
+    // Rays in the cavity: from the camera point, and from points on the inner surface back
+    // into the cavity (as the fast integrator's reflections). Their first surface in the whole
+    // scene is the inner surface or nothing, and the inner surface's own BVH gives the same.
+    detail::EmbreeScene scene;
+    scene.set_frame(dome_with_marker_frame());
+    Eigen::Matrix<double, 3, Eigen::Dynamic> random = Eigen::MatrixXd::Random(3, 64);
+    int compared = 0, hits = 0;
+    for (const int count : {16, 11, 2}) {
+        std::vector<Vec3> origins, directions;
+        for (int i = 0; i < count; ++i, ++compared) {
+            Vec3 w = random.col(compared % random.cols()).normalized();
+            if (i % 2 == 0) {
+                // Mostly up into the dome; every fourth ray may leave through the base.
+                origins.push_back(Vec3::Zero());
+                w = Vec3(w.x(), w.y(), std::abs(w.z()) + (i % 4 == 0 ? -0.3 : 0.1)).normalized();
+            } else {
+                // A point of the inner surface, and a direction back into the cavity.
+                const detail::RayHit out = scene.closest_hit(
+                    Vec3::Zero(), Vec3(w.x(), w.y(), std::abs(w.z()) + 0.1).normalized(), 0.0,
+                    100.0);
+                REQUIRE(out.kind == detail::SurfaceKind::inner_surface);
+                const Vec3 dir = Vec3(w.x(), w.y(), std::abs(w.z()) + 0.1).normalized();
+                origins.push_back(out.t_mm * dir);
+                w = (random.col((compared + 5) % random.cols()).normalized() - 1.5 * dir)
+                        .normalized();
+            }
+            directions.push_back(w);
+        }
+        std::vector<detail::RayHit> packed(std::size_t(count), detail::RayHit{});
+        const double tnear = detail::kHitGap_mm;
+        scene.closest_interface_hits16(origins, directions, tnear, 100.0, packed);
+        for (int i = 0; i < count; ++i) {
+            const auto k = std::size_t(i);
+            const detail::RayHit one = scene.closest_hit(origins[k], directions[k], tnear, 100.0);
+            const detail::RayHit& two = packed[k];
+            INFO("count " << count << ", ray " << i);
+            CHECK(two.kind == one.kind);
+            CHECK(two.prim_id == one.prim_id);
+            CHECK(two.t_mm == Approx(one.t_mm).epsilon(1e-5));
+            CHECK(two.u == Approx(one.u).margin(1e-5));
+            CHECK(two.v == Approx(one.v).margin(1e-5));
+            CHECK((two.normal - one.normal).norm() < 1e-6);
+            CHECK((two.shading_normal - one.shading_normal).norm() < 1e-6);
+            hits += one.kind == detail::SurfaceKind::inner_surface;
+        }
+    }
+    CHECK(hits > 10);
+    // From inside the layers the whole scene meets markers and the coating; the inner surface's
+    // BVH does not.
+    const std::vector<Vec3> in_layers(4, Vec3(0.0, 0.0, 11.5));
+    const std::vector<Vec3> up(4, Vec3(0.01, 0.02, 1.0).normalized());
+    std::vector<detail::RayHit> packed(4);
+    scene.closest_interface_hits16(in_layers, up, 0.0, 100.0, packed);
+    const detail::RayHit whole = scene.closest_hit(in_layers[0], up[0], 0.0, 100.0);
+    CHECK(whole.kind != detail::SurfaceKind::none);
+    CHECK(whole.kind != detail::SurfaceKind::inner_surface);
+    for (const detail::RayHit& hit : packed)
+        CHECK(hit.kind == detail::SurfaceKind::none);
+}
+
 TEST_CASE("shadow transmittance multiplies marker transmissions, the coating blocks", "[render]") {
     const OpticsParams optics;
     const detail::ShadingModel shading(optics);
