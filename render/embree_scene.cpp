@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <cmath>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -138,6 +139,26 @@ RTCRayHit make_query(const Vec3& origin_mm, const Vec3& direction, double tnear_
     return query;
 }
 
+/// A bound from below on |x| over the points x of the mesh's triangles: per triangle the least
+/// n . v over its corners, n a unit vector with n . (corners' sum) >= 0 (its normal; the sum's
+/// direction if it has none); x is a convex combination of the corners, so |x| >= n . x >= that
+/// least value. Less a round-off margin; 0 for no triangle or a bound below 0.
+double cavity_radius(const SurfaceMesh& mesh) {
+    double bound = std::numeric_limits<double>::infinity();
+    for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
+        std::array<Eigen::Vector3d, 3> v;
+        for (int a = 0; a < 3; ++a)
+            v[std::size_t(a)] = mesh.V.row(mesh.F(f, a)).cast<double>().transpose();
+        Eigen::Vector3d n = (v[1] - v[0]).cross(v[2] - v[0]).normalized();
+        const Eigen::Vector3d sum = v[0] + v[1] + v[2];
+        if (!n.allFinite()) n = sum.normalized();
+        if (!n.allFinite()) return 0.0; // a triangle at the centre
+        if (n.dot(sum) < 0.0) n = -n;
+        bound = std::min({bound, n.dot(v[0]), n.dot(v[1]), n.dot(v[2])});
+    }
+    return std::isfinite(bound) ? std::max(0.0, bound * (1.0 - 1e-9) - 1e-9) : 0.0;
+}
+
 } // namespace
 
 struct EmbreeScene::Impl {
@@ -149,6 +170,9 @@ struct EmbreeScene::Impl {
     RTCScene interface_scene = nullptr;
     RTCGeometry interface_geometry = nullptr;
     bool has_frame = false;
+    /// A bound from below on the distance of the inner surface's points from the centre
+    /// (in_cavity); 0 without an inner surface.
+    double cavity_radius_mm = 0.0;
     bool counting = false;                      ///< count_rays
     mutable std::atomic<std::uint64_t> rays{0}; ///< closest_hit calls while counting
 
@@ -295,6 +319,7 @@ SceneUpdate EmbreeScene::set_frame(const SensorFrame& frame) {
         if (kind == SurfaceKind::inner_surface && slot.geometry) update_vertex_normals(slot);
     }
     m_impl->set_interface(frame.inner_surface.F.rows() > 0, interface_rebuilt);
+    m_impl->cavity_radius_mm = cavity_radius(frame.inner_surface);
     rtcCommitScene(m_impl->scene);
     check(m_impl->device, "rtcCommitScene");
     m_impl->has_frame = true;
@@ -497,6 +522,10 @@ RayHit EmbreeScene::Impl::to_hit(const RTCRayHit& query) const {
 
 bool EmbreeScene::has_interface() const {
     return m_impl->interface_geometry != nullptr;
+}
+
+bool EmbreeScene::in_cavity(const Vec3& p_mm) const {
+    return has_interface() && p_mm.z() >= 0.0 && p_mm.norm() < m_impl->cavity_radius_mm;
 }
 
 EmbreeScene::Triangle EmbreeScene::interface_triangle(std::uint32_t prim) const {

@@ -88,8 +88,8 @@ public:
     void closest_hits16(std::span<const Vec3> origins_mm, std::span<const Vec3> directions,
                         double tnear_mm, double tfar_mm, std::span<RayHit> out) const;
     /// closest_hits16 against the inner surface alone (closest_interface_hit's BVH): for rays
-    /// in the cavity, whose first surface can only be the inner surface (every other surface
-    /// lies in or beyond the layers it bounds).
+    /// from a point in the cavity (in_cavity), whose first surface can only be the inner
+    /// surface (every other surface lies in or beyond the layers it bounds).
     void closest_interface_hits16(std::span<const Vec3> origins_mm,
                                   std::span<const Vec3> directions, double tnear_mm, double tfar_mm,
                                   std::span<RayHit> out) const;
@@ -100,6 +100,14 @@ public:
                                  double tfar_mm) const;
     /// True when the loaded frame has an inner surface.
     bool has_interface() const;
+    /// True when p lies in the cavity the inner surface bounds, so that a ray from p meets the
+    /// inner surface first or no surface at all (closest_interface_hits16 then answers it as
+    /// closest_hit does): the frame has an inner surface, p is on or above the rim plane, and
+    /// nearer the centre than any point of the inner surface (a bound from below: per
+    /// triangle, the least n . v over its corners v, n its outward unit normal). A camera
+    /// posed outside the cavity (the spec allows up to 10 mm off the centre per axis) gets
+    /// false, and its rays the whole scene.
+    bool in_cavity(const Vec3& p_mm) const;
     /// Vertices and unit vertex normals of inner-surface triangle `prim`.
     struct Triangle {
         Vec3 p[3];

@@ -1048,9 +1048,10 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
     std::array<Vec3, 16> origins, rays;
     std::array<RayHit, 16> hits;
     std::array<std::size_t, 16> who;
-    // The rays in the cavity (the camera's, and their reflections) can meet the inner surface
-    // first or nothing (the frame and the LEDs are tested apart): its BVH alone answers them.
-    const bool cavity_only = scene.has_interface();
+    // From a camera in the cavity, the rays there (the camera's, and their reflections off the
+    // inner surface) can meet the inner surface first or nothing (the frame and the LEDs are
+    // tested apart): its BVH alone answers them.
+    const bool cavity_only = scene.in_cavity(origin);
     const auto trace = [&](double tnear, auto&& wants, auto&& ray, std::array<RayHit, 16>& got,
                            bool in_cavity) {
         const bool interface = in_cavity && cavity_only;

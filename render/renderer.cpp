@@ -393,8 +393,9 @@ struct Renderer::Impl {
         const int w = camera.width_px(), h = camera.height_px();
         const auto at = [w](int x, int y) { return std::size_t(y) * std::size_t(w) + x; };
         std::vector<std::optional<Vec3>> crossing(std::size_t(w) * std::size_t(h));
-        // The centres' rays of a row 16 at a time, as one Embree packet, against the inner
-        // surface alone (their first surface, if any: the camera is in the cavity).
+        // The centres' rays of a row 16 at a time, as one Embree packet; against the inner
+        // surface alone where the camera is in the cavity (their first surface, if any).
+        const bool cavity = scene.in_cavity(camera.origin_mm());
         tbb::parallel_for(0, h, [&](int y) {
             std::array<Vec3, 16> origins, directions;
             std::array<detail::RayHit, 16> hits;
@@ -406,9 +407,12 @@ struct Renderer::Impl {
                     if (const auto d = camera.direction(Eigen::Vector2d(x + 0.5, y + 0.5)))
                         directions[m] = *d, xs[m++] = x;
                 if (m == 0) continue;
-                scene.closest_interface_hits16(
-                    std::span(origins.data(), m), std::span(directions.data(), m), 0.0,
-                    std::numeric_limits<double>::infinity(), std::span(hits.data(), m));
+                const auto o = std::span(origins.data(), m), d = std::span(directions.data(), m);
+                const double inf = std::numeric_limits<double>::infinity();
+                if (cavity)
+                    scene.closest_interface_hits16(o, d, 0.0, inf, std::span(hits.data(), m));
+                else
+                    scene.closest_hits16(o, d, 0.0, inf, std::span(hits.data(), m));
                 for (std::size_t i = 0; i < m; ++i) {
                     const detail::RayHit& hit = hits[i];
                     if (!hit.hit() || hit.kind != detail::SurfaceKind::inner_surface) continue;

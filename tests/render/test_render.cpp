@@ -628,7 +628,7 @@ TEST_CASE("EmbreeScene packets of 16 rays answer as the rays one by one", "[rend
 }
 
 TEST_CASE("EmbreeScene's inner-surface packets answer rays in the cavity as closest_hit does, "
-          "and see nothing but the inner surface",
+          "and see nothing but the inner surface; which points are in the cavity",
           "[render]") {
     // Rays in the cavity: from the camera point, and from points on the inner surface back
     // into the cavity (as the fast integrator's reflections). Their first surface in the whole
@@ -688,6 +688,18 @@ TEST_CASE("EmbreeScene's inner-surface packets answer rays in the cavity as clos
     CHECK(whole.kind != detail::SurfaceKind::inner_surface);
     for (const detail::RayHit& hit : packed)
         CHECK(hit.kind == detail::SurfaceKind::none);
+    // Which points count as in the cavity: the centre and points well inside the inner
+    // surface, on or above the rim plane; not in the layers, below the rim plane or outside.
+    CHECK(scene.in_cavity(Vec3::Zero()));
+    CHECK(scene.in_cavity(Vec3(3.0, -2.0, 5.0)));
+    CHECK_FALSE(scene.in_cavity(Vec3(0.0, 0.0, 11.5)));
+    CHECK_FALSE(scene.in_cavity(Vec3(0.0, 0.0, -1.0)));
+    CHECK_FALSE(scene.in_cavity(Vec3(10.0, 10.0, 10.0)));
+    SensorFrame bare = dome_with_marker_frame();
+    bare.inner_surface = SurfaceMesh{};
+    detail::EmbreeScene without;
+    without.set_frame(bare);
+    CHECK_FALSE(without.in_cavity(Vec3::Zero()));
 }
 
 TEST_CASE("shadow transmittance multiplies marker transmissions, the coating blocks", "[render]") {
