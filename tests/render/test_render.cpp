@@ -628,7 +628,7 @@ TEST_CASE("EmbreeScene packets of 16 rays answer as the rays one by one", "[rend
 }
 
 TEST_CASE("EmbreeScene's inner-surface packets answer rays in the cavity as closest_hit does, "
-          "and see nothing but the inner surface; which points are in the cavity",
+          "and see nothing but the inner surface, and which points are in the cavity",
           "[render]") {
     // Rays in the cavity: from the camera point, and from points on the inner surface back
     // into the cavity (as the fast integrator's reflections). Their first surface in the whole
