@@ -547,13 +547,12 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                           "point on it from a scrambled Sobol set). Fast integrator at 224 px "
                           "on 2 cores, with the default shadow filter "
                           "(render.fast.shadow_filter_px) and 16 spp where an LED is mirrored "
-                          "(render.fast.reflection_samples_per_pixel): 4 spp gives 1.14 % RMS "
-                          "of the white level in 0.10 s, 5 spp 1.05 % in 0.12 s, 6 spp 0.92 % "
-                          "in 0.14 s, 8 spp 0.77 % in 0.17 s (its own noise and the filter's "
-                          "bias over the image; over the fisheye's circle 1.12 times that; "
-                          "without the mirrored LEDs' samples, 4 spp 1.39 % in 0.08 s); at 896 "
-                          "px, with a 1.5 px filter, 2 spp 0.82 % in 0.82 s, 3 spp 0.65 % in "
-                          "1.13 s (docs/VALIDATION.md); the path "
+                          "(render.fast.reflection_samples_per_pixel): 4 spp gives 1.07 % RMS "
+                          "of the white level in 0.10 s, 5 spp 0.99 % in 0.12 s, 6 spp 0.85 % "
+                          "in 0.14 s (its own noise and the filter's bias over the image; over "
+                          "the fisheye's circle 1.12 times that); at 896 px, with a 1.5 px "
+                          "filter, 2 spp 0.78 % in 0.83 s, 3 spp 0.61 % in 1.13 s "
+                          "(docs/VALIDATION.md); the path "
                           "integrator needs thousands for 1 %.",
                           CHROMASIM_FIELD(render.samples_per_pixel)));
     out.push_back(number("render.exposure", 1, left_open(0, 100), "",
@@ -633,14 +632,15 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
         number("render.fast.shadow_filter_px", 0.7, closed(0, render::kMaxShadowFilterPx), "px",
                "Fast integrator: standard deviation of the shadow filter, in pixels; 0: none. The "
                "LEDs' direct light in a pixel is taken without the shadow rays' noise (the light "
-               "cache's unshadowed light) times the fraction that gets through the markers' "
-               "shadows, that fraction averaged over the neighbouring pixels' shadow rays with "
-               "Gaussian weights (a ratio estimator). It blurs the shadows' edges by about this "
-               "width and leaves the markers' own edges sharp. At 224 px, 1.5 N + 0.6 N (RMS of "
-               "white, noise and bias): 4 spp 2.6 % unfiltered, 1.8 % at 0.7 px; 8 spp 1.5, 1.1 %; "
-               "16 spp 0.9, 0.7 %; the bias alone 0.4 % at 0.7 px, 0.6 % at 1 px. Larger images "
-               "want a wider filter: at 896 px, 4 spp, 2.1 % unfiltered, 1.1 % at 0.7 px, 0.9 % at "
-               "1.5 px (its bias about 0.2 %) (docs/VALIDATION.md).",
+               "cache's unshadowed light), per LED, times the fraction of that LED's light that "
+               "gets through the markers' shadows, that fraction averaged with Gaussian weights "
+               "over the neighbouring pixels' shadow rays that went to that LED (a ratio "
+               "estimator; LEDs beyond 8 in groups). It blurs the shadows' edges by about this "
+               "width and leaves the markers' own edges sharp. At 224 px, 1.5 N + 0.6 N, 16 spp "
+               "where an LED is mirrored (RMS of white, noise and bias): 4 spp 2.0 % unfiltered, "
+               "1.07 % at 0.7 px (1.14 % with one fraction for all LEDs, before 0.16.0); the bias "
+               "alone about 0.4 % at 0.7 px, 0.6 % at 1 px. Larger images want a wider filter: at "
+               "896 px, 2 spp, 0.78 % at 1.5 px (its bias about 0.2 %) (docs/VALIDATION.md).",
                CHROMASIM_FIELD(render.fast.shadow_filter_px)));
     out.push_back(integer(
         "render.fast.reflection_samples_per_pixel", 16, closed(0, 1024), "",

@@ -791,7 +791,7 @@ template <int N>
 LanesN<N> FastIntegrator::shade(const EmbreeScene& scene, const Vec3& p, const Lookup<N>& at,
                                 const LanesN<N>& indirect, const LaneOptics<N>& lanes,
                                 PixelRng& rng, const ShadowDraw& shadow,
-                                DirectLight<N>* direct) const {
+                                DirectPart<N>* direct) const {
     // E / pi per unit LED emission: the cached indirect term, plus the direct term with the
     // markers' shadows, sum_k G_k T_k, estimated by one LED k drawn with probability
     // G_k / sum G (one shadow ray; exact where the LEDs' shadows agree).
@@ -799,7 +799,12 @@ LanesN<N> FastIntegrator::shade(const EmbreeScene& scene, const Vec3& p, const L
     for (int k = 0; k < m_cache->leds; ++k)
         total += at.direct[std::size_t(k)];
     if (!(total > 0.0)) {
-        if (direct) *direct = {LanesN<N>::Zero(), LanesN<N>::Zero()};
+        if (direct) {
+            direct->lit = direct->shadowed = LanesN<N>::Zero();
+            direct->clear = true;
+            direct->group = 0;
+            direct->share.fill(0.0);
+        }
         return indirect;
     }
     ShadowDraw draw = shadow;
@@ -813,7 +818,18 @@ LanesN<N> FastIntegrator::shade(const EmbreeScene& scene, const Vec3& p, const L
         T = m_shading.transmittance(scene, m_path.led_point(k, u1, u2), p, lanes);
     else if (at.radius_mm > 0.0)
         T = shadow_transmittance(scene, p, at, k, u1, u2, lanes);
-    if (direct) *direct = {LanesN<N>::Constant(total * kInvPi), (total * kInvPi) * T};
+    if (direct) {
+        direct->lit = LanesN<N>::Constant(total * kInvPi);
+        direct->shadowed = (total * kInvPi) * T;
+        direct->clear = (T == 1.0).all();
+        const int leds = m_cache->leds, groups = shadow_groups();
+        direct->group = shadow_group(k, leds, groups);
+        direct->share.fill(0.0);
+        const double inv = 1.0 / total;
+        for (int j = 0; j < leds; ++j)
+            direct->share[std::size_t(shadow_group(j, leds, groups))] +=
+                at.direct[std::size_t(j)] * inv;
+    }
     return (total * kInvPi) * T + indirect;
 }
 
@@ -926,11 +942,19 @@ LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, c
             const LanesN<N> f = beta * lanes.coating_albedo * lanes.led;
             LanesN<N> L;
             // The direct light's part, when asked for: each shade()'s times its factor.
-            DirectLight<N> part;
-            DirectLight<N>* const want = direct ? &part : nullptr;
+            DirectPart<N> part;
+            DirectPart<N>* const want = direct ? &part : nullptr;
             const auto add = [&](const LanesN<N>& factor) {
-                direct->lit += factor * part.lit;
-                direct->shadowed += factor * part.shadowed;
+                // At most 1 + 4 parts here, and two calls per sample (kMaxDirectParts).
+                if (direct->parts >= kMaxDirectParts)
+                    throw std::logic_error("FastIntegrator: more than kMaxDirectParts shaded "
+                                           "points in one sample");
+                DirectPart<N>& to = direct->part[std::size_t(direct->parts++)];
+                to.lit = factor * part.lit;
+                to.shadowed = part.clear ? to.lit : factor * part.shadowed;
+                to.clear = part.clear;
+                to.group = part.group;
+                to.share = part.share;
             };
             if (chord > 0.0) {
                 const LanesN<N> through = (1.0 - s) *
@@ -1117,7 +1141,7 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
         const LaneOptics<N>& l = *lanes[i];
         const LanesN<N> led_radiance = l.led / m_path.led_area_mm2();
         DirectLight<N>* const split = direct.empty() ? nullptr : &direct[i];
-        if (split) *split = {LanesN<N>::Zero(), LanesN<N>::Zero()};
+        if (split) split->parts = 0;
         // The layers' radiance; `weight`: the share of it the sample takes.
         const auto layers = [&](const Vec3& o, const Vec3& d, double tnear, const RayHit& hit,
                                 double weight) {

@@ -128,14 +128,53 @@ struct ShadowDraw {
     double u_led = -1.0, u1 = 0.0, u2 = 0.0;
 };
 
-/// The LEDs' direct light in a camera sample's radiance, apart (the renderer's shadow filter,
-/// RenderSettings::shadow_filter_px): `lit` as if no marker or fold cast a shadow (sum_k G_k
-/// times the path's factors), `shadowed` with the shadow ray's transmittance (the share of the
-/// radiance the shadow ray estimated); the rest of the radiance (indirect light, LEDs seen
-/// directly) is neither. Not zeroed on construction (the renderer keeps 16 per batch of
-/// pixels, which would cost 4 KB of zeroing per pixel at 16 spp, with the filter or without):
-/// radiance16 sets each one it is given.
-template <int N> struct DirectLight { LanesN<N> lit, shadowed; };
+/// The shadow filter (RenderSettings::shadow_filter_px, render/shadow_filter.hpp) takes the
+/// fraction of the LEDs' light that gets through the shadows per group of LEDs, from the
+/// samples whose shadow ray went to that group: LED k of n in group k g / n, g = min(n,
+/// kMaxShadowGroups) groups (one per LED on the real board's 6).
+inline int shadow_group(int k, int leds, int groups) {
+    return leds == groups ? k : k * groups / leds; // no division with up to 8 LEDs
+}
+
+/// One coating point's share of a camera sample's direct light (one shade): `lit` as if no
+/// marker or fold cast a shadow (sum_k G_k times the path's factors), `shadowed` with the
+/// shadow ray's transmittance (the share of the radiance the shadow ray estimated), `group`
+/// the shadow group of the LED the shadow ray went to, `share[g]` group g's part of `lit`
+/// (sum over its LEDs of G_k / sum G; the first shadow_groups() add up to 1, or all 0 where
+/// no LED lights the point).
+template <int N> struct DirectPart {
+    LanesN<N> lit, shadowed;
+    bool clear; ///< shadowed == lit (the shadow ray met nothing): no second conversion to RGB
+    int group;
+    std::array<double, kMaxShadowGroups> share;
+};
+
+/// The most coating points a camera sample shades: in each of its refracted and reflected
+/// branches, the coating hit and the outer markers' scattering (at most 4) above it.
+inline constexpr int kMaxDirectParts = 10;
+
+/// The LEDs' direct light in a camera sample's radiance, apart (the renderer's shadow
+/// filter), one DirectPart per coating point the sample shades (each times the path's factors
+/// up to it); the rest of the radiance (indirect light, LEDs seen directly) is in none. Only
+/// the first `parts` are set (the renderer keeps 16 per batch of pixels, which would cost
+/// 40 KB of zeroing per batch): radiance16 sets `parts` for each one it is given.
+template <int N> struct DirectLight {
+    int parts = 0;
+    std::array<DirectPart<N>, kMaxDirectParts> part;
+    /// The sums over the parts.
+    LanesN<N> lit() const {
+        LanesN<N> sum = LanesN<N>::Zero();
+        for (int i = 0; i < parts; ++i)
+            sum += part[std::size_t(i)].lit;
+        return sum;
+    }
+    LanesN<N> shadowed() const {
+        LanesN<N> sum = LanesN<N>::Zero();
+        for (int i = 0; i < parts; ++i)
+            sum += part[std::size_t(i)].shadowed;
+        return sum;
+    }
+};
 
 class FastIntegrator {
 public:
@@ -196,6 +235,10 @@ public:
         return Vec3(g[0], g[1], g[2]);
     }
 
+    /// The shadow filter's groups of LEDs: min(LEDs, kMaxShadowGroups) (shadow_group).
+    /// Pre-condition: a cache.
+    int shadow_groups() const { return std::min(m_cache->leds, kMaxShadowGroups); }
+
     /// The factor on the cached indirect light for this frame (LightCacheSettings::
     /// scale_indirect; 1 at rest). Pre-condition: set_frame.
     double indirect_scale() const { return m_indirect_scale; }
@@ -215,11 +258,12 @@ private:
                    std::uint64_t stream) const;
     template <int N>
     Lookup<N> lookup(std::uint32_t prim, double u, double v, const Vec3& normal) const;
-    /// `direct`: if given, set to the direct light's part of the result (DirectLight).
+    /// `direct`: if given, set to the direct light's part of the result (DirectPart, with no
+    /// path factor).
     template <int N>
     LanesN<N> shade(const EmbreeScene& scene, const Vec3& p, const Lookup<N>& at,
                     const LanesN<N>& indirect, const LaneOptics<N>& lanes, PixelRng& rng,
-                    const ShadowDraw& shadow, DirectLight<N>* direct) const;
+                    const ShadowDraw& shadow, DirectPart<N>* direct) const;
     /// The shadow ray's direction from the coating hit `p` towards `led_point` of LED k: the
     /// sphere model's refraction, plus the frame's correction to it interpolated over the
     /// hit triangle (m_shadow).
@@ -248,7 +292,7 @@ private:
     template <int N>
     LanesN<N> spectral_at(const std::vector<float>& values, const std::uint32_t* triangle,
                           const double* weights, const CacheLambdas<N>* lambdas) const;
-    /// `direct`: if given, the direct light's part of the result times `weight` is added
+    /// `direct`: if given, the direct light's parts of the result times `weight` are added
     /// to it (DirectLight); the result does not change.
     template <int N>
     LanesN<N> inside(const EmbreeScene& scene, const Vec3& origin, const Vec3& direction,

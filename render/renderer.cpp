@@ -57,6 +57,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <numbers>
 #include <optional>
 #include <span>
@@ -244,8 +245,8 @@ struct Renderer::Impl {
     }
 
     /// sample_pixel for the fast integrator, for `pixels` neighbouring pixels of row y from x
-    /// (sums[j], sum2[j]: pixel x + j's, sum2 empty without the variance; lit[j],
-    /// shadowed[j]: the sums of its samples' direct light apart, DirectLight, empty without
+    /// (sums[j], sum2[j]: pixel x + j's, sum2 empty without the variance; direct[j]: the sums
+    /// of its samples' direct light apart per shadow group, DirectSums, empty without
     /// the shadow filter; inside[j]: how many of its samples lie in the field): the same
     /// strata and draws per sample, each pixel from its own
     /// stream and seeds, plus the shadow rays'
@@ -254,8 +255,14 @@ struct Renderer::Impl {
     /// FastIntegrator::radiance16 in packets of equal size, at most 16 (coherent packets); a
     /// pixel's draws come in the same order however many pixels share a packet, so the image does
     /// not depend on it.
+    /// A pixel's direct light per shadow group g (render/shadow_filter.hpp): U_g (`lit`), C_g
+    /// (`chosen`) and S_g (`shadowed`), sums over its samples.
+    struct DirectSums {
+        std::array<detail::Rgb, kMaxShadowGroups> lit, chosen, shadowed;
+    };
     struct PixelSums {
-        std::span<detail::Rgb> sums, sum2, lit, shadowed;
+        std::span<detail::Rgb> sums, sum2;
+        std::span<DirectSums> direct;
         std::span<int> inside;
     };
     void sample_pixels_fast(int x, int y, int pixels, int nx, int ny,
@@ -272,7 +279,8 @@ struct Renderer::Impl {
     void batches(int x, int y, int pixels, int nx, int ny, const RenderSettings& settings,
                  double scale, const PixelSums& out) const {
         const int count = nx * ny;
-        const bool split = !out.lit.empty();
+        const bool split = !out.direct.empty();
+        const auto groups = std::size_t(split ? fast.shadow_groups() : 0);
         const detail::LaneOptics<N> rgb = [&] {
             if constexpr (N == detail::kRgbLanes)
                 return shading.rgb_lanes();
@@ -294,7 +302,10 @@ struct Renderer::Impl {
             out.sums[std::size_t(j)] = detail::Rgb::Zero();
             out.inside[std::size_t(j)] = 0;
             if (!out.sum2.empty()) out.sum2[std::size_t(j)] = detail::Rgb::Zero();
-            if (split) out.lit[std::size_t(j)] = out.shadowed[std::size_t(j)] = detail::Rgb::Zero();
+            for (std::size_t g = 0; g < groups; ++g) {
+                DirectSums& d = out.direct[std::size_t(j)];
+                d.lit[g] = d.chosen[g] = d.shadowed[g] = detail::Rgb::Zero();
+            }
         }
         std::array<Vec3, 16> directions;
         std::array<const detail::LaneOptics<N>*, 16> lanes;
@@ -352,8 +363,16 @@ struct Renderer::Impl {
                 out.sums[j] += value;
                 if (!out.sum2.empty()) out.sum2[j] += (value * scale).square();
                 if (split) {
-                    out.lit[j] += rgb_of(direct[i].lit);
-                    out.shadowed[j] += rgb_of(direct[i].shadowed);
+                    DirectSums& d = out.direct[j];
+                    for (int q = 0; q < direct[i].parts; ++q) {
+                        const detail::DirectPart<N>& part = direct[i].part[std::size_t(q)];
+                        const detail::Rgb lit = rgb_of(part.lit);
+                        for (std::size_t g = 0; g < groups; ++g)
+                            d.lit[g] += part.share[g] * lit;
+                        const auto g = std::size_t(part.group);
+                        d.chosen[g] += lit;
+                        d.shadowed[g] += part.clear ? lit : rgb_of(part.shadowed);
+                    }
                 }
             }
         }
@@ -593,7 +612,16 @@ Image Renderer::render(const RenderSettings& settings) const {
     const auto [nx_mirror, ny_mirror] = detail::strata_grid(std::max(n_mirror, 1));
     // The shadow filter's inputs: each pixel's direct light with and without the shadows.
     const bool filter = fast && settings.shadow_filter_px > 0.0;
-    std::vector<float> lit(filter ? 3 * pixels : 0), shadowed(filter ? 3 * pixels : 0);
+    // Per shadow group g (render/shadow_filter.hpp): 9 floats a group and pixel, 216 bytes a
+    // pixel with 6 LEDs (10.8 MB at 224 px, 173 MB at 896 px).
+    const std::size_t groups = filter ? std::size_t(m.fast.shadow_groups()) : 0;
+    // Not zeroed: write() sets every pixel's (at 896 px, zeroing and faulting in 173 MB anew
+    // took a few % of a render).
+    const std::size_t per_part = 3 * groups * pixels;
+    const std::unique_ptr<float[]> direct_light(per_part > 0 ? new float[3 * per_part] : nullptr);
+    const std::span<float> lit(direct_light.get(), per_part),
+        chosen(direct_light.get() + per_part, per_part),
+        shadowed(direct_light.get() + 2 * per_part, per_part);
     // Pixel (x, y)'s value from its sample sum (and sum of squares, and the direct light's).
     // A pixel the field's edge crosses (0 < coverage < 1): its value is the coverage times
     // the mean of its samples inside the field, not the mean of all its samples with those
@@ -602,8 +630,7 @@ Image Renderer::render(const RenderSettings& settings) const {
     // image's squared error at 4 spp; docs/VALIDATION.md). A pixel none of whose samples
     // fall inside stays black.
     const auto write = [&](int x, int y, const detail::Rgb& sum, const detail::Rgb& sum2,
-                           const detail::Rgb& lit_sum, const detail::Rgb& shadowed_sum, int inside,
-                           int samples) {
+                           const Impl::DirectSums& direct, int inside, int samples) {
         const std::size_t p = std::size_t(y) * image.width + x;
         const double coverage = m.camera.field_coverage(x, y);
         const bool edge = coverage < 1.0; // or outside the field: no samples inside, black
@@ -618,10 +645,12 @@ Image Renderer::render(const RenderSettings& settings) const {
         float* out = image.pixel(x, y);
         for (int c = 0; c < 3; ++c)
             out[c] = float(value[c]);
-        if (filter) {
+        for (std::size_t g = 0; g < groups; ++g) {
             for (int c = 0; c < 3; ++c) {
-                lit[3 * p + std::size_t(c)] = float(lit_sum[c] * weight);
-                shadowed[3 * p + std::size_t(c)] = float(shadowed_sum[c] * weight);
+                const std::size_t i = 3 * (groups * p + g) + std::size_t(c);
+                lit[i] = float(direct.lit[g][c] * weight);
+                chosen[i] = float(direct.chosen[g][c] * weight);
+                shadowed[i] = float(direct.shadowed[g][c] * weight);
             }
         }
         if (settings.variance && count > 1) {
@@ -641,10 +670,9 @@ Image Renderer::render(const RenderSettings& settings) const {
         }
     };
     tbb::parallel_for(tbb::blocked_range<int>(0, image.height), [&](const auto& rows) {
-        std::array<detail::Rgb, Impl::kMaxBatchPixels> sums, sum2, lit_sums, shadowed_sums;
+        std::array<detail::Rgb, Impl::kMaxBatchPixels> sums, sum2;
+        std::array<Impl::DirectSums, Impl::kMaxBatchPixels> direct;
         std::array<int, Impl::kMaxBatchPixels> inside{};
-        lit_sums.fill(detail::Rgb::Zero());
-        shadowed_sums.fill(detail::Rgb::Zero());
         for (int y = rows.begin(); y != rows.end(); ++y) {
             for (int x = 0; x < image.width;) {
                 // A pixel that mirrors an LED alone at its count; the others in runs of up to
@@ -662,7 +690,8 @@ Image Renderer::render(const RenderSettings& settings) const {
                 if (fast) {
                     m.sample_pixels_fast(x, y, pixels, px_n, py_n, settings, scale,
                                          {some(sums, true), some(sum2, settings.variance),
-                                          some(lit_sums, filter), some(shadowed_sums, filter),
+                                          filter ? std::span(direct.data(), std::size_t(pixels))
+                                                 : std::span<Impl::DirectSums>{},
                                           std::span(inside.data(), std::size_t(pixels))});
                 } else {
                     sum2[0] = detail::Rgb::Zero();
@@ -672,15 +701,14 @@ Image Renderer::render(const RenderSettings& settings) const {
                 for (int j = 0; j < pixels; ++j)
                     write(x + j, y, sums[std::size_t(j)],
                           settings.variance ? sum2[std::size_t(j)] : detail::Rgb::Zero(),
-                          lit_sums[std::size_t(j)], shadowed_sums[std::size_t(j)],
-                          inside[std::size_t(j)], px_n * py_n);
+                          direct[std::size_t(j)], inside[std::size_t(j)], px_n * py_n);
                 x += pixels;
             }
         }
     });
     if (filter)
-        detail::shadow_filter(image.width, image.height, image.rgb, lit, shadowed,
-                              settings.shadow_filter_px);
+        detail::shadow_filter(image.width, image.height, int(groups), image.rgb, lit, chosen,
+                              shadowed, settings.shadow_filter_px);
     return image;
 }
 

@@ -202,10 +202,11 @@ struct RenderSettings {
     /// (for tests and `bench render`).
     bool batch_pixels = true;
     /// Fast integrator: the shadow filter's standard deviation, px; 0: none. The LEDs'
-    /// direct light in a pixel is its unshadowed value (no noise from the shadow rays) times
-    /// the fraction that gets through the shadows, that fraction taken as a Gaussian-weighted
-    /// ratio over the neighbouring pixels' samples (sum w shadowed / sum w unshadowed, per
-    /// channel; the ratio estimator of Heitz et al. 2018). It removes most of the shadow rays'
+    /// direct light in a pixel is, per LED (kMaxShadowGroups), its unshadowed value (no noise
+    /// from the shadow rays) times the fraction of that LED's light that gets through the
+    /// shadows, taken as a Gaussian-weighted ratio over the neighbouring pixels' samples whose
+    /// shadow ray went to that LED (per channel; the ratio estimator of Heitz et al. 2018,
+    /// post-stratified by LED: render/shadow_filter.hpp). It removes most of the shadow rays'
     /// noise where the shadows change slowly, and blurs their edges by about this much
     /// (docs/VALIDATION.md: error against time). The variance channel stays that of the
     /// unfiltered pixel.
@@ -227,6 +228,9 @@ struct RenderSettings {
 inline constexpr double kReflectionMargin_mm = 0.25;
 /// The largest RenderSettings::shadow_filter_px, px.
 inline constexpr double kMaxShadowFilterPx = 8.0;
+/// The most groups of LEDs the shadow filter keeps apart (render/shadow_filter.hpp; LEDs
+/// beyond are grouped: detail::shadow_group).
+inline constexpr int kMaxShadowGroups = 8;
 
 /// Linear RGB image, row-major, top row first, 3 floats per pixel; extra channels are empty
 /// unless RenderSettings asked for them.

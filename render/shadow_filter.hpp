@@ -1,25 +1,41 @@
 #pragma once
 /// The fast integrator's shadow filter (RenderSettings::shadow_filter_px): the ratio estimator
 /// of Heitz, Hill and McGuire, "Combining analytic direct illumination and stochastic
-/// shadows" (I3D 2018), in the image.
+/// shadows" (I3D 2018), in the image, post-stratified by groups of LEDs.
 ///
 /// A pixel's value is A + S: S the LEDs' direct light with the shadow rays' transmittance
-/// (noisy: one shadow ray per sample), A the rest. U is the same direct light with every
-/// transmittance 1 (no shadow-ray noise; the light cache's unshadowed G_k). The filter writes
-///     A + U R,   R = sum_q w_q S_q / sum_q w_q U_q,
+/// (noisy: one shadow ray per sample, to one LED), A the rest. Per group g of LEDs
+/// (FastIntegrator::shadow_groups, one per LED up to 8):
+///   - U_g: the group's direct light with every transmittance 1 (the light cache's unshadowed
+///     G_k; no shadow-ray noise);
+///   - C_g: the same, from the samples whose shadow ray went to the group only (each such
+///     sample's sum over all LEDs, so C_g is U_g's estimate by the LED draw);
+///   - S_g: those samples' shadowed light (S = sum_g S_g).
+/// The filter writes
+///     A + sum_g U_g R_g,   R_g = sum_q w_q S_g,q / sum_q w_q C_g,q,
 /// per channel, over the pixels q within 3 sigma, w_q = exp(-d^2 / (2 sigma^2)) (separable;
-/// pixels off the image count for nothing). Where the fraction of the light that gets through
-/// the shadows is the same over the neighbourhood, R is that fraction with the noise of all
-/// the neighbourhood's shadow rays; where it changes, R blurs it by about sigma.
+/// pixels off the image count for nothing). R_g is the mean transmittance towards the group's
+/// LEDs among the neighbourhood's shadow rays that went there, so which LED each sample drew
+/// adds no noise (with one group, R = sum S / sum U, it does: the samples' LEDs differ in their
+/// shadows). Where the group's fraction is the same over the neighbourhood, R_g is that fraction;
+/// where it changes (a shadow's edge), R_g blurs it by about sigma. A group none of whose shadow
+/// rays is in the neighbourhood takes all groups' ratio, sum S / sum C; with none at all the
+/// pixel keeps its own S_g. docs/VALIDATION.md (session 22) measures the groups against one.
 #include <span>
 
 namespace chromasim::render::detail {
 
 /// Filters the row-major RGB image `rgb` (width x height, 3 floats a pixel) in place: each
-/// pixel's A + S becomes A + U R (above). `lit`, `shadowed`: each pixel's U and S, in the
-/// image's units. Pixels whose neighbourhood has no unshadowed direct light (sum w U <= 0 in a
-/// channel) keep that channel. Deterministic: the same bytes on any number of threads.
-/// Throws std::invalid_argument on mismatched sizes or sigma_px outside (0, kMaxShadowFilterPx].
+/// pixel's A + S becomes A + sum_g U_g R_g (above). `lit`, `chosen`, `shadowed`: each pixel's
+/// U_g, C_g and S_g in the image's units, [(pixel * groups + g) * 3 + channel]. Deterministic:
+/// the same bytes on any number of threads. Throws std::invalid_argument on mismatched sizes,
+/// groups outside [1, kMaxShadowGroups] or sigma_px outside (0, kMaxShadowFilterPx].
+void shadow_filter(int width, int height, int groups, std::span<float> rgb,
+                   std::span<const float> lit, std::span<const float> chosen,
+                   std::span<const float> shadowed, double sigma_px);
+
+/// One group (C = U): A + U R, R = sum_q w_q S_q / sum_q w_q U_q; pixels whose neighbourhood
+/// has no unshadowed direct light (sum w U <= 0 in a channel) keep that channel.
 void shadow_filter(int width, int height, std::span<float> rgb, std::span<const float> lit,
                    std::span<const float> shadowed, double sigma_px);
 

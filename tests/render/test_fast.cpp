@@ -638,7 +638,7 @@ TEST_CASE("fast integrator: the shadow filter brings a noisy image nearer the co
         FastOnFrame on(pressed, rest);
         auto& [scene, shading, path, fast] = on;
         const LaneOptics<kRgbLanes> lanes = shading.rgb_lanes();
-        int shadowed = 0, lit = 0;
+        int shadowed = 0, lit = 0, parts = 0, clear = 0;
         for (const double polar : {5.0, 30.0, 55.0, 70.0, 80.0}) {
             for (const double azimuth : {0.0, 20.0, 45.0, 100.0}) {
                 constexpr std::size_t n = 16;
@@ -663,16 +663,39 @@ TEST_CASE("fast integrator: the shadow filter brings a noisy image nearer the co
                     INFO("polar " << polar << ", azimuth " << azimuth << ", sample " << i);
                     CHECK((plain[i] == split[i]).all());
                     const DirectLight<kRgbLanes>& d = direct[i];
-                    CHECK((d.shadowed <= d.lit * (1 + 1e-12)).all());
-                    CHECK((d.shadowed >= 0.0).all());
-                    CHECK((split[i] - d.shadowed >= -1e-12).all());
-                    shadowed += (d.shadowed.head<3>() < 0.99 * d.lit.head<3>()).any();
-                    lit += (d.lit.head<3>() > 0.0).all();
+                    CHECK((d.shadowed() <= d.lit() * (1 + 1e-12)).all());
+                    CHECK((d.shadowed() >= 0.0).all());
+                    CHECK((split[i] - d.shadowed() >= -1e-12).all());
+                    shadowed += (d.shadowed().head<3>() < 0.99 * d.lit().head<3>()).any();
+                    lit += (d.lit().head<3>() > 0.0).all();
+                    // Each part: its LED's group among the 6 (one per LED), its groups'
+                    // shares of the unshadowed light adding up to 1 where there is any,
+                    // and `clear` only where nothing was in the shadow ray's way.
+                    CHECK((d.parts >= 0 && d.parts <= kMaxDirectParts));
+                    for (int q = 0; q < d.parts; ++q) {
+                        const DirectPart<kRgbLanes>& part = d.part[std::size_t(q)];
+                        CHECK((part.group >= 0 && part.group < fast.shadow_groups()));
+                        double share = 0.0;
+                        for (const double s : part.share)
+                            share += s;
+                        if ((part.lit > 0.0).any()) {
+                            CHECK(share == Approx(1.0).margin(1e-12));
+                            for (int g = fast.shadow_groups(); g < kMaxShadowGroups; ++g)
+                                CHECK(part.share[std::size_t(g)] == 0.0);
+                        }
+                        if (part.clear) CHECK((part.shadowed == part.lit).all());
+                        parts += 1, clear += part.clear;
+                    }
                 }
             }
         }
         CHECK(lit > 200);     // most samples see LED light on the coating
         CHECK(shadowed > 10); // and some of them through a marker's shadow
+        CHECK(fast.shadow_groups() == 6);
+        INFO(parts << " parts, " << clear << " clear");
+        CHECK(parts >= lit); // a part for every sample that meets the coating
+        CHECK(clear > 0);
+        CHECK(clear < parts);
     }
     // The image: a 1-spp render, filtered and not, against a 256-spp one (unfiltered). On
     // these box markers, most of the noise is the camera's samples across their sharp

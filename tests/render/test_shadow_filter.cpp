@@ -151,8 +151,114 @@ TEST_CASE("shadow filter: a channel without unshadowed light is kept, bad sizes 
         CHECK(rgb[i] == before[i]);
     CHECK(rgb[0] != before[0]); // red is filtered
     CHECK_THROWS_WITH(shadow_filter(5, 4, rgb, std::vector<float>(3), p.shadowed, 1.0),
-                      Catch::Contains("allowed: width, height >= 1 and 3 values a pixel"));
+                      Catch::Contains("allowed: width, height >= 1, 1 to 8 groups, 3 values a "
+                                      "pixel in the image and 3 a group and pixel"));
+    for (const int groups : {0, kMaxShadowGroups + 1})
+        CHECK_THROWS_WITH(shadow_filter(5, 4, groups, rgb, p.lit, p.lit, p.shadowed, 1.0),
+                          Catch::Contains("1 to 8 groups"));
     for (const double bad : {0.0, -1.0, kMaxShadowFilterPx + 0.5, std::nan("")})
         CHECK_THROWS_WITH(shadow_filter(5, 4, rgb, p.lit, p.shadowed, bad),
                           Catch::Contains("allowed: 0 < sigma <= "));
+}
+
+TEST_CASE("shadow filter in groups of LEDs: which group each pixel's shadow ray went to adds no "
+          "noise where each group's fraction is uniform (the one-group ratio keeps that "
+          "noise), and a group without shadow rays near takes all groups' ratio",
+          "[render][shadow_filter]") {
+    // Three groups of LEDs with their own unshadowed light U_g (smooth) and fractions r_g
+    // (per channel). Each pixel's one shadow ray goes to group g with probability U_g / U:
+    // C_g = U and S_g = U r_g for that group, 0 for the others (so E[C_g] = U_g, E[S_g] =
+    // U_g r_g). The image is A + sum_g S_g; converged, A + sum_g U_g r_g.
+    constexpr int groups = 3, width = 40, height = 30;
+    const double r[groups] = {1.0, 0.3, 0.6};
+    const std::size_t n = std::size_t(width) * height;
+    std::vector<float> rest(3 * n), lit(3 * groups * n), chosen(3 * groups * n, 0.0f),
+        shadowed(3 * groups * n, 0.0f), image(3 * n), exact(3 * n);
+    std::vector<float> lit_all(3 * n), shadowed_all(3 * n);
+    std::mt19937_64 rng(11);
+    std::uniform_real_distribution<double> uniform(0.0, 1.0);
+    const auto fraction = [&](int g, int c) { return r[g] * (1.0 - 0.1 * c); };
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) {
+            const std::size_t p = std::size_t(y) * width + x;
+            double u[groups], total = 0.0;
+            for (int g = 0; g < groups; ++g)
+                total += u[g] = (0.2 + 0.1 * g) * (1.0 + 0.01 * x + 0.02 * y);
+            int pick = 0;
+            for (double at = uniform(rng) * total - u[0]; at > 0.0 && pick + 1 < groups;)
+                at -= u[++pick];
+            for (int c = 0; c < 3; ++c) {
+                const double scale = 1.0 + 0.1 * c;
+                rest[3 * p + c] = float(0.1 + 0.002 * x);
+                double sum = 0.0, truth = rest[3 * p + c];
+                for (int g = 0; g < groups; ++g) {
+                    const std::size_t i = 3 * (groups * p + g) + c;
+                    lit[i] = float(u[g] * scale);
+                    truth += u[g] * scale * fraction(g, c);
+                    if (g == pick) {
+                        chosen[i] = float(total * scale);
+                        shadowed[i] = float(total * scale * fraction(g, c));
+                        sum += shadowed[i];
+                    }
+                }
+                image[3 * p + c] = float(rest[3 * p + c] + sum);
+                exact[3 * p + c] = float(truth);
+                lit_all[3 * p + c] = float(total * scale);
+                shadowed_all[3 * p + c] = float(sum);
+            }
+        }
+    const auto worst = [&](const std::vector<float>& a) {
+        double w = 0.0;
+        for (std::size_t i = 0; i < a.size(); ++i)
+            w = std::max(w, std::abs(double(a[i]) - exact[i]) / exact[i]);
+        return w;
+    };
+    const double sigma = 1.5;
+    std::vector<float> grouped = image, one = image;
+    shadow_filter(width, height, groups, grouped, lit, chosen, shadowed, sigma);
+    shadow_filter(width, height, one, lit_all, shadowed_all, sigma);
+    INFO("worst relative error: " << worst(grouped) << " in groups, " << worst(one) << " in one, "
+                                  << worst(image) << " unfiltered");
+    CHECK(worst(grouped) < 1e-5);
+    CHECK(worst(one) > 0.02); // the draws' noise, smoothed but there
+    // One group with C = U: the one-group overload's bytes.
+    std::vector<float> again = image;
+    shadow_filter(width, height, 1, again, lit_all, lit_all, shadowed_all, sigma);
+    CHECK(again == one);
+
+    // No shadow ray went to group 2 within the Gaussian's reach (3 sigma = 5 px) of the
+    // columns x < 4: there it takes all groups' ratio, sum S / sum C over the same weights.
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < 9; ++x)
+            for (int c = 0; c < 3; ++c) {
+                const std::size_t p = std::size_t(y) * width + x, i = 3 * (groups * p + 2) + c;
+                image[3 * p + c] -= shadowed[i];
+                shadowed_all[3 * p + c] -= shadowed[i];
+                lit_all[3 * p + c] -= chosen[i];
+                chosen[i] = shadowed[i] = 0.0f;
+            }
+    grouped = image;
+    shadow_filter(width, height, groups, grouped, lit, chosen, shadowed, sigma);
+    const int radius = int(std::ceil(3.0 * sigma));
+    double off = 0.0;
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < 4; ++x)
+            for (int c = 0; c < 3; ++c) {
+                double all_s = 0.0, all_c = 0.0;
+                for (int qy = std::max(0, y - radius); qy <= std::min(height - 1, y + radius); ++qy)
+                    for (int qx = 0; qx <= x + radius; ++qx) {
+                        const double w = std::exp(
+                            -0.5 * ((qx - x) * (qx - x) + (qy - y) * (qy - y)) / (sigma * sigma));
+                        const std::size_t q = std::size_t(qy) * width + qx;
+                        all_s += w * shadowed_all[3 * q + c];
+                        all_c += w * lit_all[3 * q + c];
+                    }
+                const std::size_t p = std::size_t(y) * width + x;
+                double expected = rest[3 * p + c];
+                for (int g = 0; g < 2; ++g)
+                    expected += lit[3 * (groups * p + g) + c] * fraction(g, c);
+                expected += lit[3 * (groups * p + 2) + c] * all_s / all_c;
+                off = std::max(off, std::abs(grouped[3 * p + c] - expected) / expected);
+            }
+    CHECK(off < 1e-5);
 }
