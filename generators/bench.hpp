@@ -65,6 +65,10 @@ struct RenderBenchOptions {
     /// (RenderSettings::reflection_samples_per_pixel; 0: none extra), each at every spp and
     /// filter. The reference never has them.
     std::vector<int> reflection_spp{0};
+    /// Fast integrator: the samples per pixel to time on the markers' rims
+    /// (RenderSettings::edge_samples_per_pixel; 0: none extra), each at every spp, filter and
+    /// reflection count. The reference never has them.
+    std::vector<int> edge_spp{0};
 };
 
 /// Independent renders of one image averaged: per value, their mean and the variance of

@@ -161,6 +161,7 @@ render::RenderSettings render_settings(const Spec& spec) {
                                                       : render::Integrator::direct;
     s.shadow_filter_px = spec.render.fast.shadow_filter_px;
     s.reflection_samples_per_pixel = spec.render.fast.reflection_samples_per_pixel;
+    s.edge_samples_per_pixel = spec.render.fast.edge_samples_per_pixel;
     return s;
 }
 

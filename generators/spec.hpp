@@ -152,6 +152,8 @@ struct Spec {
             double shadow_filter_px = 0.7; ///< render::RenderSettings::shadow_filter_px
             /// render::RenderSettings::reflection_samples_per_pixel
             int reflection_samples_per_pixel = 16;
+            /// render::RenderSettings::edge_samples_per_pixel
+            int edge_samples_per_pixel = 0;
         } fast;
         /// The camera sensor model (render/sensor_model.hpp); the PNG only, the EXR stays the
         /// noise-free render.

@@ -468,6 +468,33 @@ struct Renderer::Impl {
         return out;
     }
 
+    /// RenderSettings::edge_samples_per_pixel's pixels, row by row (1: more samples): those
+    /// whose centre's markers (marker_ids: the first of each layer before the coating) differ
+    /// from one of its 8 neighbours' (a marker's rim crosses the pixel or its neighbour's).
+    std::vector<std::uint8_t> marker_edge_pixels() const {
+        const int w = camera.width_px(), h = camera.height_px();
+        const auto at = [w](int x, int y) { return std::size_t(y) * std::size_t(w) + x; };
+        std::vector<std::pair<std::int32_t, std::int32_t>> ids(std::size_t(w) * std::size_t(h));
+        tbb::parallel_for(0, h, [&](int y) {
+            for (int x = 0; x < w; ++x)
+                ids[at(x, y)] = marker_ids(x, y);
+        });
+        std::vector<std::uint8_t> out(ids.size(), 0);
+        tbb::parallel_for(0, h, [&](int y) {
+            for (int x = 0; x < w; ++x)
+                for (int dy = -1; dy <= 1 && !out[at(x, y)]; ++dy)
+                    for (int dx = -1; dx <= 1; ++dx) {
+                        const int qx = x + dx, qy = y + dy;
+                        if (qx < 0 || qy < 0 || qx >= w || qy >= h) continue;
+                        if (ids[at(qx, qy)] != ids[at(x, y)]) {
+                            out[at(x, y)] = 1;
+                            break;
+                        }
+                    }
+        });
+        return out;
+    }
+
     /// The marker of each layer (index within the layer, or -1) that the ray through the
     /// pixel's centre meets first before the coating.
     std::pair<std::int32_t, std::int32_t> marker_ids(int x, int y) const {
@@ -585,6 +612,11 @@ Image Renderer::render(const RenderSettings& settings) const {
                                     std::to_string(settings.reflection_samples_per_pixel) +
                                     " is invalid; allowed: integer >= 0 (0: none extra)");
     }
+    if (settings.edge_samples_per_pixel < 0) {
+        throw std::invalid_argument("RenderSettings: edge_samples_per_pixel = " +
+                                    std::to_string(settings.edge_samples_per_pixel) +
+                                    " is invalid; allowed: integer >= 0 (0: none extra)");
+    }
     if (settings.integrator == Integrator::fast && !m_impl->fast.has_cache()) {
         throw std::logic_error("Renderer::render: Integrator::fast needs set_light_cache first");
     }
@@ -605,11 +637,26 @@ Image Renderer::render(const RenderSettings& settings) const {
     const bool fast = settings.integrator == Integrator::fast;
     const int batch = fast && settings.batch_pixels ? std::max(1, Impl::kMaxBatchPixels / n) : 1;
     const auto [nx, ny] = detail::strata_grid(n);
-    // The pixels that mirror an LED, at their own count (RenderSettings).
+    // The pixels that mirror an LED (level 2) and those on a marker's rim (level 1), at their
+    // own counts (RenderSettings); a pixel that is both takes the mirror's count.
     const int n_mirror = settings.reflection_samples_per_pixel;
-    const std::vector<std::uint8_t> mirror =
+    const int n_edge = settings.edge_samples_per_pixel;
+    std::vector<std::uint8_t> mirror =
         fast && n_mirror > n ? m.reflection_pixels() : std::vector<std::uint8_t>{};
+    if (fast && n_edge > n && m.triangles_per_marker > 0) {
+        const std::vector<std::uint8_t> edges = m.marker_edge_pixels();
+        if (mirror.empty()) mirror.assign(edges.size(), 0);
+        for (std::size_t i = 0; i < edges.size(); ++i)
+            mirror[i] = mirror[i] ? std::uint8_t(2) : edges[i];
+    } else {
+        for (std::uint8_t& level : mirror)
+            level = level ? std::uint8_t(2) : std::uint8_t(0);
+    }
     const auto [nx_mirror, ny_mirror] = detail::strata_grid(std::max(n_mirror, 1));
+    const auto [nx_edge, ny_edge] = detail::strata_grid(std::max(n_edge, 1));
+    const int edge_batch = fast && settings.batch_pixels
+                               ? std::max(1, Impl::kMaxBatchPixels / std::max(n_edge, 1))
+                               : 1;
     // The shadow filter's inputs: each pixel's direct light with and without the shadows.
     const bool filter = fast && settings.shadow_filter_px > 0.0;
     // Per shadow group g (render/shadow_filter.hpp): 9 floats a group and pixel, 216 bytes a
@@ -676,13 +723,18 @@ Image Renderer::render(const RenderSettings& settings) const {
         for (int y = rows.begin(); y != rows.end(); ++y) {
             for (int x = 0; x < image.width;) {
                 // A pixel that mirrors an LED alone at its count; the others in runs of up to
-                // `batch` up to the next such pixel.
+                // `batch` (`edge_batch` on the markers' rims) up to the next pixel of another
+                // count.
                 const std::size_t row = std::size_t(y) * image.width;
-                const bool more = !mirror.empty() && mirror[row + x];
-                int pixels = more ? 1 : std::min(batch, image.width - x);
+                const int level = mirror.empty() ? 0 : mirror[row + x];
+                int pixels = std::min(level == 2   ? 1
+                                      : level == 1 ? edge_batch
+                                                   : batch,
+                                      image.width - x);
                 for (int j = 1; j < pixels && !mirror.empty(); ++j)
-                    if (mirror[row + x + j]) pixels = j;
-                const int px_n = more ? nx_mirror : nx, py_n = more ? ny_mirror : ny;
+                    if (mirror[row + x + j] != level) pixels = j;
+                const int px_n = level == 2 ? nx_mirror : level == 1 ? nx_edge : nx;
+                const int py_n = level == 2 ? ny_mirror : level == 1 ? ny_edge : ny;
                 const auto some = [&](auto& a, bool wanted) {
                     return wanted ? std::span(a.data(), std::size_t(pixels))
                                   : std::span<detail::Rgb>{};

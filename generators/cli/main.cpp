@@ -274,6 +274,13 @@ int main(int argc, char** argv) {
                      "has none")
         ->check(CLI::Range(0, 4096));
     bench_render
+        ->add_option("--edge-spp", render_bench.edge_spp,
+                     "fast integrator: the samples per pixel to time on the markers' rims, each "
+                     "at every spp, filter and reflection count "
+                     "(render.fast.edge_samples_per_pixel; 0: none extra); the reference has "
+                     "none")
+        ->check(CLI::Range(0, 4096));
+    bench_render
         ->add_option("--reference-in", render_bench.reference_in,
                      "read the reference from this EXR (written by --reference-out); two or "
                      "more: independent renders (--reference-seed), averaged, their spread "

@@ -527,6 +527,66 @@ TEST_CASE("fast integrator: the pixels that mirror an LED take reflection_sample
                       Catch::Contains("reflection_samples_per_pixel = -1 is invalid"));
 }
 
+TEST_CASE("fast integrator: the pixels on a marker's rim take edge_samples_per_pixel, each as "
+          "a render at that count would have it, exactly those whose centre's markers differ "
+          "from a neighbour's, and the other pixels keep their bytes",
+          "[render][fast]") {
+    const SensorFrame rest = dome_with_box_markers();
+    const SensorFrame pressed = pressed_flat(rest);
+    Renderer renderer(CameraParams{96, 96, 84.0}, OpticsParams{});
+    small_cache_on(renderer, rest, pressed);
+    RenderSettings settings{2, 5};
+    settings.integrator = Integrator::fast;
+    settings.variance = true;
+    settings.marker_ids = true;
+    const Image two = renderer.render(settings);
+    settings.samples_per_pixel = 6;
+    const Image six = renderer.render(settings);
+    settings.samples_per_pixel = 2;
+    settings.edge_samples_per_pixel = 6;
+    const Image both = renderer.render(settings);
+    const auto same = [](const Image& a, const Image& b, std::size_t p) {
+        for (std::size_t c = 3 * p; c < 3 * p + 3; ++c)
+            if (a.rgb[c] != b.rgb[c] || a.variance[c] != b.variance[c]) return false;
+        return true;
+    };
+    // Which pixels should take 6, from the id channels (the same centres' rays, written by
+    // another code path): those whose pair of ids differs from one of their 8 neighbours'.
+    const int w = both.width, h = both.height;
+    const auto at = [w](int x, int y) { return std::size_t(y) * std::size_t(w) + x; };
+    int rims = 0, wrong = 0, neither = 0;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            bool rim = false;
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dx = -1; dx <= 1; ++dx) {
+                    const int qx = x + dx, qy = y + dy;
+                    if (qx < 0 || qy < 0 || qx >= w || qy >= h) continue;
+                    rim = rim || two.inner_marker_id[at(qx, qy)] != two.inner_marker_id[at(x, y)] ||
+                          two.outer_marker_id[at(qx, qy)] != two.outer_marker_id[at(x, y)];
+                }
+            rims += rim;
+            const std::size_t p = at(x, y);
+            // Pixels outside the field are black at any count: either will do.
+            const bool as_two = same(both, two, p), as_six = same(both, six, p);
+            neither += !as_two && !as_six;
+            wrong += rim ? !as_six : !as_two;
+        }
+    INFO(rims << " of " << w * h << " pixels on a rim; " << wrong << " at the wrong count");
+    CHECK(neither == 0);
+    CHECK(wrong == 0);
+    CHECK(rims > 50);
+    CHECK(rims < w * h / 3);
+    // At most samples_per_pixel (0 included): none take more, the same bytes.
+    for (const int n : {0, 2}) {
+        settings.edge_samples_per_pixel = n;
+        CHECK(renderer.render(settings).rgb == two.rgb);
+    }
+    settings.edge_samples_per_pixel = -1;
+    CHECK_THROWS_WITH(renderer.render(settings),
+                      Catch::Contains("edge_samples_per_pixel = -1 is invalid"));
+}
+
 TEST_CASE("fast integrator: shadow rays culled where they provably meet nothing leave the image "
           "as it was, at rest, pressed and where the coating folds inwards",
           "[render][fast]") {
