@@ -153,7 +153,7 @@ struct Spec {
             /// render::RenderSettings::reflection_samples_per_pixel
             int reflection_samples_per_pixel = 16;
             /// render::RenderSettings::edge_samples_per_pixel
-            int edge_samples_per_pixel = 0;
+            int edge_samples_per_pixel = 6;
         } fast;
         /// The camera sensor model (render/sensor_model.hpp); the PNG only, the EXR stays the
         /// noise-free render.

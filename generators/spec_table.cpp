@@ -656,16 +656,19 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
         "(docs/VALIDATION.md).",
         CHROMASIM_FIELD(render.fast.reflection_samples_per_pixel)));
     out.push_back(integer(
-        "render.fast.edge_samples_per_pixel", 0, closed(0, 1024), "",
+        "render.fast.edge_samples_per_pixel", 6, closed(0, 1024), "",
         "Fast integrator: samples per pixel on the markers' rims: the pixels whose centre's first "
         "marker of each layer differs from one of its 8 neighbours' (15 % of the fisheye's circle "
         "at 224 px); at most render.samples_per_pixel (0 included): none take more; pixels that "
         "mirror an LED keep render.fast.reflection_samples_per_pixel. Chosen from the frame's "
         "geometry before any sample, so each pixel stays unbiased. At 224 px, 1.5 N + 0.6 N, "
         "with the 0.7 px shadow filter and 16 spp where an LED is mirrored, RMS of white: 3 spp "
-        "with 6 on the rims 0.98 % in 0.10 s, with 8 0.91 % in 0.11 s, against 4 spp alone "
-        "1.07 % in 0.10 s and 3 spp 1.31 % in 0.08 s; finding the rims costs about 8 ms "
-        "(docs/VALIDATION.md).",
+        "with 6 on the rims 0.98 % in 0.10 s (the shipped 224 px specs), with 8 0.91 % in 0.11 "
+        "s, 4 spp with 6 0.90 % in 0.11 s, against 4 spp alone 1.07 % in 0.10 s and 3 spp 1.31 "
+        "% in 0.08 s; at rest 3 + 6 spp 0.94 % in 0.09 s against 4 spp 1.05 % in 0.09 s; at 5 N "
+        "+ 2 N a wash (0.95 % in 0.14 s, as 4 spp alone); at 896 px, 2 spp with a 1.5 px "
+        "filter, 4 on the rims 0.59 % in 0.98 s against 0.78 % in 0.84 s and 3 spp alone 0.61 % "
+        "in 1.13 s. Finding the rims costs about 8 ms at 224 px (docs/VALIDATION.md).",
         CHROMASIM_FIELD(render.fast.edge_samples_per_pixel)));
     add_render_sensor(out);
     out.push_back(boolean("outputs.images", true,
