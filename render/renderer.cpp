@@ -475,9 +475,46 @@ struct Renderer::Impl {
         const int w = camera.width_px(), h = camera.height_px();
         const auto at = [w](int x, int y) { return std::size_t(y) * std::size_t(w) + x; };
         std::vector<std::pair<std::int32_t, std::int32_t>> ids(std::size_t(w) * std::size_t(h));
+        // From a camera in the cavity, the centres' rays 16 at a time: to the inner surface
+        // (its own BVH), then on past it; a ray whose next surface is the coating has no
+        // marker (marker_ids would find the same), the others take marker_ids' walk.
+        const bool cavity = scene.in_cavity(camera.origin_mm());
         tbb::parallel_for(0, h, [&](int y) {
-            for (int x = 0; x < w; ++x)
-                ids[at(x, y)] = marker_ids(x, y);
+            if (!cavity) {
+                for (int x = 0; x < w; ++x)
+                    ids[at(x, y)] = marker_ids(x, y);
+                return;
+            }
+            std::array<Vec3, 16> origins, directions;
+            std::array<detail::RayHit, 16> first, next;
+            std::array<int, 16> xs;
+            origins.fill(camera.origin_mm());
+            const double inf = std::numeric_limits<double>::infinity();
+            for (int x0 = 0; x0 < w; x0 += 16) {
+                std::size_t m = 0;
+                for (int x = x0; x < std::min(w, x0 + 16); ++x) {
+                    ids[at(x, y)] = {-1, -1}; // outside the field: none
+                    if (const auto d = camera.direction(Eigen::Vector2d(x + 0.5, y + 0.5)))
+                        directions[m] = *d, xs[m++] = x;
+                }
+                if (m == 0 || triangles_per_marker < 1) continue;
+                const auto o = std::span(origins.data(), m), d = std::span(directions.data(), m);
+                scene.closest_interface_hits16(o, d, 0.0, inf, std::span(first.data(), m));
+                // On from just past each ray's crossing (a ray that missed the inner surface
+                // starts where it did; it takes the walk anyway).
+                std::array<Vec3, 16> past;
+                for (std::size_t i = 0; i < m; ++i)
+                    past[i] =
+                        camera.origin_mm() +
+                        (first[i].hit() ? first[i].t_mm + detail::kHitGap_mm : 0.0) * directions[i];
+                scene.closest_hits16(std::span(past.data(), m), d, 0.0, inf,
+                                     std::span(next.data(), m));
+                for (std::size_t i = 0; i < m; ++i) {
+                    const bool coating = first[i].hit() && next[i].hit() &&
+                                         next[i].kind == detail::SurfaceKind::coating;
+                    if (!coating) ids[at(xs[i], y)] = marker_ids(xs[i], y);
+                }
+            }
         });
         std::vector<std::uint8_t> out(ids.size(), 0);
         tbb::parallel_for(0, h, [&](int y) {
