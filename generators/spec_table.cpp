@@ -668,7 +668,7 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
         "% in 0.08 s; at rest 3 + 6 spp 0.94 % in 0.09 s against 4 spp 1.05 % in 0.09 s; at 5 N "
         "+ 2 N a wash (0.95 % in 0.14 s, as 4 spp alone); at 896 px, 2 spp with a 1.5 px "
         "filter, 4 on the rims 0.59 % in 0.98 s against 0.78 % in 0.84 s and 3 spp alone 0.61 % "
-        "in 1.13 s. Finding the rims costs about 8 ms at 224 px (docs/VALIDATION.md).",
+        "in 1.13 s. Finding the rims costs about 7 ms at 224 px (docs/VALIDATION.md).",
         CHROMASIM_FIELD(render.fast.edge_samples_per_pixel)));
     add_render_sensor(out);
     out.push_back(boolean("outputs.images", true,
