@@ -157,7 +157,8 @@ inline constexpr int kMaxDirectParts = 10;
 /// filter), one DirectPart per coating point the sample shades (each times the path's factors
 /// up to it); the rest of the radiance (indirect light, LEDs seen directly) is in none. Only
 /// the first `parts` are set (the renderer keeps 16 per batch of pixels, which would cost
-/// 40 KB of zeroing per batch): radiance16 sets `parts` for each one it is given.
+/// about 50 KB of zeroing per batch of spectral samples): radiance16 sets `parts` for each one it
+/// is given.
 template <int N> struct DirectLight {
     int parts = 0;
     std::array<DirectPart<N>, kMaxDirectParts> part;
