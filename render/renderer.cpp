@@ -674,19 +674,20 @@ Image Renderer::render(const RenderSettings& settings) const {
     const bool fast = settings.integrator == Integrator::fast;
     const int batch = fast && settings.batch_pixels ? std::max(1, Impl::kMaxBatchPixels / n) : 1;
     const auto [nx, ny] = detail::strata_grid(n);
-    // The pixels that mirror an LED (level 2) and those on a marker's rim (level 1), at their
-    // own counts (RenderSettings); a pixel that is both takes the mirror's count.
+    // Each pixel's count: `levels` 2 where it mirrors an LED, 1 on a marker's rim, 0 (or no
+    // levels at all) at samples_per_pixel (RenderSettings); a pixel that is both takes the
+    // mirror's count.
     const int n_mirror = settings.reflection_samples_per_pixel;
     const int n_edge = settings.edge_samples_per_pixel;
-    std::vector<std::uint8_t> mirror =
+    std::vector<std::uint8_t> levels =
         fast && n_mirror > n ? m.reflection_pixels() : std::vector<std::uint8_t>{};
     if (fast && n_edge > n && m.triangles_per_marker > 0) {
         const std::vector<std::uint8_t> edges = m.marker_edge_pixels();
-        if (mirror.empty()) mirror.assign(edges.size(), 0);
+        if (levels.empty()) levels.assign(edges.size(), 0);
         for (std::size_t i = 0; i < edges.size(); ++i)
-            mirror[i] = mirror[i] ? std::uint8_t(2) : edges[i];
+            levels[i] = levels[i] ? std::uint8_t(2) : edges[i];
     } else {
-        for (std::uint8_t& level : mirror)
+        for (std::uint8_t& level : levels)
             level = level ? std::uint8_t(2) : std::uint8_t(0);
     }
     const auto [nx_mirror, ny_mirror] = detail::strata_grid(std::max(n_mirror, 1));
@@ -763,13 +764,13 @@ Image Renderer::render(const RenderSettings& settings) const {
                 // `batch` (`edge_batch` on the markers' rims) up to the next pixel of another
                 // count.
                 const std::size_t row = std::size_t(y) * image.width;
-                const int level = mirror.empty() ? 0 : mirror[row + x];
+                const int level = levels.empty() ? 0 : levels[row + x];
                 int pixels = std::min(level == 2   ? 1
                                       : level == 1 ? edge_batch
                                                    : batch,
                                       image.width - x);
-                for (int j = 1; j < pixels && !mirror.empty(); ++j)
-                    if (mirror[row + x + j] != level) pixels = j;
+                for (int j = 1; j < pixels && !levels.empty(); ++j)
+                    if (levels[row + x + j] != level) pixels = j;
                 const int px_n = level == 2 ? nx_mirror : level == 1 ? nx_edge : nx;
                 const int py_n = level == 2 ? ny_mirror : level == 1 ? ny_edge : ny;
                 const auto some = [&](auto& a, bool wanted) {
