@@ -545,7 +545,7 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                           "Samples per pixel (multi-jittered positions, stratified "
                           "wavelengths and, for the fast integrator, the shadow ray's LED and "
                           "point on it from a scrambled Sobol set). Fast integrator at 224 px "
-                          "on 2 cores, with the default shadow filter "
+                          "on 2 cores, with a 0.7 px shadow filter "
                           "(render.fast.shadow_filter_px) and 16 spp where an LED is mirrored "
                           "(render.fast.reflection_samples_per_pixel): 4 spp gives 1.07 % RMS "
                           "of the white level in 0.10 s, 5 spp 0.99 % in 0.12 s, 6 spp 0.85 % "
@@ -629,18 +629,21 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                           "(docs/VALIDATION.md).",
                           CHROMASIM_FIELD(render.fast.scale_indirect)));
     out.push_back(
-        number("render.fast.shadow_filter_px", 0.7, closed(0, render::kMaxShadowFilterPx), "px",
+        number("render.fast.shadow_filter_px", 0.8, closed(0, render::kMaxShadowFilterPx), "px",
                "Fast integrator: standard deviation of the shadow filter, in pixels; 0: none. The "
                "LEDs' direct light in a pixel is taken without the shadow rays' noise (the light "
                "cache's unshadowed light), per LED, times the fraction of that LED's light that "
                "gets through the markers' shadows, that fraction averaged with Gaussian weights "
                "over the neighbouring pixels' shadow rays that went to that LED (a ratio "
                "estimator; LEDs beyond 8 in groups). It blurs the shadows' edges by about this "
-               "width and leaves the markers' own edges sharp. At 224 px, 1.5 N + 0.6 N, 16 spp "
-               "where an LED is mirrored (RMS of white, noise and bias): 4 spp 2.0 % unfiltered, "
-               "1.07 % at 0.7 px (1.14 % with one fraction for all LEDs, before 0.16.0); the bias "
-               "alone about 0.4 % at 0.7 px, 0.6 % at 1 px. Larger images want a wider filter: at "
-               "896 px, 2 spp, 0.78 % at 1.5 px (its bias about 0.2 %) (docs/VALIDATION.md).",
+               "width and leaves the markers' own edges sharp. At 224 px, 16 spp where an LED is "
+               "mirrored (RMS of white, noise and bias): 3 spp with 6 on the markers' rims (the "
+               "shipped 224 px specs) 0.96 % at 0.8 px against 0.98 % at 0.7 px at 1.5 N + 0.6 "
+               "N, 0.93 against 0.95 % at 5 N + 2 N, 0.93 against 0.94 % at rest; 4 spp alone "
+               "2.0 % unfiltered, 1.06 % at 0.8 px, 1.07 % at 0.7 px (1.14 % with one fraction for "
+               "all LEDs, before 0.16.0), while at 6 spp 0.7 px is better. The bias alone about "
+               "0.4 % at 0.7 px, 0.6 % at 1 px. Larger images want a wider filter: at 896 px, 2 "
+               "spp, 0.78 % at 1.5 px (its bias about 0.2 %) (docs/VALIDATION.md).",
                CHROMASIM_FIELD(render.fast.shadow_filter_px)));
     out.push_back(integer(
         "render.fast.reflection_samples_per_pixel", 16, closed(0, 1024), "",
