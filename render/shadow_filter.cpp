@@ -35,28 +35,12 @@ void bands(int width, int height, int radius, const std::vector<float>& w, std::
     tbb::parallel_for(tbb::blocked_range<int>(0, count), [&](const auto& range) {
         // Kept by each thread from image to image: no allocation (and no page faults) per band.
         thread_local std::vector<float> rows;
-        thread_local std::vector<int> from, to;
         for (int band = range.begin(); band != range.end(); ++band) {
             const int y0 = band * kBandRows, y1 = std::min(height, y0 + kBandRows);
             const int ya = std::max(0, y0 - radius), yb = std::min(height, y1 + radius);
             rows.resize(std::size_t(yb - ya) * std::size_t(width) * values);
-            // Each row's sums are zero outside [lo - reach, hi + reach], lo .. hi the pixels
-            // with direct light (none outside the fisheye's circle): x from[y] to to[y].
-            from.resize(std::size_t(yb - ya)), to.resize(std::size_t(yb - ya));
             for (int y = ya; y < yb; ++y) {
-                int lo = width, hi = -1;
                 for (int x = 0; x < width; ++x) {
-                    const float* c = chosen.data() + per * at(x, y);
-                    bool any = false;
-                    for (int v = 0; v < per; ++v)
-                        any = any || c[v] != 0.0f;
-                    if (any) lo = std::min(lo, x), hi = x;
-                }
-                from[std::size_t(y - ya)] = std::max(0, lo - radius);
-                to[std::size_t(y - ya)] = std::min(width - 1, hi + radius);
-                float* row = rows.data() + std::size_t(y - ya) * width * values;
-                std::fill(row, row + std::size_t(width) * values, 0.0f);
-                for (int x = from[std::size_t(y - ya)]; x <= to[std::size_t(y - ya)]; ++x) {
                     float sum[values] = {};
                     const int lo = std::max(0, x - radius), hi = std::min(width - 1, x + radius);
                     for (int qx = lo; qx <= hi; ++qx) {
@@ -75,11 +59,7 @@ void bands(int width, int height, int radius, const std::vector<float>& w, std::
             }
             for (int y = y0; y < y1; ++y) {
                 const int lo = std::max(0, y - radius), hi = std::min(height - 1, y + radius);
-                int x0 = width, x1 = -1;
-                for (int qy = lo; qy <= hi; ++qy)
-                    x0 = std::min(x0, from[std::size_t(qy - ya)]),
-                    x1 = std::max(x1, to[std::size_t(qy - ya)]);
-                for (int x = x0; x <= x1; ++x) {
+                for (int x = 0; x < width; ++x) {
                     float sum[values] = {};
                     for (int qy = lo; qy <= hi; ++qy) {
                         const float wd = w[std::size_t(std::abs(qy - y))];
