@@ -628,25 +628,25 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                           "per frame "
                           "(docs/VALIDATION.md).",
                           CHROMASIM_FIELD(render.fast.scale_indirect)));
-    out.push_back(
-        number("render.fast.shadow_filter_px", 0.8, closed(0, render::kMaxShadowFilterPx), "px",
-               "Fast integrator: standard deviation of the shadow filter, in pixels; 0: none. The "
-               "LEDs' direct light in a pixel is taken without the shadow rays' noise (the light "
-               "cache's unshadowed light), per LED, times the fraction of that LED's light that "
-               "gets through the markers' shadows, that fraction averaged with Gaussian weights "
-               "over the neighbouring pixels' shadow rays that went to that LED (a ratio "
-               "estimator; LEDs beyond 8 in groups). It blurs the shadows' edges by about this "
-               "width and leaves the markers' own edges sharp. At 224 px, 16 spp where an LED is "
-               "mirrored (RMS of white, noise and bias): 3 spp with 6 on the markers' rims (the "
-               "shipped 224 px specs) 0.96 % at 0.8 px against 0.98 % at 0.7 px at 1.5 N + 0.6 "
-               "N, 0.93 against 0.95 % at 5 N + 2 N, 0.93 against 0.94 % at rest; 4 spp alone "
-               "2.0 % unfiltered, 1.06 % at 0.8 px, 1.07 % at 0.7 px (1.14 % with one fraction for "
-               "all LEDs, before 0.16.0), while at 6 spp 0.7 px is better. The bias alone about "
-               "0.4 % at 0.7 px, 0.6 % at 1 px. Larger images want a wider filter: at 896 px, 2 "
-               "spp, 0.78 % at 1.5 px (its bias about 0.2 %) (docs/VALIDATION.md).",
-               CHROMASIM_FIELD(render.fast.shadow_filter_px)));
+    out.push_back(number(
+        "render.fast.shadow_filter_px", 0.8, closed(0, render::kMaxShadowFilterPx), "px",
+        "Fast integrator: standard deviation of the shadow filter, in pixels; 0: none. The "
+        "LEDs' direct light in a pixel is taken without the shadow rays' noise (the light "
+        "cache's unshadowed light), per LED, times the fraction of that LED's light that "
+        "gets through the markers' shadows, that fraction averaged with Gaussian weights "
+        "over the neighbouring pixels' shadow rays that went to that LED (a ratio "
+        "estimator; LEDs beyond 8 in groups). It blurs the shadows' edges by about this "
+        "width and leaves the markers' own edges sharp. At 224 px, 16 spp where an LED is "
+        "mirrored (RMS of white, noise and bias): 3 spp with 6 on the markers' rims (0.16.0's "
+        "224 px specs) 0.96 % at 0.8 px against 0.98 % at 0.7 px at 1.5 N + 0.6 "
+        "N, 0.93 against 0.95 % at 5 N + 2 N, 0.93 against 0.94 % at rest; 4 spp alone "
+        "2.0 % unfiltered, 1.06 % at 0.8 px, 1.07 % at 0.7 px (1.14 % with one fraction for "
+        "all LEDs, before 0.16.0), while at 6 spp 0.7 px is better. The bias alone about "
+        "0.4 % at 0.7 px, 0.6 % at 1 px. Larger images want a wider filter: at 896 px, 2 "
+        "spp, 0.78 % at 1.5 px (its bias about 0.2 %) (docs/VALIDATION.md).",
+        CHROMASIM_FIELD(render.fast.shadow_filter_px)));
     out.push_back(integer(
-        "render.fast.reflection_samples_per_pixel", 16, closed(0, 1024), "",
+        "render.fast.reflection_samples_per_pixel", 12, closed(0, 1024), "",
         "Fast integrator: samples per pixel where the inner surface mirrors an LED (the bright "
         "streaks near the rim: the ray through the pixel's centre, reflected, crosses the LEDs' "
         "plane within 0.25 mm of an LED plus half the distance to its neighbours' crossings) "
@@ -655,23 +655,29 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
         "pixel a render at this count would give. At 224 px, 1.5 N + 0.6 N (5 % of the pixels; "
         "11 % at 5 N + 2 N), RMS of white with the 0.7 px shadow filter: 4 spp 1.14 % in 0.10 s "
         "against 1.39 % in 0.08 s without, 5 spp 1.05 % in 0.12 s, 6 spp 0.92 % in 0.14 s; at "
-        "896 px with a 1.5 px filter, 2 spp 0.82 % in 0.82 s against 1.07 % in 0.66 s "
-        "(docs/VALIDATION.md).",
+        "896 px with a 1.5 px filter, 2 spp 0.82 % in 0.82 s against 1.07 % in 0.66 s. With 3 "
+        "spp, 8 on the markers' rims and the 0.8 px filter (the shipped 224 px specs), 12 gives "
+        "0.92 % against 0.89 % with 16 at 1.5 N + 0.6 N, for 4 % fewer rays (0.93 against "
+        "0.89 % and 9 % fewer at 5 N + 2 N) (docs/VALIDATION.md).",
         CHROMASIM_FIELD(render.fast.reflection_samples_per_pixel)));
     out.push_back(integer(
-        "render.fast.edge_samples_per_pixel", 6, closed(0, 1024), "",
+        "render.fast.edge_samples_per_pixel", 8, closed(0, 1024), "",
         "Fast integrator: samples per pixel on the markers' rims: the pixels whose centre's first "
         "marker of each layer differs from one of its 8 neighbours' (15 % of the fisheye's circle "
         "at 224 px); at most render.samples_per_pixel (0 included): none take more; pixels that "
         "mirror an LED keep render.fast.reflection_samples_per_pixel. Chosen from the frame's "
         "geometry before any sample, so each pixel stays unbiased. At 224 px, 1.5 N + 0.6 N, "
         "with the 0.7 px shadow filter and 16 spp where an LED is mirrored, RMS of white: 3 spp "
-        "with 6 on the rims 0.98 % in 0.10 s (the shipped 224 px specs), with 8 0.91 % in 0.11 "
+        "with 6 on the rims 0.98 % in 0.10 s (0.16.0's 224 px specs), with 8 0.91 % in 0.11 "
         "s, 4 spp with 6 0.90 % in 0.11 s, against 4 spp alone 1.07 % in 0.10 s and 3 spp 1.31 "
         "% in 0.08 s; at rest 3 + 6 spp 0.94 % in 0.09 s against 4 spp 1.05 % in 0.09 s; at 5 N "
         "+ 2 N a wash (0.95 % in 0.14 s, as 4 spp alone); at 896 px, 2 spp with a 1.5 px "
         "filter, 4 on the rims 0.59 % in 0.98 s against 0.78 % in 0.84 s and 3 spp alone 0.61 % "
-        "in 1.13 s. Finding the rims costs about 7 ms at 224 px (docs/VALIDATION.md).",
+        "in 1.13 s. With 0.8 px and 12 where an LED is mirrored (the defaults), 3 spp with 8 "
+        "on the rims (the shipped 224 px specs) gives 0.92 % at 1.5 N + 0.6 N, 0.93 % at 5 N "
+        "+ 2 N and 0.87 % at rest, against 0.96, 0.93 and 0.93 % with 6 and 16 (0.16.0's "
+        "defaults), with 2 % more rays, 3 % fewer and 5 % more. Finding the rims costs about "
+        "7 ms at 224 px (docs/VALIDATION.md).",
         CHROMASIM_FIELD(render.fast.edge_samples_per_pixel)));
     add_render_sensor(out);
     out.push_back(boolean("outputs.images", true,

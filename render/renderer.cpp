@@ -670,9 +670,15 @@ Image Renderer::render(const RenderSettings& settings) const {
     const Impl& m = *m_impl;
     const double scale = m.scale_for(settings);
     const int n = settings.samples_per_pixel;
-    // The fast integrator takes up to 16 / n pixels of a row at once (batch_pixels).
+    // The fast integrator takes up to 16 / n pixels of a row at once (batch_pixels): runs of
+    // pixels at one count n share packets of up to 16 samples (one pixel where n >= 16).
     const bool fast = settings.integrator == Integrator::fast;
-    const int batch = fast && settings.batch_pixels ? std::max(1, Impl::kMaxBatchPixels / n) : 1;
+    const auto batch_at = [&](int count) {
+        return fast && settings.batch_pixels
+                   ? std::max(1, Impl::kMaxBatchPixels / std::max(count, 1))
+                   : 1;
+    };
+    const int batch = batch_at(n);
     const auto [nx, ny] = detail::strata_grid(n);
     // Each pixel's count: `levels` 2 where it mirrors an LED, 1 on a marker's rim, 0 (or no
     // levels at all) at samples_per_pixel (RenderSettings); a pixel that is both takes the
@@ -692,9 +698,7 @@ Image Renderer::render(const RenderSettings& settings) const {
     }
     const auto [nx_mirror, ny_mirror] = detail::strata_grid(std::max(n_mirror, 1));
     const auto [nx_edge, ny_edge] = detail::strata_grid(std::max(n_edge, 1));
-    const int edge_batch = fast && settings.batch_pixels
-                               ? std::max(1, Impl::kMaxBatchPixels / std::max(n_edge, 1))
-                               : 1;
+    const int edge_batch = batch_at(n_edge), mirror_batch = batch_at(n_mirror);
     // The shadow filter's inputs: each pixel's direct light with and without the shadows.
     const bool filter = fast && settings.shadow_filter_px > 0.0;
     // Per shadow group g (render/shadow_filter.hpp): 9 floats a group and pixel, 216 bytes a
@@ -760,12 +764,11 @@ Image Renderer::render(const RenderSettings& settings) const {
         std::array<int, Impl::kMaxBatchPixels> inside{};
         for (int y = rows.begin(); y != rows.end(); ++y) {
             for (int x = 0; x < image.width;) {
-                // A pixel that mirrors an LED alone at its count; the others in runs of up to
-                // `batch` (`edge_batch` on the markers' rims) up to the next pixel of another
-                // count.
+                // Runs of up to `batch` pixels (`mirror_batch` where an LED is mirrored,
+                // `edge_batch` on the markers' rims), up to the next pixel of another count.
                 const std::size_t row = std::size_t(y) * image.width;
                 const int level = levels.empty() ? 0 : levels[row + x];
-                int pixels = std::min(level == 2   ? 1
+                int pixels = std::min(level == 2   ? mirror_batch
                                       : level == 1 ? edge_batch
                                                    : batch,
                                       image.width - x);

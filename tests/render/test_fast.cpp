@@ -449,6 +449,24 @@ TEST_CASE("fast integrator: neighbouring pixels traced together give each pixel 
             settings.seed = 12;
             CHECK(renderer.render(settings).rgb != alone.rgb);
         }
+        // The pixels at counts of their own, where an LED is mirrored (8: runs of 2) and on
+        // the markers' rims (5: runs of 3), with and without the runs.
+        RenderSettings settings{2, 11};
+        settings.integrator = Integrator::fast;
+        settings.variance = true;
+        const Image plain = renderer.render(settings);
+        settings.reflection_samples_per_pixel = 8;
+        const Image mirrored = renderer.render(settings);
+        settings.edge_samples_per_pixel = 5;
+        settings.batch_pixels = true;
+        const Image together = renderer.render(settings);
+        settings.batch_pixels = false;
+        const Image alone = renderer.render(settings);
+        INFO("spectral " << bool(optics.spectra) << ", 2 spp, 8 where mirrored, 5 on the rims");
+        CHECK(mirrored.rgb != plain.rgb);    // some pixels mirror an LED
+        CHECK(together.rgb != mirrored.rgb); // some lie on a rim
+        CHECK(together.rgb == alone.rgb);
+        CHECK(together.variance == alone.variance);
     }
 }
 

@@ -527,7 +527,7 @@ TEST_CASE("RayHits walks a ray's hits as successive closest_hit calls do, in few
     for (Eigen::Index i = 0; i < random.cols(); i += 2)
         rays.push_back({Vec3(random(0, i), random(1, i), 11.0 + random(2, i)),
                         Vec3(random.col(i + 1)).normalized()});
-    std::size_t walked = 0, long_walks = 0;
+    std::size_t walked = 0, long_walks = 0, ties = 0;
     std::uint64_t traversals[2] = {0, 0};
     for (const unsigned kinds :
          {detail::kAllKinds,
@@ -563,18 +563,25 @@ TEST_CASE("RayHits walks a ray's hits as successive closest_hit calls do, in few
             REQUIRE(walk.size() == one_by_one.size());
             for (std::size_t k = 0; k < walk.size(); ++k) {
                 CHECK(walk[k].kind == one_by_one[k].kind);
-                CHECK(walk[k].prim_id == one_by_one[k].prim_id);
                 CHECK(walk[k].t_mm == Approx(one_by_one[k].t_mm).epsilon(1e-6));
                 CHECK((walk[k].normal - one_by_one[k].normal).norm() < 1e-6);
+                // The same triangle, or, where two triangles tie (the same distance and
+                // normal, checked above: the stack's discs share their side walls, so a ray
+                // through a wall where two discs overlap meets both at once), either of them:
+                // which one answers a tie is Embree's order of candidates, which differs
+                // between machines (seen on an AMD EPYC in session 23, not on session 22's).
+                ties += walk[k].prim_id != one_by_one[k].prim_id;
             }
             walked += walk.size();
             long_walks += walk.size() > detail::RayHits::kMarkers + 1;
         }
     }
     scene.count_rays(false);
-    INFO(walked << " hits, " << long_walks << " walks past more markers than kept; traversals "
-                << traversals[1] << " against " << traversals[0]);
+    INFO(walked << " hits, " << ties << " ties, " << long_walks
+                << " walks past more markers than kept; traversals " << traversals[1] << " against "
+                << traversals[0]);
     CHECK(walked > 600);
+    CHECK(ties <= 2); // of the 600 and more hits (2 seen: one ray, both kinds of query)
     CHECK(long_walks >= 2);
     CHECK(traversals[1] < traversals[0]);
 }
