@@ -403,106 +403,67 @@ struct Renderer::Impl {
         return detail::Rgb(h.to_rgb * radiance.matrix());
     }
 
-    /// RenderSettings::reflection_samples_per_pixel's pixels, row by row (1: more samples):
-    /// those whose centre's ray, reflected off the inner surface it meets first (the
-    /// interpolated normal), crosses the LEDs' plane within kReflectionMargin_mm of an LED
-    /// plus the pixel's reach there (half the largest distance to its 4 neighbours'
-    /// crossings), and their 8 neighbours.
-    std::vector<std::uint8_t> reflection_pixels() const {
+    /// Each pixel's count class (render()'s `levels`), row by row, from its centre's ray:
+    /// 2 where an LED is mirrored (with `mirrors`), 1 on a marker's rim (with `rims`), 0
+    /// elsewhere; a pixel that is both is 2.
+    /// - Mirrored (RenderSettings::reflection_samples_per_pixel): the pixels whose centre's
+    ///   ray, reflected off the inner surface it meets first (the interpolated normal),
+    ///   crosses the LEDs' plane within kReflectionMargin_mm of an LED plus the pixel's reach
+    ///   there (half the largest distance to its 4 neighbours' crossings), and their 8
+    ///   neighbours.
+    /// - Rims (RenderSettings::edge_samples_per_pixel): the pixels whose centre's markers
+    ///   (marker_ids: the first of each layer before the coating) differ from one of its 8
+    ///   neighbours' (a marker's rim crosses the pixel or its neighbour's).
+    /// From a camera in the cavity the centres' rays of a row go 16 at a time, as Embree
+    /// packets: to the inner surface (its own BVH; one packet for both rules), then, for the
+    /// rims, on from just past each crossing; a ray whose next surface is the coating has no
+    /// marker (marker_ids would find the same), the others take marker_ids' walk.
+    std::vector<std::uint8_t> pixel_levels(bool mirrors, bool rims) const {
         const int w = camera.width_px(), h = camera.height_px();
+        const std::size_t pixels = std::size_t(w) * std::size_t(h);
         const auto at = [w](int x, int y) { return std::size_t(y) * std::size_t(w) + x; };
-        std::vector<std::optional<Vec3>> crossing(std::size_t(w) * std::size_t(h));
-        // The centres' rays of a row 16 at a time, as one Embree packet; against the inner
-        // surface alone where the camera is in the cavity (their first surface, if any).
+        rims = rims && triangles_per_marker > 0;
+        std::vector<std::optional<Vec3>> crossing(mirrors ? pixels : 0);
+        std::vector<std::pair<std::int32_t, std::int32_t>> ids(rims ? pixels : 0);
         const bool cavity = scene.in_cavity(camera.origin_mm());
+        const double inf = std::numeric_limits<double>::infinity();
         tbb::parallel_for(0, h, [&](int y) {
-            std::array<Vec3, 16> origins, directions;
-            std::array<detail::RayHit, 16> hits;
-            std::array<int, 16> xs;
-            origins.fill(camera.origin_mm());
-            for (int x0 = 0; x0 < w; x0 += 16) {
-                std::size_t m = 0;
-                for (int x = x0; x < std::min(w, x0 + 16); ++x)
-                    if (const auto d = camera.direction(Eigen::Vector2d(x + 0.5, y + 0.5)))
-                        directions[m] = *d, xs[m++] = x;
-                if (m == 0) continue;
-                const auto o = std::span(origins.data(), m), d = std::span(directions.data(), m);
-                const double inf = std::numeric_limits<double>::infinity();
-                if (cavity)
-                    scene.closest_interface_hits16(o, d, 0.0, inf, std::span(hits.data(), m));
-                else
-                    scene.closest_hits16(o, d, 0.0, inf, std::span(hits.data(), m));
-                for (std::size_t i = 0; i < m; ++i) {
-                    const detail::RayHit& hit = hits[i];
-                    if (!hit.hit() || hit.kind != detail::SurfaceKind::inner_surface) continue;
-                    const Vec3& d = directions[i];
-                    const Vec3 normal = detail::facing(hit.shading_normal, d);
-                    const Vec3 reflected = (d - 2.0 * d.dot(normal) * normal).normalized();
-                    crossing[at(xs[i], y)] =
-                        path.led_plane_crossing(camera.origin_mm() + hit.t_mm * d, reflected);
-                }
-            }
-        });
-        std::vector<std::uint8_t> mirrors(crossing.size(), 0);
-        tbb::parallel_for(0, h, [&](int y) {
-            for (int x = 0; x < w; ++x) {
-                const auto& q = crossing[at(x, y)];
-                if (!q) continue;
-                double reach = 0.0;
-                for (const auto& [dx, dy] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}})
-                    if (x + dx >= 0 && x + dx < w && y + dy >= 0 && y + dy < h)
-                        if (const auto& o = crossing[at(x + dx, y + dy)])
-                            reach = std::max(reach, 0.5 * (*o - *q).norm());
-                mirrors[at(x, y)] = path.near_led(*q, kReflectionMargin_mm + reach);
-            }
-        });
-        std::vector<std::uint8_t> out(mirrors.size(), 0);
-        tbb::parallel_for(0, h, [&](int y) {
-            for (int x = 0; x < w; ++x)
-                for (int dy = -1; dy <= 1 && !out[at(x, y)]; ++dy)
-                    for (int dx = -1; dx <= 1; ++dx)
-                        if (x + dx >= 0 && x + dx < w && y + dy >= 0 && y + dy < h &&
-                            mirrors[at(x + dx, y + dy)])
-                            out[at(x, y)] = 1;
-        });
-        return out;
-    }
-
-    /// RenderSettings::edge_samples_per_pixel's pixels, row by row (1: more samples): those
-    /// whose centre's markers (marker_ids: the first of each layer before the coating) differ
-    /// from one of its 8 neighbours' (a marker's rim crosses the pixel or its neighbour's).
-    std::vector<std::uint8_t> marker_edge_pixels() const {
-        const int w = camera.width_px(), h = camera.height_px();
-        const auto at = [w](int x, int y) { return std::size_t(y) * std::size_t(w) + x; };
-        std::vector<std::pair<std::int32_t, std::int32_t>> ids(std::size_t(w) * std::size_t(h));
-        // From a camera in the cavity, the centres' rays 16 at a time: to the inner surface
-        // (its own BVH), then on past it; a ray whose next surface is the coating has no
-        // marker (marker_ids would find the same), the others take marker_ids' walk.
-        const bool cavity = scene.in_cavity(camera.origin_mm());
-        tbb::parallel_for(0, h, [&](int y) {
-            if (!cavity) {
+            if (rims && !cavity)
                 for (int x = 0; x < w; ++x)
                     ids[at(x, y)] = marker_ids(x, y);
-                return;
-            }
-            std::array<Vec3, 16> origins, directions;
+            if (!mirrors && !cavity) return;
+            std::array<Vec3, 16> origins, directions, past;
             std::array<detail::RayHit, 16> first, next;
             std::array<int, 16> xs;
             origins.fill(camera.origin_mm());
-            const double inf = std::numeric_limits<double>::infinity();
             for (int x0 = 0; x0 < w; x0 += 16) {
                 std::size_t m = 0;
                 for (int x = x0; x < std::min(w, x0 + 16); ++x) {
-                    ids[at(x, y)] = {-1, -1}; // outside the field: none
+                    if (rims && cavity) ids[at(x, y)] = {-1, -1}; // outside the field: none
                     if (const auto d = camera.direction(Eigen::Vector2d(x + 0.5, y + 0.5)))
                         directions[m] = *d, xs[m++] = x;
                 }
-                if (m == 0 || triangles_per_marker < 1) continue;
+                if (m == 0) continue;
                 const auto o = std::span(origins.data(), m), d = std::span(directions.data(), m);
-                scene.closest_interface_hits16(o, d, 0.0, inf, std::span(first.data(), m));
+                // Against the inner surface alone where the camera is in the cavity (the
+                // centres' first surface, if any).
+                if (cavity)
+                    scene.closest_interface_hits16(o, d, 0.0, inf, std::span(first.data(), m));
+                else
+                    scene.closest_hits16(o, d, 0.0, inf, std::span(first.data(), m));
+                if (mirrors)
+                    for (std::size_t i = 0; i < m; ++i) {
+                        const detail::RayHit& hit = first[i];
+                        if (!hit.hit() || hit.kind != detail::SurfaceKind::inner_surface) continue;
+                        const Vec3& dir = directions[i];
+                        const Vec3 normal = detail::facing(hit.shading_normal, dir);
+                        const Vec3 reflected = (dir - 2.0 * dir.dot(normal) * normal).normalized();
+                        crossing[at(xs[i], y)] =
+                            path.led_plane_crossing(camera.origin_mm() + hit.t_mm * dir, reflected);
+                    }
+                if (!rims || !cavity) continue;
                 // On from just past each ray's crossing (a ray that missed the inner surface
                 // starts where it did; it takes the walk anyway).
-                std::array<Vec3, 16> past;
                 for (std::size_t i = 0; i < m; ++i)
                     past[i] =
                         camera.origin_mm() +
@@ -516,18 +477,33 @@ struct Renderer::Impl {
                 }
             }
         });
-        std::vector<std::uint8_t> out(ids.size(), 0);
+        // The pixels that mirror an LED themselves, then with their 8 neighbours.
+        std::vector<std::uint8_t> mirrored(mirrors ? pixels : 0, 0);
+        if (mirrors)
+            tbb::parallel_for(0, h, [&](int y) {
+                for (int x = 0; x < w; ++x) {
+                    const auto& q = crossing[at(x, y)];
+                    if (!q) continue;
+                    double reach = 0.0;
+                    for (const auto& [dx, dy] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}})
+                        if (x + dx >= 0 && x + dx < w && y + dy >= 0 && y + dy < h)
+                            if (const auto& o = crossing[at(x + dx, y + dy)])
+                                reach = std::max(reach, 0.5 * (*o - *q).norm());
+                    mirrored[at(x, y)] = path.near_led(*q, kReflectionMargin_mm + reach);
+                }
+            });
+        std::vector<std::uint8_t> out(pixels, 0);
         tbb::parallel_for(0, h, [&](int y) {
-            for (int x = 0; x < w; ++x)
-                for (int dy = -1; dy <= 1 && !out[at(x, y)]; ++dy)
+            for (int x = 0; x < w; ++x) {
+                std::uint8_t& level = out[at(x, y)];
+                for (int dy = -1; dy <= 1; ++dy)
                     for (int dx = -1; dx <= 1; ++dx) {
                         const int qx = x + dx, qy = y + dy;
                         if (qx < 0 || qy < 0 || qx >= w || qy >= h) continue;
-                        if (ids[at(qx, qy)] != ids[at(x, y)]) {
-                            out[at(x, y)] = 1;
-                            break;
-                        }
+                        if (mirrors && mirrored[at(qx, qy)]) level = 2;
+                        if (rims && level == 0 && ids[at(qx, qy)] != ids[at(x, y)]) level = 1;
                     }
+            }
         });
         return out;
     }
@@ -685,17 +661,10 @@ Image Renderer::render(const RenderSettings& settings) const {
     // mirror's count.
     const int n_mirror = settings.reflection_samples_per_pixel;
     const int n_edge = settings.edge_samples_per_pixel;
-    std::vector<std::uint8_t> levels =
-        fast && n_mirror > n ? m.reflection_pixels() : std::vector<std::uint8_t>{};
-    if (fast && n_edge > n && m.triangles_per_marker > 0) {
-        const std::vector<std::uint8_t> edges = m.marker_edge_pixels();
-        if (levels.empty()) levels.assign(edges.size(), 0);
-        for (std::size_t i = 0; i < edges.size(); ++i)
-            levels[i] = levels[i] ? std::uint8_t(2) : edges[i];
-    } else {
-        for (std::uint8_t& level : levels)
-            level = level ? std::uint8_t(2) : std::uint8_t(0);
-    }
+    const bool mirrors = fast && n_mirror > n;
+    const bool rims = fast && n_edge > n && m.triangles_per_marker > 0;
+    const std::vector<std::uint8_t> levels =
+        mirrors || rims ? m.pixel_levels(mirrors, rims) : std::vector<std::uint8_t>{};
     const auto [nx_mirror, ny_mirror] = detail::strata_grid(std::max(n_mirror, 1));
     const auto [nx_edge, ny_edge] = detail::strata_grid(std::max(n_edge, 1));
     const int edge_batch = batch_at(n_edge), mirror_batch = batch_at(n_mirror);
