@@ -404,8 +404,8 @@ struct Renderer::Impl {
     }
 
     /// Each pixel's count class (render()'s `levels`), row by row, from its centre's ray:
-    /// 2 where an LED is mirrored (with `mirrors`), 1 on a marker's rim (with `rims`), 0
-    /// elsewhere; a pixel that is both is 2.
+    /// 2 where an LED is mirrored (with `mirrors`), 1 on a marker's rim (with `rims`: markers
+    /// with triangles, render() checks), 0 elsewhere; a pixel that is both is 2.
     /// - Mirrored (RenderSettings::reflection_samples_per_pixel): the pixels whose centre's
     ///   ray, reflected off the inner surface it meets first (the interpolated normal),
     ///   crosses the LEDs' plane within kReflectionMargin_mm of an LED plus the pixel's reach
@@ -422,7 +422,6 @@ struct Renderer::Impl {
         const int w = camera.width_px(), h = camera.height_px();
         const std::size_t pixels = std::size_t(w) * std::size_t(h);
         const auto at = [w](int x, int y) { return std::size_t(y) * std::size_t(w) + x; };
-        rims = rims && triangles_per_marker > 0;
         std::vector<std::optional<Vec3>> crossing(mirrors ? pixels : 0);
         std::vector<std::pair<std::int32_t, std::int32_t>> ids(rims ? pixels : 0);
         const bool cavity = scene.in_cavity(camera.origin_mm());
