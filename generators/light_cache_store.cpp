@@ -157,7 +157,7 @@ LightCacheOutcome provide_light_cache(render::Renderer& renderer, const render::
     if (!dir.empty()) stored = load_light_cache(dir, key, &out.note);
     if (stored) {
         try { // the key covers the sensor, so a refusal means a damaged file
-            renderer.set_light_cache(std::move(*stored), settings);
+            renderer.set_light_cache(std::move(*stored), settings, rest);
             out.from_file = true;
         } catch (const std::invalid_argument& e) {
             out.note = light_cache_file(dir, key).string() + ": " + e.what();

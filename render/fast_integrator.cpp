@@ -225,6 +225,7 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
             }
         }
     });
+    std::vector<PointLedPaths> rest_paths = point_paths(rest, bare, &cache->point_rest);
     // Vertices no marker covers: the median height of the covered ones.
     std::vector<double> heights;
     for (double h : above_mm)
@@ -245,9 +246,6 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
                 area_flux(bare, p, n, k, radius, settings, std::uint64_t(v) * leds + k);
             for (int a = 0; a < 3; ++a)
                 cache->direct[(std::size_t(v) * leds + k) * 3 + a] = float(flux[a]);
-            const Vec3 point = m_path.led_flux_point(bare, p, n, k, radius);
-            for (int a = 0; a < 3; ++a)
-                cache->point_rest[(std::size_t(v) * leds + k) * 3 + a] = float(point[a]);
         }
         // The indirect light at the coating and above the outer marker layer; a covered
         // vertex's coating value is its unfiltered one (inside() filters per sample).
@@ -380,10 +378,35 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
     m_settings = settings;
     m_edges = std::move(edges);
     m_triangle_edges = std::move(triangle_edges);
+    m_rest_paths = std::move(rest_paths);
     m_direct.clear(); // set_frame brings the frame's data up to date
 }
 
-void FastIntegrator::adopt_cache(LightCache cache, const render::LightCacheSettings& settings) {
+std::vector<PointLedPaths> FastIntegrator::point_paths(const SensorFrame& rest,
+                                                       const EmbreeScene& bare,
+                                                       std::vector<float>* point_rest) const {
+    const int nv = int(rest.coating.V.rows()), leds = m_path.led_count();
+    std::vector<PointLedPaths> paths(std::size_t(nv) * std::size_t(leds));
+    if (point_rest) point_rest->assign(paths.size() * 3, 0.0f);
+    const std::vector<Vec3> normals = coating_normals(rest.coating);
+    tbb::parallel_for(0, nv, [&](int v) {
+        const Vec3 n = normals[std::size_t(v)];
+        const Vec3 p = rest.coating.V.row(v).cast<double>().transpose() + kHitGap_mm * n;
+        const auto radius = m_path.radius_below(bare, p);
+        for (int k = 0; k < leds; ++k) {
+            const std::size_t i = std::size_t(v) * std::size_t(leds) + std::size_t(k);
+            const Vec3 flux =
+                m_path.led_flux_point(bare, p, n, k, radius, nullptr, nullptr, &paths[i]);
+            if (point_rest)
+                for (int a = 0; a < 3; ++a)
+                    (*point_rest)[i * 3 + std::size_t(a)] = float(flux[a]);
+        }
+    });
+    return paths;
+}
+
+void FastIntegrator::adopt_cache(LightCache cache, const render::LightCacheSettings& settings,
+                                 const SensorFrame& rest) {
     const int lanes = m_shading.optics().spectra ? kCacheLambdas : kRgbLanes;
     const auto nv = std::size_t(std::max(cache.vertices, 0));
     const bool sized =
@@ -405,7 +428,22 @@ void FastIntegrator::adopt_cache(LightCache cache, const render::LightCacheSetti
             "allowed: one built for this sensor's " +
             std::to_string(m_path.led_count()) + " LEDs and " + std::to_string(lanes) + " lanes (" +
             (m_shading.optics().spectra ? "spectral" : "RGB") + " mode)");
-    m_cache = std::make_shared<const LightCache>(std::move(cache));
+    auto adopted = std::make_shared<const LightCache>(std::move(cache));
+    std::swap(m_cache, adopted);
+    try {
+        check_topology(rest);
+    } catch (...) {
+        std::swap(m_cache, adopted); // the cache in use before, if any, stays
+        throw;
+    }
+    // The point LEDs' connections at rest, where each frame's solves start (as build_cache
+    // finds them: on the coating and inner surface alone).
+    SensorFrame bare_frame;
+    bare_frame.coating = rest.coating;
+    bare_frame.inner_surface = rest.inner_surface;
+    EmbreeScene bare;
+    bare.set_frame(bare_frame);
+    m_rest_paths = point_paths(rest, bare, nullptr);
     m_settings = settings;
     m_edges = std::move(edges);
     m_triangle_edges = std::move(triangle_edges);
@@ -468,8 +506,10 @@ void FastIntegrator::set_frame(const SensorFrame& frame, const EmbreeScene& scen
             const Eigen::Vector3f area(c.direct.data() + i), rest(c.point_rest.data() + i);
             InterfaceConnection refracted;
             refracted.direction = Vec3::Zero();
+            // The solves start from the rest's connections (PointLedPaths).
             const Vec3 now = !scene.has_interface() || radius
-                                 ? m_path.led_flux_point(scene, p, n, k, radius, &refracted)
+                                 ? m_path.led_flux_point(scene, p, n, k, radius, &refracted,
+                                                         &m_rest_paths[i / 3])
                                  : Vec3::Zero();
             const Vec3 model =
                 radius ? m_path.refracted_direction(p, m_path.led_point(k, 0.5, 0.5), *radius)

@@ -188,8 +188,12 @@ public:
                      const SensorSpectra* spectra, double led_scale);
     /// Uses a cache built before (read from disk: generators/light_cache_store.hpp) instead
     /// of building one; frames must then match its coating (check_topology).
-    /// `settings`: those it was built with, and the per-frame refresh.
-    void adopt_cache(LightCache cache, const render::LightCacheSettings& settings);
+    /// `settings`: those it was built with, and the per-frame refresh. `undeformed`: the
+    /// sensor at rest it was built on, where the point LEDs' connections are found again
+    /// (point_paths: as long as a frame update). Throws std::invalid_argument (and keeps the
+    /// cache in use, if any) when its coating is not the cache's.
+    void adopt_cache(LightCache cache, const render::LightCacheSettings& settings,
+                     const SensorFrame& undeformed);
     bool has_cache() const { return m_cache != nullptr; }
     const LightCache& cache() const { return *m_cache; }
 
@@ -250,6 +254,11 @@ public:
 
 private:
     template <int N> struct Lookup;
+    /// The point LEDs' connections at each vertex of `rest`'s coating (a hair off it, as
+    /// set_frame takes them) on `bare` (its coating and inner surface), [vertex * leds + k];
+    /// `point_rest`: if given, set to their light (LightCache::point_rest).
+    std::vector<PointLedPaths> point_paths(const SensorFrame& rest, const EmbreeScene& bare,
+                                           std::vector<float>* point_rest) const;
     /// LED k's unshadowed light at p (normal n) through the scene's inner surface (radius_mm:
     /// the sphere model's radius below p; none: no light), by settings.direct_samples LED
     /// points with the cache's MIS weights, from the stream `stream` (build_cache and
@@ -306,6 +315,9 @@ private:
     std::shared_ptr<const LightCache> m_cache;
     render::LightCacheSettings m_settings; ///< the cache's, and the per-frame refresh
     std::vector<float> m_direct;           ///< the frame's G_k, [vertex * leds + k]
+    /// The point LEDs' connections at rest, [vertex * leds + k] (point_paths): where each
+    /// frame's solves of the point LEDs' light start.
+    std::vector<PointLedPaths> m_rest_paths;
     /// The frame's quadratic terms of G_k, [edge * leds + k] (LightCache::direct_edge).
     std::vector<float> m_direct_edge;
     std::vector<std::array<std::uint32_t, 2>> m_edges; ///< the coating's edges (their ends)

@@ -6,6 +6,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/LU>
 
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -21,6 +22,10 @@ constexpr double kConnectTolerance_mm = 1e-6;
 constexpr int kConnectIterations = 24;
 /// Largest Newton step on the direction (rad): keeps the walk on the surface it started on.
 constexpr double kConnectMaxStep = 0.1;
+/// Two connections whose directions at p are this close (rad) are one (two of led_flux_point's
+/// starts may find the same); the solves stop within 1e-6 mm on the LED plane, some 20 mm
+/// away.
+constexpr double kSameConnection = 1e-6;
 /// Central-difference step on the direction (rad) for the connection's Jacobian.
 constexpr double kJacobianStep = 1e-6;
 
@@ -286,8 +291,6 @@ std::optional<InterfaceConnection> PathIntegrator::connect(const EmbreeScene& sc
                                                            const Vec3& l, Chain chain, double u,
                                                            double radius_mm,
                                                            const std::vector<Vec3>* known) const {
-    constexpr double inf = std::numeric_limits<double>::infinity();
-    const int n = chain_length(chain);
     // Start: the same chain on the sphere through the surface below p.
     Vec3 w;
     int candidates = 1;
@@ -303,6 +306,15 @@ std::optional<InterfaceConnection> PathIntegrator::connect(const EmbreeScene& sc
         const Vec3& mirror = mirrors[std::min(std::size_t(u * candidates), mirrors.size() - 1)];
         w = sphere_refraction(p, mirror, radius_mm, m_eta);
     }
+    return solve_connection(scene, p, l, chain, w, candidates);
+}
+
+std::optional<InterfaceConnection> PathIntegrator::solve_connection(const EmbreeScene& scene,
+                                                                    const Vec3& p, const Vec3& l,
+                                                                    Chain chain, const Vec3& w,
+                                                                    int candidates) const {
+    constexpr double inf = std::numeric_limits<double>::infinity();
+    const int n = chain_length(chain);
     // Newton on w in its tangent plane: each iterate traces the chain to find its triangles
     // (the first surface hit from p, then from x[0]), then solves on their planes; a step that
     // leaves the valid region (total internal reflection, a miss) is halved.
@@ -374,21 +386,27 @@ void PathIntegrator::for_each_connection(const EmbreeScene& scene, const Vec3& p
         if (!(chains & int(chain))) continue;
         const auto c = connect(scene, p, l, chain, u_choice, radius_mm, mirrors);
         if (!c) continue;
-        const double cos_p = n.dot(c->direction);
-        if (!(cos_p > 0.0)) continue;
-        // Nothing in the way in the cavity (the surface again, a marker poking out, the frame).
-        const int last = chain_length(chain) - 1;
-        bool blocked = false;
-        for (int k = 0; k <= last && !blocked; ++k) {
-            const Vec3 from = c->x_mm[k], to = k == last ? l : c->x_mm[k + 1];
-            const Vec3 seg = to - from;
-            const double len = seg.norm();
-            blocked = len > 2.0 * kHitGap_mm &&
-                      (m_shading.crosses_frame(from, seg / len, 0.0, len) ||
-                       scene.closest_hit(from, seg / len, kHitGap_mm, len - kHitGap_mm).hit());
-        }
-        if (!blocked) visit(*c, cos_p);
+        if (const auto cos_p = arriving_cosine(scene, *c, chain, n, l)) visit(*c, *cos_p);
     }
+}
+
+std::optional<double> PathIntegrator::arriving_cosine(const EmbreeScene& scene,
+                                                      const InterfaceConnection& c, Chain chain,
+                                                      const Vec3& n, const Vec3& l) const {
+    const double cos_p = n.dot(c.direction);
+    if (!(cos_p > 0.0)) return std::nullopt;
+    // Nothing in the way in the cavity (the surface again, a marker poking out, the frame).
+    const int last = chain_length(chain) - 1;
+    for (int k = 0; k <= last; ++k) {
+        const Vec3 from = c.x_mm[k], to = k == last ? l : c.x_mm[k + 1];
+        const Vec3 seg = to - from;
+        const double len = seg.norm();
+        if (len > 2.0 * kHitGap_mm &&
+            (m_shading.crosses_frame(from, seg / len, 0.0, len) ||
+             scene.closest_hit(from, seg / len, kHitGap_mm, len - kHitGap_mm).hit()))
+            return std::nullopt;
+    }
+    return cos_p;
 }
 
 template <int N>
@@ -457,30 +475,52 @@ Vec3 PathIntegrator::led_flux_sample(const EmbreeScene& scene, const Vec3& p, co
 }
 
 Vec3 PathIntegrator::led_flux_point(const EmbreeScene& scene, const Vec3& p, const Vec3& n, int k,
-                                    std::optional<double> radius_mm,
-                                    InterfaceConnection* refracted) const {
+                                    std::optional<double> radius_mm, InterfaceConnection* refracted,
+                                    const PointLedPaths* starts, PointLedPaths* found) const {
     const Vec3 l = led_point(k, 0.5, 0.5);
     if (!scene.has_interface()) return led_flux_sample(scene, p, n, k, 0.5, 0.5, 0.5, 0.0);
     const auto radius = radius_mm ? radius_mm : radius_below(scene, p);
     if (!radius) return Vec3::Zero();
     Vec3 sum = Vec3::Zero();
-    auto add = [&](const InterfaceConnection& c, double) {
-        sum += (c.fresnel / c.jacobian_mm2_per_sr) * c.direction;
+    // Each connection counted once (two starts may find the same: within kSameConnection),
+    // where it arrives in front of the normal with nothing in the way.
+    std::array<std::vector<Vec3>, 2> solved; // per chain, the directions
+    const auto add = [&](const std::optional<InterfaceConnection>& c, Chain chain) {
+        if (!c) return false;
+        std::vector<Vec3>& seen = solved[chain == Chain::refracted ? 0 : 1];
+        for (const Vec3& w : seen)
+            if ((w - c->direction).squaredNorm() < kSameConnection * kSameConnection) return false;
+        seen.push_back(c->direction);
+        if (!arriving_cosine(scene, *c, chain, n, l)) return false;
+        sum += (c->fresnel / c->jacobian_mm2_per_sr) * c->direction;
+        return true;
     };
-    for_each_connection(
-        scene, p, n, l, 0.5, *radius,
-        [&](const InterfaceConnection& c, double cos_p) {
-            add(c, cos_p);
-            if (refracted) *refracted = c;
-        },
-        int(Chain::refracted));
-    // The sphere model's mirror points once (sphere_candidates and each connect would
-    // otherwise scan the circle again).
-    const std::vector<Vec3> mirrors = sphere_mirrors(p, l, *radius, m_eta);
-    const int candidates = int(mirrors.size());
-    for (int i = 0; i < candidates; ++i)
-        for_each_connection(scene, p, n, l, (i + 0.5) / candidates, *radius, add,
-                            int(Chain::refracted_reflected), &mirrors);
+    // From the rest's connections, continued as the surface deforms (the sphere model's
+    // refraction where the rest had none), else from the sphere model's.
+    if (starts) {
+        const auto c = starts->refracted.squaredNorm() > 0.0
+                           ? solve_connection(scene, p, l, Chain::refracted, starts->refracted, 1)
+                           : connect(scene, p, l, Chain::refracted, 0.5, *radius);
+        if (add(c, Chain::refracted) && refracted) *refracted = *c;
+        for (const Vec3& w : starts->reflected)
+            add(solve_connection(scene, p, l, Chain::refracted_reflected, w, 1),
+                Chain::refracted_reflected);
+    } else {
+        const auto c = connect(scene, p, l, Chain::refracted, 0.5, *radius);
+        if (add(c, Chain::refracted) && refracted) *refracted = *c;
+        // The sphere model's mirror points once (sphere_candidates and each connect would
+        // otherwise scan the circle again).
+        const std::vector<Vec3> mirrors = sphere_mirrors(p, l, *radius, m_eta);
+        const int candidates = int(mirrors.size());
+        for (int i = 0; i < candidates; ++i)
+            add(connect(scene, p, l, Chain::refracted_reflected, (i + 0.5) / candidates, *radius,
+                        &mirrors),
+                Chain::refracted_reflected);
+    }
+    if (found) {
+        found->refracted = solved[0].empty() ? Vec3::Zero() : solved[0].front();
+        found->reflected = solved[1];
+    }
     return sum;
 }
 

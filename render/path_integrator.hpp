@@ -40,6 +40,7 @@
 #include "render/shading.hpp"
 
 #include <optional>
+#include <vector>
 
 namespace chromasim::render::detail {
 
@@ -65,6 +66,14 @@ struct InterfaceConnection {
     /// Number of connections of the sphere model the start was drawn from (refracted: 1);
     /// the connection's density is divided by it.
     int candidates = 1;
+};
+
+/// The directions leaving p of a point LED's connections (PathIntegrator::led_flux_point):
+/// the refracted chain's (zero: none) and each reflected one's. A frame's solves start from
+/// those found at rest (FastIntegrator::set_frame).
+struct PointLedPaths {
+    Vec3 refracted = Vec3::Zero();
+    std::vector<Vec3> reflected;
 };
 
 class PathIntegrator {
@@ -111,9 +120,21 @@ public:
     /// every LED at the same point); looked up when absent.
     /// `refracted`: when given, receives the refracted chain's connection (unchanged when it
     /// has none or it does not count: blocked, or from behind the normal).
+    /// A connection that two starts find counts once.
+    /// `starts`: when given (the connections found at rest, `found` there), the Newton solves
+    /// start from these directions instead of the sphere model's (the refracted chain from the
+    /// sphere model's where starts->refracted is zero): the rest's connections, continued as
+    /// the surface deforms. A frame update then costs about 0.65 times as much at 1.5 N +
+    /// 0.6 N, 0.85 times at 5 N + 2 N and 0.35 times at rest; the fast integrator's distance
+    /// to the path integrator goes from 1.84 to 1.76 % of white at the first and from 2.00 to
+    /// 2.08 % at the second (docs/VALIDATION.md, session 24).
+    /// `found`: when given, set to the directions of the connections solved, blocked or not
+    /// (the first refracted one).
     Vec3 led_flux_point(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& normal, int k,
                         std::optional<double> radius_mm = std::nullopt,
-                        InterfaceConnection* refracted = nullptr) const;
+                        InterfaceConnection* refracted = nullptr,
+                        const PointLedPaths* starts = nullptr,
+                        PointLedPaths* found = nullptr) const;
 
     /// The sphere model's refraction from `p_mm` towards `led_point_mm` through the sphere of
     /// radius `radius_mm` about the origin: the unit direction leaving p.
@@ -175,6 +196,15 @@ private:
     LanesN<N> trace(const EmbreeScene& scene, const Vec3& origin, const Vec3& direction,
                     const LaneOptics<N>& lanes, PixelRng& rng, const Vec3* start_normal,
                     double start_nee_per_bsdf) const;
+    /// connect()'s Newton solve from the direction w (`candidates`: as connect sets it).
+    std::optional<InterfaceConnection> solve_connection(const EmbreeScene& scene, const Vec3& p,
+                                                        const Vec3& l, Chain chain, const Vec3& w,
+                                                        int candidates) const;
+    /// The cosine at p (unit normal n) of connection c to l, or nullopt where it arrives from
+    /// behind n or something lies in its way in the cavity (the surface again, a marker, the
+    /// frame).
+    std::optional<double> arriving_cosine(const EmbreeScene& scene, const InterfaceConnection& c,
+                                          Chain chain, const Vec3& n, const Vec3& l) const;
     /// Calls visit(connection, cos_p) for each Chain that connects p to l with nothing in the
     /// way in the cavity.
     /// `chains`: a mask of the Chain values to try.

@@ -584,8 +584,10 @@ double Renderer::set_light_cache(const SensorFrame& undeformed,
     return m_impl->fast.cache().build_s;
 }
 
-void Renderer::set_light_cache(LightCache cache, const LightCacheSettings& settings) {
-    m_impl->fast.adopt_cache(std::move(cache), settings);
+void Renderer::set_light_cache(LightCache cache, const LightCacheSettings& settings,
+                               const SensorFrame& undeformed) {
+    detail::validate_marker_layout(undeformed);
+    m_impl->fast.adopt_cache(std::move(cache), settings, undeformed);
     m_impl->refresh_fast_frame();
 }
 

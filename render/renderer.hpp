@@ -38,8 +38,11 @@ public:
     /// another LED count or mode (spectral or RGB lanes), its arrays do not match, or a frame
     /// is loaded and its coating differs from the cache's. `settings`: those the cache was
     /// built with (generators/light_cache_store.hpp keys files by them), and the per-frame
-    /// refresh.
-    void set_light_cache(LightCache cache, const LightCacheSettings& settings);
+    /// refresh. `undeformed`: the sensor at rest it was built on (each frame's solves of the
+    /// LEDs' light start from its connections, found again here in about a frame update's
+    /// time); also throws when its coating is not the cache's.
+    void set_light_cache(LightCache cache, const LightCacheSettings& settings,
+                         const SensorFrame& undeformed);
     /// The light cache in use, or nullptr.
     const LightCache* light_cache() const;
 

@@ -99,7 +99,17 @@ TEST_CASE("fast integrator: the light cache saved to disk is read back by the ne
     Renderer rgb_renderer(CameraParams{24, 24, 84.0}, OpticsParams{});
     rgb_renderer.set_light_cache(frame, cache);
     Renderer spectral_renderer(CameraParams{24, 24, 84.0}, spectral);
-    CHECK_THROWS_WITH(spectral_renderer.set_light_cache(*rgb_renderer.light_cache(), cache),
+    CHECK_THROWS_WITH(spectral_renderer.set_light_cache(*rgb_renderer.light_cache(), cache, frame),
                       Catch::Contains("16 lanes") && Catch::Contains("allowed:"));
+    // So is the sensor at rest with another coating (the frame's solves start from its
+    // connections), and the cache in use stays.
+    Renderer other_rest(CameraParams{24, 24, 84.0}, OpticsParams{});
+    other_rest.set_light_cache(frame, cache);
+    other_rest.set_frame(frame);
+    const std::vector<float> before = other_rest.render(settings).rgb;
+    CHECK_THROWS_WITH(
+        other_rest.set_light_cache(*rgb_renderer.light_cache(), cache, clear_dome(12, 48, 24, 96)),
+        Catch::Contains("vertices") && Catch::Contains("allowed:"));
+    CHECK(other_rest.render(settings).rgb == before);
     fs::remove_all(dir);
 }
