@@ -430,20 +430,22 @@ void FastIntegrator::adopt_cache(LightCache cache, const render::LightCacheSetti
             (m_shading.optics().spectra ? "spectral" : "RGB") + " mode)");
     auto adopted = std::make_shared<const LightCache>(std::move(cache));
     std::swap(m_cache, adopted);
+    std::vector<PointLedPaths> rest_paths;
     try {
         check_topology(rest);
+        // The point LEDs' connections at rest, where each frame's solves start (as
+        // build_cache finds them: on the coating and inner surface alone).
+        SensorFrame bare_frame;
+        bare_frame.coating = rest.coating;
+        bare_frame.inner_surface = rest.inner_surface;
+        EmbreeScene bare;
+        bare.set_frame(bare_frame);
+        rest_paths = point_paths(rest, bare, nullptr);
     } catch (...) {
         std::swap(m_cache, adopted); // the cache in use before, if any, stays
         throw;
     }
-    // The point LEDs' connections at rest, where each frame's solves start (as build_cache
-    // finds them: on the coating and inner surface alone).
-    SensorFrame bare_frame;
-    bare_frame.coating = rest.coating;
-    bare_frame.inner_surface = rest.inner_surface;
-    EmbreeScene bare;
-    bare.set_frame(bare_frame);
-    m_rest_paths = point_paths(rest, bare, nullptr);
+    m_rest_paths = std::move(rest_paths);
     m_settings = settings;
     m_edges = std::move(edges);
     m_triangle_edges = std::move(triangle_edges);
