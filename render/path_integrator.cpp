@@ -497,17 +497,15 @@ Vec3 PathIntegrator::led_flux_point(const EmbreeScene& scene, const Vec3& p, con
     };
     // From the rest's connections, continued as the surface deforms (the sphere model's
     // refraction where the rest had none), else from the sphere model's.
+    const bool from_rest = starts && starts->refracted.squaredNorm() > 0.0;
+    const auto c = from_rest ? solve_connection(scene, p, l, Chain::refracted, starts->refracted, 1)
+                             : connect(scene, p, l, Chain::refracted, 0.5, *radius);
+    if (add(c, Chain::refracted) && refracted) *refracted = *c;
     if (starts) {
-        const auto c = starts->refracted.squaredNorm() > 0.0
-                           ? solve_connection(scene, p, l, Chain::refracted, starts->refracted, 1)
-                           : connect(scene, p, l, Chain::refracted, 0.5, *radius);
-        if (add(c, Chain::refracted) && refracted) *refracted = *c;
         for (const Vec3& w : starts->reflected)
             add(solve_connection(scene, p, l, Chain::refracted_reflected, w, 1),
                 Chain::refracted_reflected);
     } else {
-        const auto c = connect(scene, p, l, Chain::refracted, 0.5, *radius);
-        if (add(c, Chain::refracted) && refracted) *refracted = *c;
         // The sphere model's mirror points once (sphere_candidates and each connect would
         // otherwise scan the circle again).
         const std::vector<Vec3> mirrors = sphere_mirrors(p, l, *radius, m_eta);
