@@ -78,6 +78,15 @@ template <int N> LanesN<N> diffuse_transmittance(const LanesN<N>& tau) {
     return sum;
 }
 
+/// The frame's coating and inner surface alone (no markers): the scene on which the light
+/// cache finds the LEDs' light at rest.
+SensorFrame coating_and_interface(const SensorFrame& frame) {
+    SensorFrame bare;
+    bare.coating = frame.coating;
+    bare.inner_surface = frame.inner_surface;
+    return bare;
+}
+
 /// Area-weighted vertex normals of the coating, turned to face the dome centre.
 std::vector<Vec3> coating_normals(const SurfaceMesh& mesh) {
     std::vector<Vec3> n(std::size_t(mesh.V.rows()), Vec3::Zero());
@@ -179,11 +188,8 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
     const auto start = std::chrono::steady_clock::now();
     EmbreeScene full;
     full.set_frame(rest);
-    SensorFrame bare_frame;
-    bare_frame.coating = rest.coating;
-    bare_frame.inner_surface = rest.inner_surface;
     EmbreeScene bare;
-    bare.set_frame(bare_frame);
+    bare.set_frame(coating_and_interface(rest));
 
     auto cache = std::make_shared<LightCache>();
     const int nv = int(rest.coating.V.rows());
@@ -192,7 +198,6 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
     cache->leds = leds;
     cache->lanes = spectra ? kCacheLambdas : kRgbLanes;
     cache->direct.assign(std::size_t(nv) * leds * 3, 0.0f);
-    cache->point_rest.assign(std::size_t(nv) * leds * 3, 0.0f);
     cache->indirect.assign(std::size_t(nv) * cache->lanes, 0.0f);
     cache->coating_triangles.assign(rest.coating.F.data(),
                                     rest.coating.F.data() + rest.coating.F.size());
@@ -435,11 +440,8 @@ void FastIntegrator::adopt_cache(LightCache cache, const render::LightCacheSetti
         check_topology(rest);
         // The point LEDs' connections at rest, where each frame's solves start (as
         // build_cache finds them: on the coating and inner surface alone).
-        SensorFrame bare_frame;
-        bare_frame.coating = rest.coating;
-        bare_frame.inner_surface = rest.inner_surface;
         EmbreeScene bare;
-        bare.set_frame(bare_frame);
+        bare.set_frame(coating_and_interface(rest));
         rest_paths = point_paths(rest, bare, nullptr);
     } catch (...) {
         std::swap(m_cache, adopted); // the cache in use before, if any, stays
