@@ -373,43 +373,52 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
                 integrator == "fast" ? o.reflection_spp : std::vector<int>{0};
             // And the pixels on the markers' rims.
             const std::vector<int> edges = integrator == "fast" ? o.edge_spp : std::vector<int>{0};
+            // And the LEDs seen by reflection, apart.
+            const std::vector<int> led_rays =
+                integrator == "fast" ? o.reflected_led_spp : std::vector<int>{0};
             for (const double filter : filters)
                 for (const int mirror : mirrors)
                     for (const int edge : edges)
-                        for (int spp : o.samples_per_pixel) {
-                            render::RenderSettings rs = settings(spp, kTimedSeed, integrator);
-                            rs.shadow_filter_px = filter;
-                            rs.reflection_samples_per_pixel = mirror;
-                            rs.edge_samples_per_pixel = edge;
-                            render::Image img;
-                            const double t =
-                                time_median(o.repeats, [&] { img = renderer.render(rs); });
-                            const ErrorAgainstReference error =
-                                error_against(img.rgb, ref.rgb, ref.variance);
-                            if (spp == o.samples_per_pixel.front() && filter == filters.front() &&
-                                mirror == mirrors.front() && edge == edges.front()) {
-                                // rays of one render, counted once
-                                renderer.count_rays(true);
-                                renderer.render(rs);
-                                rays[integrator + " " + mode] = {double(renderer.rays_counted()),
-                                                                 t};
-                                renderer.count_rays(false);
+                        for (const int led : led_rays)
+                            for (int spp : o.samples_per_pixel) {
+                                render::RenderSettings rs = settings(spp, kTimedSeed, integrator);
+                                rs.shadow_filter_px = filter;
+                                rs.reflection_samples_per_pixel = mirror;
+                                rs.edge_samples_per_pixel = edge;
+                                rs.reflected_led_samples_per_pixel = led;
+                                render::Image img;
+                                const double t =
+                                    time_median(o.repeats, [&] { img = renderer.render(rs); });
+                                const ErrorAgainstReference error =
+                                    error_against(img.rgb, ref.rgb, ref.variance);
+                                if (spp == o.samples_per_pixel.front() &&
+                                    filter == filters.front() && mirror == mirrors.front() &&
+                                    edge == edges.front() && led == led_rays.front()) {
+                                    // rays of one render, counted once
+                                    renderer.count_rays(true);
+                                    renderer.render(rs);
+                                    rays[integrator + " " + mode] = {
+                                        double(renderer.rays_counted()), t};
+                                    renderer.count_rays(false);
+                                }
+                                std::ostringstream name;
+                                name << integrator;
+                                if (filter > 0.0)
+                                    name << ", shadow filter " << std::setprecision(2) << filter
+                                         << " px";
+                                if (mirror > spp)
+                                    name << ", " << mirror << " spp where an LED is mirrored";
+                                if (edge > spp) name << ", " << edge << " on the markers' rims";
+                                if (led > 0)
+                                    name << ", the LEDs by reflection apart from " << led
+                                         << " rays a pixel";
+                                out << "| " << name.str() << " | " << mode << " | " << spp << " | "
+                                    << std::setprecision(1) << 1e3 * t << " | "
+                                    << std::setprecision(3) << 100 * error.rms / kWhite << " | "
+                                    << 100 * error.less_reference_noise / kWhite << " | "
+                                    << 100 * error.in_circle / kWhite << " | "
+                                    << 100 * error.max / kWhite << " |\n";
                             }
-                            std::ostringstream name;
-                            name << integrator;
-                            if (filter > 0.0)
-                                name << ", shadow filter " << std::setprecision(2) << filter
-                                     << " px";
-                            if (mirror > spp)
-                                name << ", " << mirror << " spp where an LED is mirrored";
-                            if (edge > spp) name << ", " << edge << " on the markers' rims";
-                            out << "| " << name.str() << " | " << mode << " | " << spp << " | "
-                                << std::setprecision(1) << 1e3 * t << " | " << std::setprecision(3)
-                                << 100 * error.rms / kWhite << " | "
-                                << 100 * error.less_reference_noise / kWhite << " | "
-                                << 100 * error.in_circle / kWhite << " | "
-                                << 100 * error.max / kWhite << " |\n";
-                        }
         }
     // Embree's raw rate on the same scene: incoherent rays from the camera and the LEDs in
     // uniformly random directions, nothing but closest_hit, in parallel as the renderer does.

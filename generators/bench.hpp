@@ -69,6 +69,10 @@ struct RenderBenchOptions {
     /// (RenderSettings::edge_samples_per_pixel; 0: none extra), each at every spp, filter and
     /// reflection count. The reference never has them.
     std::vector<int> edge_spp{0};
+    /// Fast integrator: the rays per pixel to time for the LEDs seen by reflection, apart
+    /// (RenderSettings::reflected_led_samples_per_pixel; 0: in the samples), each at every
+    /// spp, filter, reflection and rim count. The reference never has them.
+    std::vector<int> reflected_led_spp{0};
 };
 
 /// Independent renders of one image averaged: per value, their mean and the variance of

@@ -151,9 +151,11 @@ struct Spec {
             bool scale_indirect = true;
             double shadow_filter_px = 0.8; ///< render::RenderSettings::shadow_filter_px
             /// render::RenderSettings::reflection_samples_per_pixel
-            int reflection_samples_per_pixel = 12;
+            int reflection_samples_per_pixel = 4;
             /// render::RenderSettings::edge_samples_per_pixel
             int edge_samples_per_pixel = 8;
+            /// render::RenderSettings::reflected_led_samples_per_pixel
+            int reflected_led_samples_per_pixel = 32;
         } fast;
         /// The camera sensor model (render/sensor_model.hpp); the PNG only, the EXR stays the
         /// noise-free render.

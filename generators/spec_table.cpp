@@ -646,7 +646,7 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
         "spp, 0.78 % at 1.5 px (its bias about 0.2 %) (docs/VALIDATION.md).",
         CHROMASIM_FIELD(render.fast.shadow_filter_px)));
     out.push_back(integer(
-        "render.fast.reflection_samples_per_pixel", 12, closed(0, 1024), "",
+        "render.fast.reflection_samples_per_pixel", 4, closed(0, 1024), "",
         "Fast integrator: samples per pixel where the inner surface mirrors an LED (the bright "
         "streaks near the rim: the ray through the pixel's centre, reflected, crosses the LEDs' "
         "plane within 0.25 mm of an LED plus half the distance to its neighbours' crossings) "
@@ -654,11 +654,13 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
         "take more. Chosen before any sample, so each pixel stays unbiased: such a pixel is the "
         "pixel a render at this count would give. At 224 px, 1.5 N + 0.6 N (5 % of the pixels; "
         "11 % at 5 N + 2 N), RMS of white with the 0.7 px shadow filter: 4 spp 1.14 % in 0.10 s "
-        "against 1.39 % in 0.08 s without, 5 spp 1.05 % in 0.12 s, 6 spp 0.92 % in 0.14 s; at "
-        "896 px with a 1.5 px filter, 2 spp 0.82 % in 0.82 s against 1.07 % in 0.66 s. With 3 "
-        "spp, 8 on the markers' rims and the 0.8 px filter (the shipped 224 px specs), 12 gives "
-        "0.92 % against 0.89 % with 16 at 1.5 N + 0.6 N, for 4 % fewer rays (0.93 against "
-        "0.89 % and 9 % fewer at 5 N + 2 N) (docs/VALIDATION.md).",
+        "against 1.39 % in 0.08 s without, 5 spp 1.05 % in 0.12 s, 6 spp 0.92 % in 0.14 s. With "
+        "the LEDs by reflection from rays of their own "
+        "(render.fast.reflected_led_samples_per_pixel, 32) these pixels need few samples more: "
+        "with 3 spp, 8 on the markers' rims and the 0.8 px filter (the shipped 224 px specs), 4 "
+        "gives 0.89 % at 1.5 N + 0.6 N, 0.93 % at 5 N + 2 N and 0.88 % at rest, against 0.92, "
+        "0.94 and 0.87 % with 12 and the LEDs in the samples (0.18.0's defaults), in 4 %, 10 % "
+        "and about 0 % less time (docs/VALIDATION.md).",
         CHROMASIM_FIELD(render.fast.reflection_samples_per_pixel)));
     out.push_back(integer(
         "render.fast.edge_samples_per_pixel", 8, closed(0, 1024), "",
@@ -673,12 +675,26 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
         "% in 0.08 s; at rest 3 + 6 spp 0.94 % in 0.09 s against 4 spp 1.05 % in 0.09 s; at 5 N "
         "+ 2 N a wash (0.95 % in 0.14 s, as 4 spp alone); at 896 px, 2 spp with a 1.5 px "
         "filter, 4 on the rims 0.59 % in 0.98 s against 0.78 % in 0.84 s and 3 spp alone 0.61 % "
-        "in 1.13 s. With 0.8 px and 12 where an LED is mirrored (the defaults), 3 spp with 8 "
+        "in 1.13 s. With 0.8 px and 12 where an LED is mirrored (0.18.0's defaults), 3 spp with 8 "
         "on the rims (the shipped 224 px specs) gives 0.92 % at 1.5 N + 0.6 N, 0.93 % at 5 N "
         "+ 2 N and 0.87 % at rest, against 0.96, 0.93 and 0.93 % with 6 and 16 (0.16.0's "
         "defaults), with 2 % more rays, 3 % fewer and 5 % more. Finding the rims costs about "
         "7 ms at 224 px (docs/VALIDATION.md).",
         CHROMASIM_FIELD(render.fast.edge_samples_per_pixel)));
+    out.push_back(integer(
+        "render.fast.reflected_led_samples_per_pixel", 32, closed(0, 1024), "",
+        "Fast integrator: in the pixels where an LED is mirrored (those of "
+        "render.fast.reflection_samples_per_pixel), the LEDs seen by reflection in the inner "
+        "surface come from this many rays per pixel of their own, which go only as far as the "
+        "reflection (the camera ray to the inner surface and its reflection on, no shading), and "
+        "the pixel's samples leave them out: the pixel is the sum of the two estimates, "
+        "unbiased. The LEDs' small, bright images were most of those pixels' noise. 0: the "
+        "LEDs stay in the samples. At 224 px with the shipped specs (3 spp, 8 on the rims, 4 "
+        "where an LED is mirrored, 0.8 px filter), RMS of white at 1.5 N + 0.6 N: 1.18 % with "
+        "0, 0.90 % with 24, 0.89 % with 32 (0.92 % with 12 where mirrored and 0 here, 0.18.0's "
+        "defaults); 32 such rays cost about as much as 4 samples of the pixel. At 896 px (2 "
+        "spp, 1.5 px filter) 0.53 % against 0.54 % (docs/VALIDATION.md).",
+        CHROMASIM_FIELD(render.fast.reflected_led_samples_per_pixel)));
     add_render_sensor(out);
     out.push_back(boolean("outputs.images", true,
                           "Write a PNG per frame (8-bit sRGB); with outputs.exr false too, the "

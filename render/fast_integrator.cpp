@@ -1053,13 +1053,125 @@ LanesN<N> FastIntegrator::radiance(const EmbreeScene& scene, const Vec3& origin,
     return out[0];
 }
 
+namespace {
+
+/// Traces ray(i) = (origin, direction) of each sample i < n that wants(i), from tnear, into
+/// got[i]: as one Embree packet where at least kMinPacket rays go (a packet of a few active
+/// rays costs more than the rays alone), else one by one; `interface`: against the inner
+/// surface alone.
+template <class Wants, class Ray>
+void trace_some(const EmbreeScene& scene, std::size_t n, double tnear, Wants&& wants, Ray&& ray,
+                std::array<RayHit, 16>& got, bool interface) {
+    constexpr double inf = std::numeric_limits<double>::infinity();
+    std::array<Vec3, 16> origins, rays;
+    std::array<RayHit, 16> hits;
+    std::array<std::size_t, 16> who;
+    std::size_t m = 0;
+    for (std::size_t i = 0; i < n; ++i)
+        if (wants(i)) {
+            const auto [o, d] = ray(i);
+            origins[m] = o, rays[m] = d, who[m++] = i;
+        }
+    if (m >= kMinPacket) {
+        const auto o = std::span(origins.data(), m), d = std::span(rays.data(), m);
+        if (interface)
+            scene.closest_interface_hits16(o, d, tnear, inf, std::span(hits.data(), m));
+        else
+            scene.closest_hits16(o, d, tnear, inf, std::span(hits.data(), m));
+    } else {
+        for (std::size_t j = 0; j < m; ++j)
+            hits[j] = interface ? scene.closest_interface_hit(origins[j], rays[j], tnear, inf)
+                                : scene.closest_hit(origins[j], rays[j], tnear, inf);
+    }
+    for (std::size_t j = 0; j < m; ++j)
+        got[who[j]] = hits[j];
+}
+
+} // namespace
+
+FastIntegrator::Level FastIntegrator::classify(const Vec3& o, const Vec3& d, double tnear,
+                                               const RayHit& hit, bool reflect) const {
+    constexpr double inf = std::numeric_limits<double>::infinity();
+    const double eta = m_shading.optics().refractive_index;
+    Level level;
+    const double tfar = hit.hit() ? hit.t_mm : inf;
+    if (m_shading.crosses_frame(o, d, tnear, tfar)) return level;
+    if (const auto led = m_path.led_hit(o, d, tnear, tfar)) {
+        if (led->second) level.then = Then::led;
+        return level;
+    }
+    if (!hit.hit()) return level;
+    if (hit.kind != SurfaceKind::inner_surface) {
+        level.then = Then::straight;
+        return level;
+    }
+    const double cos_g = hit.normal.dot(d);
+    if (!(cos_g < 0.0)) return level; // the back of the surface: not from air
+    level.then = Then::split;
+    level.p = o + hit.t_mm * d;
+    const Vec3 normal = facing(hit.shading_normal, d);
+    const double cos_i = -d.dot(normal);
+    level.F = fresnel_dielectric(cos_i, 1.0 / eta);
+    level.refract =
+        refract(d, normal, 1.0 / eta, level.refracted) && level.refracted.dot(hit.normal) < 0.0;
+    level.reflected = (d + 2.0 * cos_i * normal).normalized();
+    level.reflect = reflect && level.F > 0.0 && level.reflected.dot(hit.normal) > 0.0;
+    return level;
+}
+
+void FastIntegrator::reflected_leds16(const EmbreeScene& scene, const Vec3& origin,
+                                      std::span<const Vec3> directions,
+                                      std::span<double> fresnel) const {
+    const std::size_t n = directions.size();
+    if (n > 16 || fresnel.size() != n)
+        throw std::invalid_argument("FastIntegrator::reflected_leds16: " + std::to_string(n) +
+                                    " directions and " + std::to_string(fresnel.size()) +
+                                    " results; allowed: at most 16, one result per direction");
+    // radiance16's first two packets, as it traces them.
+    const bool cavity_only = scene.in_cavity(origin);
+    std::array<RayHit, 16> first, back;
+    trace_some(
+        scene, n, 0.0, [](std::size_t) { return true; },
+        [&](std::size_t i) {
+            return std::pair{origin, directions[i]};
+        },
+        first, cavity_only);
+    std::array<Level, 16> near{};
+    for (std::size_t i = 0; i < n; ++i)
+        near[i] = classify(origin, directions[i], 0.0, first[i], true);
+    // Only the reflections that cross an LED at all are traced on (classify then finds the
+    // same LED, or the inner surface or the frame before it).
+    constexpr double inf = std::numeric_limits<double>::infinity();
+    std::array<bool, 16> towards_led{};
+    for (std::size_t i = 0; i < n; ++i)
+        if (near[i].then == Then::split && near[i].reflect) {
+            const auto led = m_path.led_hit(near[i].p, near[i].reflected, kHitGap_mm, inf);
+            towards_led[i] = led && led->second;
+        }
+    const auto reflects = [&towards_led](std::size_t i) { return towards_led[i]; };
+    trace_some(
+        scene, n, kHitGap_mm, reflects,
+        [&](std::size_t i) {
+            return std::pair{near[i].p, near[i].reflected};
+        },
+        back, cavity_only);
+    for (std::size_t i = 0; i < n; ++i)
+        fresnel[i] =
+            reflects(i) &&
+                    classify(near[i].p, near[i].reflected, kHitGap_mm, back[i], false).then ==
+                        Then::led
+                ? near[i].F
+                : 0.0;
+}
+
 template <int N>
 void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
                                 std::span<const Vec3> directions,
                                 std::span<const LaneOptics<N>* const> lanes,
                                 std::span<const CacheLambdas<N>* const> lambdas,
                                 std::span<const ShadowDraw> shadow, std::span<PixelRng* const> rng,
-                                std::span<LanesN<N>> out, std::span<DirectLight<N>> direct) const {
+                                std::span<LanesN<N>> out, std::span<DirectLight<N>> direct,
+                                bool reflected_leds) const {
     if (!m_cache || m_direct.empty())
         throw std::logic_error("FastIntegrator::radiance called before build_cache/set_frame");
     const std::size_t n = directions.size();
@@ -1069,79 +1181,13 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
                                     " directions; allowed: at most 16, one lane set, "
                                     "wavelength set, LED uniform, stream and result per "
                                     "direction, and none or one direct light per direction");
-    constexpr double inf = std::numeric_limits<double>::infinity();
-    const double eta = m_shading.optics().refractive_index;
-    // The cavity level by level: a ray from o along d brings back an LED's light, nothing
-    // (the black frame, a miss, the back of the inner surface), or the dome wall's, entered
-    // with (1 - F); the camera ray also follows the reflection F, the reflected ray does not.
-    // What each sample's camera ray does at the first surface, then its reflection at the
-    // second.
-    enum class Then { nothing, led, straight, split };
-    struct Level {
-        Then then = Then::nothing;
-        Vec3 p = Vec3::Zero();
-        double F = 0.0;
-        bool refract = false, reflect = false;
-        Vec3 refracted = Vec3::Zero(), reflected = Vec3::Zero();
-    };
-    // One level for the rays from o[i] along d[i] (tnear) whose first hits are `hits`.
-    const auto classify = [&](const Vec3& o, const Vec3& d, double tnear, const RayHit& hit,
-                              bool reflect) {
-        Level level;
-        const double tfar = hit.hit() ? hit.t_mm : inf;
-        if (m_shading.crosses_frame(o, d, tnear, tfar)) return level;
-        if (const auto led = m_path.led_hit(o, d, tnear, tfar)) {
-            if (led->second) level.then = Then::led;
-            return level;
-        }
-        if (!hit.hit()) return level;
-        if (hit.kind != SurfaceKind::inner_surface) {
-            level.then = Then::straight;
-            return level;
-        }
-        const double cos_g = hit.normal.dot(d);
-        if (!(cos_g < 0.0)) return level; // the back of the surface: not from air
-        level.then = Then::split;
-        level.p = o + hit.t_mm * d;
-        const Vec3 normal = facing(hit.shading_normal, d);
-        const double cos_i = -d.dot(normal);
-        level.F = fresnel_dielectric(cos_i, 1.0 / eta);
-        level.refract =
-            refract(d, normal, 1.0 / eta, level.refracted) && level.refracted.dot(hit.normal) < 0.0;
-        level.reflected = (d + 2.0 * cos_i * normal).normalized();
-        level.reflect = reflect && level.F > 0.0 && level.reflected.dot(hit.normal) > 0.0;
-        return level;
-    };
-    // Packets of the rays some samples send from their own points along their directions.
-    std::array<Vec3, 16> origins, rays;
-    std::array<RayHit, 16> hits;
-    std::array<std::size_t, 16> who;
     // From a camera in the cavity, the rays there (the camera's, and their reflections off the
     // inner surface) can meet the inner surface first or nothing (the frame and the LEDs are
     // tested apart): its BVH alone answers them.
     const bool cavity_only = scene.in_cavity(origin);
     const auto trace = [&](double tnear, auto&& wants, auto&& ray, std::array<RayHit, 16>& got,
                            bool in_cavity) {
-        const bool interface = in_cavity && cavity_only;
-        std::size_t m = 0;
-        for (std::size_t i = 0; i < n; ++i)
-            if (wants(i)) {
-                const auto [o, d] = ray(i);
-                origins[m] = o, rays[m] = d, who[m++] = i;
-            }
-        if (m >= kMinPacket) {
-            const auto o = std::span(origins.data(), m), d = std::span(rays.data(), m);
-            if (interface)
-                scene.closest_interface_hits16(o, d, tnear, inf, std::span(hits.data(), m));
-            else
-                scene.closest_hits16(o, d, tnear, inf, std::span(hits.data(), m));
-        } else { // a packet of a few active rays costs more than the rays alone
-            for (std::size_t j = 0; j < m; ++j)
-                hits[j] = interface ? scene.closest_interface_hit(origins[j], rays[j], tnear, inf)
-                                    : scene.closest_hit(origins[j], rays[j], tnear, inf);
-        }
-        for (std::size_t j = 0; j < m; ++j)
-            got[who[j]] = hits[j];
+        trace_some(scene, n, tnear, wants, ray, got, in_cavity && cavity_only);
     };
     std::array<RayHit, 16> first, into, back, far_wall;
     trace(
@@ -1203,9 +1249,9 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
                 L += (1.0 - a.F) * layers(a.p, a.refracted, kHitGap_mm, into[i], 1.0 - a.F);
             if (a.reflect) {
                 const Level& b = far[i];
-                if (b.then == Then::led)
-                    L += a.F * led_radiance;
-                else if (b.then == Then::straight)
+                if (b.then == Then::led) {
+                    if (reflected_leds) L += a.F * led_radiance;
+                } else if (b.then == Then::straight)
                     L += a.F * layers(a.p, a.reflected, kHitGap_mm, back[i], a.F);
                 else if (b.then == Then::split && b.refract)
                     L += a.F * ((1.0 - b.F) * layers(b.p, b.refracted, kHitGap_mm, far_wall[i],
@@ -1221,13 +1267,13 @@ template void FastIntegrator::radiance16(const EmbreeScene&, const Vec3&, std::s
                                          std::span<const CacheLambdas<kRgbLanes>* const>,
                                          std::span<const ShadowDraw>, std::span<PixelRng* const>,
                                          std::span<LanesN<kRgbLanes>>,
-                                         std::span<DirectLight<kRgbLanes>>) const;
+                                         std::span<DirectLight<kRgbLanes>>, bool) const;
 template void FastIntegrator::radiance16(const EmbreeScene&, const Vec3&, std::span<const Vec3>,
                                          std::span<const LaneOptics<kSpectralLanes>* const>,
                                          std::span<const CacheLambdas<kSpectralLanes>* const>,
                                          std::span<const ShadowDraw>, std::span<PixelRng* const>,
                                          std::span<LanesN<kSpectralLanes>>,
-                                         std::span<DirectLight<kSpectralLanes>>) const;
+                                         std::span<DirectLight<kSpectralLanes>>, bool) const;
 
 template LanesN<kRgbLanes> FastIntegrator::radiance(const EmbreeScene&, const Vec3&, const Vec3&,
                                                     const LaneOptics<kRgbLanes>&,

@@ -219,12 +219,24 @@ public:
     /// sample, in order, sample i drawing from *rng[i] (its pixel's stream).
     /// lanes[i], lambdas[i], shadow[i]: sample i's, as radiance() takes them. `direct`
     /// (empty, or one per sample): also each sample's direct light apart (out is the same).
+    /// `reflected_leds` false: without the LEDs seen by reflection in the inner surface (the
+    /// camera ray's reflection F reaching an LED; reflected_leds16 gives that term apart).
     template <int N>
     void radiance16(const EmbreeScene& scene, const Vec3& origin_mm,
                     std::span<const Vec3> directions, std::span<const LaneOptics<N>* const> lanes,
                     std::span<const CacheLambdas<N>* const> lambdas,
                     std::span<const ShadowDraw> shadow, std::span<PixelRng* const> rng,
-                    std::span<LanesN<N>> out, std::span<DirectLight<N>> direct = {}) const;
+                    std::span<LanesN<N>> out, std::span<DirectLight<N>> direct = {},
+                    bool reflected_leds = true) const;
+
+    /// The term radiance16 leaves out with reflected_leds = false, for up to 16 camera rays
+    /// from `origin_mm`: fresnel[i] is the Fresnel reflectance F where ray i's reflection off
+    /// the inner surface reaches an LED (the LED's radiance, l.led / the LED's area per
+    /// lane, times F is then its radiance), 0 elsewhere. The same two packets and tests as
+    /// radiance16 (the camera ray to the inner surface, its reflection to the next surface),
+    /// nothing else: no layers, no shading, no random draw.
+    void reflected_leds16(const EmbreeScene& scene, const Vec3& origin_mm,
+                          std::span<const Vec3> directions, std::span<double> fresnel) const;
 
     /// The shadow ray's direction from `p_mm`, the point of coating triangle `prim` at
     /// barycentric coordinates (u, v), towards `led_point_mm` on LED k, as the samples take it
@@ -253,6 +265,22 @@ public:
     double direct_at(std::uint32_t prim, double u, double v, const Vec3& normal, int k) const;
 
 private:
+    /// What a ray in the cavity does at the surface it meets (radiance16's levels): it
+    /// brings back an LED's light (`led`), nothing (the black frame, a miss, the back of the
+    /// inner surface), the layers' light straight (`straight`: a surface other than the inner
+    /// one), or it splits at the inner surface into the refraction (1 - F) and the reflection F.
+    enum class Then { nothing, led, straight, split };
+    struct Level {
+        Then then = Then::nothing;
+        Vec3 p = Vec3::Zero(); ///< where it splits
+        double F = 0.0;
+        bool refract = false, reflect = false;
+        Vec3 refracted = Vec3::Zero(), reflected = Vec3::Zero();
+    };
+    /// The level of the ray from o along d (from tnear) whose first hit is `hit`; `reflect`:
+    /// whether a split follows the reflection too (the camera's rays; not their reflections).
+    Level classify(const Vec3& o, const Vec3& d, double tnear, const RayHit& hit,
+                   bool reflect) const;
     template <int N> struct Lookup;
     /// The point LEDs' connections at each vertex of `rest`'s coating (a hair off it, as
     /// set_frame takes them) on `bare` (its coating and inner surface), [vertex * leds + k];

@@ -260,11 +260,23 @@ struct Renderer::Impl {
     struct DirectSums {
         std::array<detail::Rgb, kMaxShadowGroups> lit, chosen, shadowed;
     };
+    /// A pixel's LEDs seen by reflection, estimated apart
+    /// (RenderSettings::reflected_led_samples_per_pixel): the sum over its rays of the Fresnel
+    /// factor F where the reflection reaches an LED (FastIntegrator::reflected_leds16), of
+    /// F^2, and how many of its rays lie in the field.
+    struct LedSums {
+        double sum = 0.0, sum2 = 0.0;
+        int inside = 0;
+    };
     struct PixelSums {
         std::span<detail::Rgb> sums, sum2;
         std::span<DirectSums> direct;
         std::span<int> inside;
+        std::span<LedSums> led; ///< empty, or one per pixel: the LEDs by reflection apart
     };
+    /// The stream of the rays for the LEDs seen by reflection: the pixel's own seed and index,
+    /// the seed changed by this, so that they are independent of the pixel's samples.
+    static constexpr std::uint64_t kReflectedLedSeed = 0x4C45445245464C31ull;
     void sample_pixels_fast(int x, int y, int pixels, int nx, int ny,
                             const RenderSettings& settings, double scale,
                             const PixelSums& out) const {
@@ -272,6 +284,48 @@ struct Renderer::Impl {
             batches<detail::kRgbLanes>(x, y, pixels, nx, ny, settings, scale, out);
         else
             batches<detail::kSpectralLanes>(x, y, pixels, nx, ny, settings, scale, out);
+        if (!out.led.empty()) reflected_leds(x, y, pixels, settings, out.led);
+    }
+    /// The LEDs seen by reflection in `pixels` neighbouring pixels of row y from x, apart
+    /// (LedSums): RenderSettings::reflected_led_samples_per_pixel rays a pixel, each pixel's
+    /// positions multi-jittered over it (draw(), the field's edge as for the samples) from
+    /// its own stream (kReflectedLedSeed), in packets of 16.
+    void reflected_leds(int x, int y, int pixels, const RenderSettings& settings,
+                        std::span<LedSums> out) const {
+        const int count = settings.reflected_led_samples_per_pixel;
+        const auto [nx, ny] = detail::strata_grid(count);
+        std::array<Vec3, 16> directions;
+        std::array<int, 16> owner;
+        std::array<double, 16> fresnel;
+        std::size_t m = 0;
+        const auto flush = [&] {
+            fast.reflected_leds16(scene, camera.origin_mm(), std::span(directions.data(), m),
+                                  std::span(fresnel.data(), m));
+            for (std::size_t i = 0; i < m; ++i) {
+                LedSums& sums = out[std::size_t(owner[i])];
+                sums.sum += fresnel[i];
+                sums.sum2 += fresnel[i] * fresnel[i];
+            }
+            m = 0;
+        };
+        for (int j = 0; j < pixels; ++j) {
+            const std::uint64_t index =
+                std::uint64_t(y) * std::uint64_t(camera.width_px()) + std::uint64_t(x + j);
+            const std::uint64_t seed = settings.seed ^ kReflectedLedSeed;
+            detail::PixelRng rng(seed, index);
+            const detail::PixelSeeds seeds(seed, index);
+            LedSums& sums = out[std::size_t(j)];
+            sums = {};
+            for (int k = 0; k < count; ++k) {
+                const Draw d = draw(x + j, y, k, nx, ny, rng, seeds);
+                if (!d.direction) continue;
+                ++sums.inside;
+                directions[m] = *d.direction;
+                owner[m++] = j;
+                if (m == directions.size()) flush();
+            }
+        }
+        if (m > 0) flush();
     }
     /// The most pixels sample_pixels_fast takes at once: 16 samples' worth.
     static constexpr int kMaxBatchPixels = 16;
@@ -350,7 +404,8 @@ struct Renderer::Impl {
                                std::span<detail::PixelRng* const>(streams.data(), m),
                                std::span(radiance.data(), m),
                                split ? std::span(direct.data(), m)
-                                     : std::span<detail::DirectLight<N>>{});
+                                     : std::span<detail::DirectLight<N>>{},
+                               out.led.empty());
             for (std::size_t i = 0; i < m; ++i) {
                 const auto rgb_of = [&](const detail::LanesN<N>& lanes_value) {
                     if constexpr (N == detail::kSpectralLanes)
@@ -626,6 +681,11 @@ Image Renderer::render(const RenderSettings& settings) const {
                                     std::to_string(settings.reflection_samples_per_pixel) +
                                     " is invalid; allowed: integer >= 0 (0: none extra)");
     }
+    if (settings.reflected_led_samples_per_pixel < 0) {
+        throw std::invalid_argument("RenderSettings: reflected_led_samples_per_pixel = " +
+                                    std::to_string(settings.reflected_led_samples_per_pixel) +
+                                    " is invalid; allowed: integer >= 0 (0: in the samples)");
+    }
     if (settings.edge_samples_per_pixel < 0) {
         throw std::invalid_argument("RenderSettings: edge_samples_per_pixel = " +
                                     std::to_string(settings.edge_samples_per_pixel) +
@@ -660,9 +720,12 @@ Image Renderer::render(const RenderSettings& settings) const {
     // Each pixel's count: `levels` 2 where it mirrors an LED, 1 on a marker's rim, 0 (or no
     // levels at all) at samples_per_pixel (RenderSettings); a pixel that is both takes the
     // mirror's count.
-    const int n_mirror = settings.reflection_samples_per_pixel;
+    // Where an LED is mirrored: at least n samples; with the LEDs by reflection apart
+    // (reflected_led_samples_per_pixel), those pixels are chosen whatever their count.
+    const int n_led = fast ? settings.reflected_led_samples_per_pixel : 0;
+    const int n_mirror = std::max(settings.reflection_samples_per_pixel, n);
     const int n_edge = settings.edge_samples_per_pixel;
-    const bool mirrors = fast && n_mirror > n;
+    const bool mirrors = fast && (n_mirror > n || n_led > 0);
     const bool rims = fast && n_edge > n && m.triangles_per_marker > 0;
     const std::vector<std::uint8_t> levels =
         mirrors || rims ? m.pixel_levels(mirrors, rims) : std::vector<std::uint8_t>{};
@@ -688,8 +751,17 @@ Image Renderer::render(const RenderSettings& settings) const {
     // many samples happen to fall inside (at 224 px the edge's pixels held a fifth of the
     // image's squared error at 4 spp; docs/VALIDATION.md). A pixel none of whose samples
     // fall inside stays black.
+    // The LEDs' radiance per unit of F in camera RGB, as the samples' (l.led / the LED's area,
+    // the same for every hero-wavelength set: their weights are normalised on the LED).
+    const detail::Rgb led_rgb = [&]() -> detail::Rgb {
+        if (m.hero_sets.empty()) return m.shading.rgb_lanes().led.head<3>() / m.path.led_area_mm2();
+        const Impl::HeroSet& h = m.hero_sets.front();
+        return detail::Rgb(h.to_rgb * h.lanes.led.matrix()) / m.path.led_area_mm2();
+    }();
+    // `led`: the pixel's LEDs by reflection apart (reflected_led_samples_per_pixel), or none.
     const auto write = [&](int x, int y, const detail::Rgb& sum, const detail::Rgb& sum2,
-                           const Impl::DirectSums& direct, int inside, int samples) {
+                           const Impl::DirectSums& direct, int inside, int samples,
+                           const Impl::LedSums* led) {
         const std::size_t p = std::size_t(y) * image.width + x;
         const double coverage = m.camera.field_coverage(x, y);
         const bool edge = coverage < 1.0; // or outside the field: no samples inside, black
@@ -700,7 +772,23 @@ Image Renderer::render(const RenderSettings& settings) const {
         const int count = edge ? inside : samples;
         const double weight =
             edge ? (inside > 0 ? scale * coverage / inside : 0.0) : scale / samples;
-        const detail::Rgb value = sum * weight;
+        detail::Rgb value = sum * weight;
+        // The LEDs by reflection: their own mean F (at the edge, coverage times the mean over
+        // the rays inside), and its variance added to the samples'.
+        const int led_count = led ? (edge ? led->inside : n_led) : 0;
+        detail::Rgb led_var = detail::Rgb::Zero();
+        if (led_count > 0) {
+            const double led_weight = edge ? scale * coverage / led_count : scale / n_led;
+            value += led_rgb * (led->sum * led_weight);
+            if (settings.variance && led_count > 1) {
+                const double mean = led->sum / led_count;
+                const double var_f =
+                    std::max(0.0, (led->sum2 - led_count * mean * mean) / (led_count - 1.0)) /
+                    led_count;
+                led_var =
+                    (edge ? coverage * coverage : 1.0) * scale * scale * var_f * led_rgb.square();
+            }
+        }
         float* out = image.pixel(x, y);
         for (int c = 0; c < 3; ++c)
             out[c] = float(value[c]);
@@ -718,7 +806,8 @@ Image Renderer::render(const RenderSettings& settings) const {
             const detail::Rgb mean = edge ? detail::Rgb(sum * (scale / count)) : value;
             const detail::Rgb var =
                 (edge ? coverage * coverage : 1.0) *
-                ((sum2 - count * mean.square()) / (count - 1.0) / count).max(0.0);
+                    ((sum2 - count * mean.square()) / (count - 1.0) / count).max(0.0) +
+                led_var;
             for (int c = 0; c < 3; ++c)
                 image.variance[3 * p + std::size_t(c)] = float(var[c]);
         }
@@ -732,6 +821,7 @@ Image Renderer::render(const RenderSettings& settings) const {
         std::array<detail::Rgb, Impl::kMaxBatchPixels> sums, sum2;
         std::array<Impl::DirectSums, Impl::kMaxBatchPixels> direct;
         std::array<int, Impl::kMaxBatchPixels> inside{};
+        std::array<Impl::LedSums, Impl::kMaxBatchPixels> led;
         for (int y = rows.begin(); y != rows.end(); ++y) {
             for (int x = 0; x < image.width;) {
                 // Runs of up to `batch` pixels (`mirror_batch` where an LED is mirrored,
@@ -755,7 +845,10 @@ Image Renderer::render(const RenderSettings& settings) const {
                                          {some(sums, true), some(sum2, settings.variance),
                                           filter ? std::span(direct.data(), std::size_t(pixels))
                                                  : std::span<Impl::DirectSums>{},
-                                          std::span(inside.data(), std::size_t(pixels))});
+                                          std::span(inside.data(), std::size_t(pixels)),
+                                          level == 2 && n_led > 0
+                                              ? std::span(led.data(), std::size_t(pixels))
+                                              : std::span<Impl::LedSums>{}});
                 } else {
                     sum2[0] = detail::Rgb::Zero();
                     sums[0] = m.sample_pixel(x, y, nx, ny, settings, scale,
@@ -764,7 +857,8 @@ Image Renderer::render(const RenderSettings& settings) const {
                 for (int j = 0; j < pixels; ++j)
                     write(x + j, y, sums[std::size_t(j)],
                           settings.variance ? sum2[std::size_t(j)] : detail::Rgb::Zero(),
-                          direct[std::size_t(j)], inside[std::size_t(j)], px_n * py_n);
+                          direct[std::size_t(j)], inside[std::size_t(j)], px_n * py_n,
+                          fast && level == 2 && n_led > 0 ? &led[std::size_t(j)] : nullptr);
                 x += pixels;
             }
         }

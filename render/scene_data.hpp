@@ -220,7 +220,8 @@ struct RenderSettings {
     /// it), so each pixel stays an unbiased estimate: such a pixel is exactly the pixel of a render
     /// at this many samples per pixel. At 224 px, 4 spp, the LEDs' images in the inner surface
     /// (1.3 % of the pixels) held a fifth of the squared error; the pixels chosen are 5 % of
-    /// the image at 1.5 N + 0.6 N, 11 % at 5 N + 2 N (docs/VALIDATION.md).
+    /// the image at 1.5 N + 0.6 N, 11 % at 5 N + 2 N (docs/VALIDATION.md). With
+    /// reflected_led_samples_per_pixel the same pixels are chosen whatever this count.
     int reflection_samples_per_pixel = 0;
     /// Fast integrator: samples per pixel in the pixels on a marker's rim: those whose
     /// centre's first marker of each layer (the ray straight through the inner surface, as
@@ -230,6 +231,20 @@ struct RenderSettings {
     /// before any sample, so each pixel is exactly the pixel of a render at its count. The
     /// markers' rims held most of a 224 px image's error at 4 spp (docs/VALIDATION.md).
     int edge_samples_per_pixel = 0;
+    /// Fast integrator: in the pixels where an LED is mirrored (those of
+    /// reflection_samples_per_pixel), the LEDs seen by reflection in the inner surface are
+    /// estimated apart, from this many camera rays per pixel (stratified over the pixel, a
+    /// stream of their own) that go only as far as the reflection: the camera ray to the
+    /// inner surface and, where it crosses an LED, its reflection to the next surface (from a
+    /// camera in the cavity both against the inner surface alone), no shading
+    /// (FastIntegrator::reflected_leds16). The pixel's samples then leave
+    /// that term out; the pixel stays an unbiased estimate (the sum of two). The LEDs' images
+    /// in the inner surface are small and bright (pixels up to 1.7 times white at 224 px), so
+    /// their edges held most of those pixels' noise; 32 of these rays cost about as much as 4
+    /// samples (docs/VALIDATION.md, session 25).
+    /// 0: the term stays in the samples. A mirrored pixel takes at least samples_per_pixel
+    /// samples.
+    int reflected_led_samples_per_pixel = 0;
 };
 /// RenderSettings::reflection_samples_per_pixel: how far from an LED's rectangle on the LEDs'
 /// plane a pixel centre's mirrored ray may cross and still count, mm.

@@ -281,6 +281,14 @@ int main(int argc, char** argv) {
                      "none")
         ->check(CLI::Range(0, 4096));
     bench_render
+        ->add_option("--reflected-led-spp", render_bench.reflected_led_spp,
+                     "fast integrator: the rays per pixel to time for the LEDs seen by "
+                     "reflection in the inner surface, apart, where an LED is mirrored, each at "
+                     "every spp, filter, reflection and rim count "
+                     "(render.fast.reflected_led_samples_per_pixel; 0: in the samples); the "
+                     "reference has none")
+        ->check(CLI::Range(0, 4096));
+    bench_render
         ->add_option("--reference-in", render_bench.reference_in,
                      "read the reference from this EXR (written by --reference-out); two or "
                      "more: independent renders (--reference-seed), averaged, their spread "

@@ -70,6 +70,22 @@ SensorFrame dome_with_box_markers() {
     return rest;
 }
 
+/// The default optics with the spectra of assets/spectra (spectral mode).
+OpticsParams spectral_optics() {
+    OpticsParams spectral;
+    spectral.spectra = load_sensor_spectra(SensorSpectraFiles::in_directory(
+        std::filesystem::path(CHROMASIM_SOURCE_DIR) / "assets" / "spectra"));
+    return spectral;
+}
+
+/// The fast integrator at `spp` samples per pixel and `seed`, with the variance channel.
+RenderSettings fast_with_variance(int spp, std::uint64_t seed) {
+    RenderSettings settings{spp, seed};
+    settings.integrator = Integrator::fast;
+    settings.variance = true;
+    return settings;
+}
+
 /// The renderer's small light cache (8 paths, 4 LED points per vertex) built on `rest`, then
 /// `frame` loaded.
 void small_cache_on(Renderer& renderer, const SensorFrame& rest, const SensorFrame& frame) {
@@ -483,9 +499,7 @@ TEST_CASE("fast integrator: neighbouring pixels traced together give each pixel 
           "[render][fast]") {
     const SensorFrame rest = dome_with_box_markers();
     const SensorFrame pressed = pressed_flat(rest);
-    OpticsParams spectral;
-    spectral.spectra = load_sensor_spectra(SensorSpectraFiles::in_directory(
-        std::filesystem::path(CHROMASIM_SOURCE_DIR) / "assets" / "spectra"));
+    const OpticsParams spectral = spectral_optics();
     for (const OpticsParams& optics : {OpticsParams{}, spectral}) {
         // 23 px wide: batches of 16 / n pixels end part-way along each row.
         Renderer renderer(CameraParams{23, 17, 84.0}, optics);
@@ -541,9 +555,7 @@ TEST_CASE("fast integrator: the pixels that mirror an LED take reflection_sample
     const SensorFrame pressed = pressed_flat(rest);
     Renderer renderer(CameraParams{96, 96, 84.0}, OpticsParams{});
     small_cache_on(renderer, rest, pressed);
-    RenderSettings settings{4, 5};
-    settings.integrator = Integrator::fast;
-    settings.variance = true;
+    RenderSettings settings = fast_with_variance(4, 5);
     const Image four = renderer.render(settings);
     settings.samples_per_pixel = 16;
     const Image sixteen = renderer.render(settings);
@@ -606,6 +618,117 @@ TEST_CASE("fast integrator: the pixels that mirror an LED take reflection_sample
     settings.reflection_samples_per_pixel = -1;
     CHECK_THROWS_WITH(renderer.render(settings),
                       Catch::Contains("reflection_samples_per_pixel = -1 is invalid"));
+}
+
+TEST_CASE("fast integrator: the LEDs seen by reflection in the inner surface, left out of a "
+          "sample and given apart (reflected_leds16), add up to the sample, to round-off",
+          "[render][fast]") {
+    const SensorFrame rest = dome_with_box_markers();
+    const SensorFrame pressed = pressed_flat(rest);
+    FastOnFrame on(pressed, rest);
+    auto& [scene, shading, path, fast] = on;
+    const LaneOptics<kRgbLanes> lanes = shading.rgb_lanes();
+    const RgbLanes led = lanes.led / path.led_area_mm2();
+    // Packets of 16 directions over the grazing band, where the LEDs are mirrored.
+    int samples = 0, mirrored = 0, unchanged = 0;
+    for (double polar = 55.0; polar < 90.0; polar += 0.5) {
+        for (double azimuth0 = 0.0; azimuth0 < 360.0; azimuth0 += 16.0) {
+            std::vector<Vec3> directions;
+            for (int i = 0; i < 16; ++i)
+                directions.push_back(unit_from_angles(polar, azimuth0 + i));
+            const std::size_t n = directions.size();
+            const std::vector<ShadowDraw> shadow(n, ShadowDraw{0.4, 0.3, 0.8});
+            const std::vector<const LaneOptics<kRgbLanes>*> lane_sets(n, &lanes);
+            const std::vector<const CacheLambdas<kRgbLanes>*> lambdas(n, nullptr);
+            std::vector<RgbLanes> with(n), without(n);
+            std::vector<double> fresnel(n, -1.0);
+            PixelRng a(3, std::uint64_t(polar * 1000 + azimuth0)), b = a;
+            std::vector<PixelRng*> streams_a(n, &a), streams_b(n, &b);
+            fast.radiance16<kRgbLanes>(scene, Vec3::Zero(), directions, lane_sets, lambdas, shadow,
+                                       streams_a, with);
+            fast.radiance16<kRgbLanes>(scene, Vec3::Zero(), directions, lane_sets, lambdas, shadow,
+                                       streams_b, without, {}, false);
+            fast.reflected_leds16(scene, Vec3::Zero(), directions, fresnel);
+            for (std::size_t i = 0; i < n; ++i) {
+                INFO("polar " << polar << ", azimuth " << azimuth0 + double(i));
+                CHECK(fresnel[i] >= 0.0);
+                CHECK(fresnel[i] < 1.0);
+                const RgbLanes sum = without[i] + fresnel[i] * led;
+                CHECK(((sum - with[i]).abs() <= 1e-12 * with[i].abs().max(1.0)).all());
+                ++samples;
+                mirrored += fresnel[i] > 0.0;
+                unchanged += fresnel[i] == 0.0 && (with[i] == without[i]).all();
+            }
+        }
+    }
+    INFO(samples << " samples, " << mirrored << " see an LED by reflection");
+    CHECK(mirrored > 20);
+    CHECK(samples - mirrored == unchanged); // elsewhere the same bits
+    CHECK_THROWS_WITH(
+        fast.reflected_leds16(scene, Vec3::Zero(), std::vector<Vec3>(17, Vec3::UnitZ()), {}),
+        Catch::Contains("allowed: at most 16"));
+}
+
+TEST_CASE("fast integrator: with the LEDs by reflection from rays of their own "
+          "(reflected_led_samples_per_pixel), the pixels that mirror an LED are as bright on "
+          "average with less noise, in RGB and spectral mode, and the others keep their bytes",
+          "[render][fast]") {
+    const SensorFrame rest = dome_with_box_markers();
+    const SensorFrame pressed = pressed_flat(rest);
+    const OpticsParams spectral = spectral_optics();
+    for (const OpticsParams& optics : {OpticsParams{}, spectral}) {
+        INFO("spectral " << bool(optics.spectra));
+        Renderer renderer(CameraParams{96, 96, 84.0}, optics);
+        small_cache_on(renderer, rest, pressed);
+        RenderSettings settings = fast_with_variance(4, 5);
+        const Image plain = renderer.render(settings);
+        settings.reflected_led_samples_per_pixel = 64;
+        const Image apart = renderer.render(settings);
+        // Another stream than the samples' own: a converged image of each kind to compare with.
+        settings.reflected_led_samples_per_pixel = 0;
+        settings.samples_per_pixel = 256;
+        settings.seed = 9;
+        const Image converged = renderer.render(settings);
+        const std::size_t pixels = std::size_t(plain.width) * std::size_t(plain.height);
+        int changed = 0;
+        double sum_plain = 0.0, sum_apart = 0.0, sum_converged = 0.0, var_plain = 0.0,
+               var_apart = 0.0, err2_plain = 0.0, err2_apart = 0.0;
+        for (std::size_t p = 0; p < pixels; ++p) {
+            bool same = true;
+            for (std::size_t c = 3 * p; c < 3 * p + 3; ++c)
+                same =
+                    same && plain.rgb[c] == apart.rgb[c] && plain.variance[c] == apart.variance[c];
+            if (same) continue;
+            ++changed;
+            for (std::size_t c = 3 * p; c < 3 * p + 3; ++c) {
+                sum_plain += plain.rgb[c], sum_apart += apart.rgb[c];
+                sum_converged += converged.rgb[c];
+                var_plain += plain.variance[c], var_apart += apart.variance[c];
+                err2_plain += std::pow(plain.rgb[c] - converged.rgb[c], 2.0);
+                err2_apart += std::pow(apart.rgb[c] - converged.rgb[c], 2.0);
+            }
+        }
+        INFO(changed << " pixels changed; sums " << sum_plain << ", " << sum_apart << ", converged "
+                     << sum_converged << "; summed variances " << var_plain << ", " << var_apart
+                     << "; squared errors " << err2_plain << ", " << err2_apart);
+        // Only the pixels where an LED is mirrored (fewer than a fifth) change.
+        CHECK(changed > 0);
+        CHECK(changed < int(pixels / 5));
+        // Both unbiased: the sums over those pixels agree within 4 standard deviations of
+        // their difference (the variances of the sums, each pixel's channels independent).
+        CHECK(std::abs(sum_apart - sum_plain) < 4.0 * std::sqrt(var_plain + var_apart));
+        CHECK(std::abs(sum_apart - sum_converged) < 4.0 * std::sqrt(var_apart) + 1e-3);
+        // The LEDs' images were most of those pixels' noise.
+        CHECK(var_apart < 0.5 * var_plain);
+        CHECK(err2_apart < 0.6 * err2_plain);
+    }
+    Renderer renderer(CameraParams{16, 16, 84.0}, OpticsParams{});
+    small_cache_on(renderer, rest, pressed);
+    RenderSettings settings{4, 5};
+    settings.integrator = Integrator::fast;
+    settings.reflected_led_samples_per_pixel = -1;
+    CHECK_THROWS_WITH(renderer.render(settings),
+                      Catch::Contains("reflected_led_samples_per_pixel = -1 is invalid"));
 }
 
 TEST_CASE("fast integrator: the pixels on a marker's rim take edge_samples_per_pixel, each as "
