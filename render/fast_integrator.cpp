@@ -15,10 +15,12 @@
 #include <cstdlib>
 #include <limits>
 #include <map>
+#include <new>
 #include <numbers>
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 namespace chromasim::render::detail {
 
@@ -951,11 +953,16 @@ LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, c
     int pending = 0;
     // The last outer marker left: where, and the chord through it.
     double outer_exit_mm = -inf, outer_chord_mm = 0.0;
-    // The hits after the first in one traversal, once they are needed.
-    std::optional<RayHits> hits;
+    // The hits after the first in one traversal, once they are needed. Not a
+    // std::optional: GCC 12's libstdc++ zero-fills the storage of one (816 bytes here) when
+    // it is made, a fifth of this function's own time (docs/VALIDATION.md, session 25).
+    static_assert(std::is_trivially_destructible_v<RayHits>);
+    alignas(RayHits) unsigned char hits_storage[sizeof(RayHits)];
+    RayHits* hits = nullptr;
     for (int i = 0; i < kMaxHits; ++i) {
         // The first hit may come traced already (radiance16: the same ray, in a packet).
-        if (!(i == 0 && first) && !hits) hits.emplace(scene, origin, d, tnear, inf);
+        if (!(i == 0 && first) && !hits)
+            hits = ::new (static_cast<void*>(hits_storage)) RayHits(scene, origin, d, tnear, inf);
         const RayHit hit = i == 0 && first ? *first : hits->next(tnear);
         if (!hit.hit()) break;
         tnear = hit.t_mm + kHitGap_mm;
