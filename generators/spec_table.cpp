@@ -606,17 +606,21 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                           "from an LED on the frame's own surfaces (render.fast.direct_samples "
                           "points) where a contact changed it by more than "
                           "render.fast.refresh_threshold; elsewhere the cache's rest value is "
-                          "carried over. It takes the bias against the path integrator from 3.1 "
-                          "to 2.8 % RMS at 1.5 N + 0.6 N and from 5.9 to 4.1 % at 5 N, for 9 "
-                          "to 22 ms more per frame (docs/VALIDATION.md).",
+                          "carried over. At 64 px against the path integrator (RMS of white "
+                          "less the reference's noise; 0.19.0, one run each) it takes 1.5 N + "
+                          "0.6 N from 2.20 to 1.76 % for 11 ms more per frame update (36.5 "
+                          "against 25.7 ms) and 5 N + 2 N from 6.17 to 2.08 % for 24 ms more "
+                          "(47.9 against 24.1 ms) (docs/VALIDATION.md).",
                           CHROMASIM_FIELD(render.fast.refresh_direct)));
     out.push_back(number("render.fast.refresh_threshold", 0.5, closed(0, 10), "",
                          "Fast integrator: the relative change of a vertex's point-LED light "
                          "from rest above which render.fast.refresh_direct re-estimates it; "
                          "0: every vertex whose point-LED light changed at all. At 1.5 N + "
-                         "0.6 N: 0.5, 31 ms per frame update, 3.2 % RMS off the path "
-                         "reference over the image circle; 0.1, 89 ms, 3.0 %; 0, 258 ms, "
-                         "2.9 % (docs/VALIDATION.md).",
+                         "0.6 N, 64 px against the path integrator over the image circle "
+                         "(0.19.0, one run each): 0.5, 36.5 ms per frame update, 1.95 % RMS "
+                         "of white; 0.1, 115 ms, 1.88 %; 0, 361 ms, 1.83 %. At 5 N + 2 N: "
+                         "0.5, 48 ms, 2.30 %; 0.1, 251 ms, 2.02 %; 0, 326 ms, 2.00 % "
+                         "(docs/VALIDATION.md).",
                          CHROMASIM_FIELD(render.fast.refresh_threshold)));
     out.push_back(boolean("render.fast.scale_indirect", true,
                           "Fast integrator: per frame, scale the cached indirect light by the "
