@@ -217,6 +217,16 @@ ErrorAgainstReference error_against(const std::vector<float>& image,
 }
 
 void bench_render(const RenderBenchOptions& o, std::ostream& out) {
+    if (!o.images_out.empty()) {
+        // Before any work: the folder is made, or the user hears why not.
+        std::error_code ec;
+        std::filesystem::create_directories(o.images_out, ec);
+        if (ec || !std::filesystem::is_directory(o.images_out))
+            throw std::invalid_argument("bench render: --images-out " + o.images_out.string() +
+                                        ": cannot make this folder (" +
+                                        (ec ? ec.message() : "a file is in the way") +
+                                        "); allowed: a folder that exists or can be made");
+    }
     mechanics::DomeModelOptions options;
     const mechanics::DomeModel model(options);
     mechanics::FrameRequest request{true, true, false};
@@ -386,9 +396,17 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
                                 rs.reflection_samples_per_pixel = mirror;
                                 rs.edge_samples_per_pixel = edge;
                                 rs.reflected_led_samples_per_pixel = led;
+                                rs.variance = rs.marker_ids = !o.images_out.empty();
                                 render::Image img;
                                 const double t =
                                     time_median(o.repeats, [&] { img = renderer.render(rs); });
+                                if (!o.images_out.empty()) {
+                                    std::ostringstream file;
+                                    file << integrator << "_" << mode << "_spp" << spp << "_filter"
+                                         << filter << "_mirror" << mirror << "_rim" << edge
+                                         << "_led" << led << ".exr";
+                                    write_exr(o.images_out / file.str(), img);
+                                }
                                 const ErrorAgainstReference error =
                                     error_against(img.rgb, ref.rgb, ref.variance);
                                 if (spp == o.samples_per_pixel.front() &&

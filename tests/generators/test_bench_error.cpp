@@ -2,13 +2,21 @@
 // (generators/bench.hpp): the mean of independent reference renders with the variance of that
 // mean from their spread, and the RMS error less the reference's noise in quadrature.
 #include "generators/bench.hpp"
+#include "generators/image_io.hpp"
 
 #include <catch2/catch.hpp>
 
+#include <unistd.h>
+
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <filesystem>
+#include <fstream>
 #include <random>
+#include <sstream>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 using chromasim::generators::error_against;
@@ -80,4 +88,55 @@ TEST_CASE("bench error: 'in the circle' leaves out the pixels the reference leav
     const auto e = error_against(image, reference, variance);
     CHECK(e.rms == Approx(0.1 / std::sqrt(2.0)).epsilon(1e-5));
     CHECK(e.in_circle == Approx(0.09).epsilon(1e-4));
+}
+
+TEST_CASE("bench render --images-out writes each timed setting's image, or refuses before any "
+          "work",
+          "[generators][bench]") {
+    namespace fs = std::filesystem;
+    const fs::path dir =
+        fs::temp_directory_path() / ("chromasim_bench_images_" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    chromasim::generators::RenderBenchOptions o;
+    o.samples_per_pixel = {1, 2};
+    o.reference_spp = 1;
+    o.size_px = 16;
+    o.repeats = 1;
+    o.modes = {"rgb"};
+    o.integrators = {"direct"};
+    o.normal_N = 0.0; // the dome at rest: no solve
+    SECTION("a file in the way: refused, nothing printed") {
+        fs::create_directories(dir);
+        const fs::path file = dir / "taken";
+        std::ofstream(file) << "x";
+        o.images_out = file / "sub";
+        std::ostringstream out;
+        CHECK_THROWS_WITH(chromasim::generators::bench_render(o, out),
+                          Catch::Contains("--images-out") && Catch::Contains("cannot make"));
+        CHECK(out.str().empty());
+    }
+    SECTION("one EXR per setting, with variance and marker ids, at the bench's size") {
+        o.images_out = dir / "made" / "here"; // made, parents too
+        std::ostringstream out;
+        chromasim::generators::bench_render(o, out);
+        for (int spp : {1, 2}) {
+            const fs::path path = o.images_out / ("direct_rgb_spp" + std::to_string(spp) +
+                                                  "_filter0_mirror0_rim0_led0.exr");
+            INFO(path.string());
+            REQUIRE(fs::exists(path));
+            const auto image = chromasim::generators::read_image_float(path);
+            CHECK(image.width == 16);
+            CHECK(image.height == 16);
+            for (const char* channel : {"R", "G", "B", "variance.R", "inner_marker_id"})
+                CHECK(std::find(image.channels.begin(), image.channels.end(), channel) !=
+                      image.channels.end());
+            // Lit somewhere: the render, not a blank file.
+            float brightest = 0.0f;
+            for (int y = 0; y < 16; ++y)
+                for (int x = 0; x < 16; ++x)
+                    brightest = std::max(brightest, image.at(x, y, "G"));
+            CHECK(brightest > 0.1f);
+        }
+    }
+    fs::remove_all(dir);
 }
