@@ -396,16 +396,19 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
                                 rs.reflection_samples_per_pixel = mirror;
                                 rs.edge_samples_per_pixel = edge;
                                 rs.reflected_led_samples_per_pixel = led;
-                                rs.variance = rs.marker_ids = !o.images_out.empty();
                                 render::Image img;
                                 const double t =
                                     time_median(o.repeats, [&] { img = renderer.render(rs); });
                                 if (!o.images_out.empty()) {
+                                    // One more render, untimed, with the extra channels (the
+                                    // same seed: the same R, G, B as the timed ones).
+                                    render::RenderSettings extra = rs;
+                                    extra.variance = extra.marker_ids = true;
                                     std::ostringstream file;
                                     file << integrator << "_" << mode << "_spp" << spp << "_filter"
                                          << filter << "_mirror" << mirror << "_rim" << edge
                                          << "_led" << led << ".exr";
-                                    write_exr(o.images_out / file.str(), img);
+                                    write_exr(o.images_out / file.str(), renderer.render(extra));
                                 }
                                 const ErrorAgainstReference error =
                                     error_against(img.rgb, ref.rgb, ref.variance);

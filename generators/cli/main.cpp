@@ -297,10 +297,10 @@ int main(int argc, char** argv) {
     bench_render->add_option("--reference-out", render_bench.reference_out,
                              "write the rendered reference (with variance) to this EXR");
     bench_render->add_option("--images-out", render_bench.images_out,
-                             "write each timed setting's image (with variance) to this folder "
-                             "as an EXR named after the setting, to see where its error lies (the "
-                             "timed renders then also estimate their variance and write the "
-                             "marker id channels)");
+                             "write each timed setting's image to this folder as an EXR named "
+                             "after the setting, to see where its error lies: one more render, "
+                             "untimed, the same R, G, B, with the variance and marker id "
+                             "channels");
     bench_render->add_option("--reference-seed", render_bench.reference_seed,
                              "seed of the rendered reference (another seed: an independent "
                              "reference, to measure its noise)");
