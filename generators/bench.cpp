@@ -21,6 +21,7 @@
 #include <iomanip>
 #include <map>
 #include <numbers>
+#include <optional>
 #include <ostream>
 #include <random>
 #include <span>
@@ -386,60 +387,75 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
             // And the LEDs seen by reflection, apart.
             const std::vector<int> led_rays =
                 integrator == "fast" ? o.reflected_led_spp : std::vector<int>{0};
+            // And the rims' own filter widths (none: the filter's).
+            std::vector<std::optional<double>> rim_filters{std::nullopt};
+            if (integrator == "fast" && !o.shadow_filter_rim_px.empty())
+                rim_filters.assign(o.shadow_filter_rim_px.begin(), o.shadow_filter_rim_px.end());
             for (const double filter : filters)
-                for (const int mirror : mirrors)
-                    for (const int edge : edges)
-                        for (const int led : led_rays)
-                            for (int spp : o.samples_per_pixel) {
-                                render::RenderSettings rs = settings(spp, kTimedSeed, integrator);
-                                rs.shadow_filter_px = filter;
-                                rs.reflection_samples_per_pixel = mirror;
-                                rs.edge_samples_per_pixel = edge;
-                                rs.reflected_led_samples_per_pixel = led;
-                                render::Image img;
-                                const double t =
-                                    time_median(o.repeats, [&] { img = renderer.render(rs); });
-                                if (!o.images_out.empty()) {
-                                    // One more render, untimed, with the extra channels (the
-                                    // same seed: the same R, G, B as the timed ones).
-                                    render::RenderSettings extra = rs;
-                                    extra.variance = extra.marker_ids = true;
-                                    std::ostringstream file;
-                                    file << integrator << "_" << mode << "_spp" << spp << "_filter"
-                                         << filter << "_mirror" << mirror << "_rim" << edge
-                                         << "_led" << led << ".exr";
-                                    write_exr(o.images_out / file.str(), renderer.render(extra));
+                for (const std::optional<double>& rim_filter : rim_filters)
+                    for (const int mirror : mirrors)
+                        for (const int edge : edges)
+                            for (const int led : led_rays)
+                                for (int spp : o.samples_per_pixel) {
+                                    render::RenderSettings rs =
+                                        settings(spp, kTimedSeed, integrator);
+                                    rs.shadow_filter_px = filter;
+                                    rs.shadow_filter_rim_px = rim_filter;
+                                    rs.reflection_samples_per_pixel = mirror;
+                                    rs.edge_samples_per_pixel = edge;
+                                    rs.reflected_led_samples_per_pixel = led;
+                                    render::Image img;
+                                    const double t =
+                                        time_median(o.repeats, [&] { img = renderer.render(rs); });
+                                    if (!o.images_out.empty()) {
+                                        // One more render, untimed, with the extra channels (the
+                                        // same seed: the same R, G, B as the timed ones).
+                                        render::RenderSettings extra = rs;
+                                        extra.variance = extra.marker_ids = true;
+                                        std::ostringstream file;
+                                        file << integrator << "_" << mode << "_spp" << spp
+                                             << "_filter" << filter;
+                                        if (rim_filter) file << "_rimfilter" << *rim_filter;
+                                        file << "_mirror" << mirror << "_rim" << edge << "_led"
+                                             << led << ".exr";
+                                        write_exr(o.images_out / file.str(),
+                                                  renderer.render(extra));
+                                    }
+                                    const ErrorAgainstReference error =
+                                        error_against(img.rgb, ref.rgb, ref.variance);
+                                    if (spp == o.samples_per_pixel.front() &&
+                                        filter == filters.front() &&
+                                        rim_filter == rim_filters.front() &&
+                                        mirror == mirrors.front() && edge == edges.front() &&
+                                        led == led_rays.front()) {
+                                        // rays of one render, counted once
+                                        renderer.count_rays(true);
+                                        renderer.render(rs);
+                                        rays[integrator + " " + mode] = {
+                                            double(renderer.rays_counted()), t};
+                                        renderer.count_rays(false);
+                                    }
+                                    std::ostringstream name;
+                                    name << integrator;
+                                    if (filter > 0.0)
+                                        name << ", shadow filter " << std::setprecision(2) << filter
+                                             << " px";
+                                    if (filter > 0.0 && rim_filter && edge > spp)
+                                        name << " (" << std::setprecision(2) << *rim_filter
+                                             << " px on the rims)";
+                                    if (mirror > spp)
+                                        name << ", " << mirror << " spp where an LED is mirrored";
+                                    if (edge > spp) name << ", " << edge << " on the markers' rims";
+                                    if (led > 0)
+                                        name << ", the LEDs by reflection apart from " << led
+                                             << " rays a pixel";
+                                    out << "| " << name.str() << " | " << mode << " | " << spp
+                                        << " | " << std::setprecision(1) << 1e3 * t << " | "
+                                        << std::setprecision(3) << 100 * error.rms / kWhite << " | "
+                                        << 100 * error.less_reference_noise / kWhite << " | "
+                                        << 100 * error.in_circle / kWhite << " | "
+                                        << 100 * error.max / kWhite << " |\n";
                                 }
-                                const ErrorAgainstReference error =
-                                    error_against(img.rgb, ref.rgb, ref.variance);
-                                if (spp == o.samples_per_pixel.front() &&
-                                    filter == filters.front() && mirror == mirrors.front() &&
-                                    edge == edges.front() && led == led_rays.front()) {
-                                    // rays of one render, counted once
-                                    renderer.count_rays(true);
-                                    renderer.render(rs);
-                                    rays[integrator + " " + mode] = {
-                                        double(renderer.rays_counted()), t};
-                                    renderer.count_rays(false);
-                                }
-                                std::ostringstream name;
-                                name << integrator;
-                                if (filter > 0.0)
-                                    name << ", shadow filter " << std::setprecision(2) << filter
-                                         << " px";
-                                if (mirror > spp)
-                                    name << ", " << mirror << " spp where an LED is mirrored";
-                                if (edge > spp) name << ", " << edge << " on the markers' rims";
-                                if (led > 0)
-                                    name << ", the LEDs by reflection apart from " << led
-                                         << " rays a pixel";
-                                out << "| " << name.str() << " | " << mode << " | " << spp << " | "
-                                    << std::setprecision(1) << 1e3 * t << " | "
-                                    << std::setprecision(3) << 100 * error.rms / kWhite << " | "
-                                    << 100 * error.less_reference_noise / kWhite << " | "
-                                    << 100 * error.in_circle / kWhite << " | "
-                                    << 100 * error.max / kWhite << " |\n";
-                            }
         }
     // Embree's raw rate on the same scene: incoherent rays from the camera and the LEDs in
     // uniformly random directions, nothing but closest_hit, in parallel as the renderer does.

@@ -61,6 +61,9 @@ struct RenderBenchOptions {
     /// Fast integrator: the shadow filters to time, px (RenderSettings::shadow_filter_px;
     /// 0: none), each at every spp. The reference never has one.
     std::vector<double> shadow_filter_px{0.0};
+    /// Fast integrator: the shadow filter's widths on the markers' rims to time, px
+    /// (RenderSettings::shadow_filter_rim_px), each at every filter; none: the filter's own.
+    std::vector<double> shadow_filter_rim_px;
     /// Fast integrator: the samples per pixel to time in the pixels mirroring an LED
     /// (RenderSettings::reflection_samples_per_pixel; 0: none extra), each at every spp and
     /// filter. The reference never has them.

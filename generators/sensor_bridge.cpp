@@ -160,6 +160,7 @@ render::RenderSettings render_settings(const Spec& spec) {
                    : spec.render.integrator == "fast" ? render::Integrator::fast
                                                       : render::Integrator::direct;
     s.shadow_filter_px = spec.render.fast.shadow_filter_px;
+    s.shadow_filter_rim_px = spec.render.fast.shadow_filter_rim_px;
     s.reflection_samples_per_pixel = spec.render.fast.reflection_samples_per_pixel;
     s.edge_samples_per_pixel = spec.render.fast.edge_samples_per_pixel;
     s.reflected_led_samples_per_pixel = spec.render.fast.reflected_led_samples_per_pixel;

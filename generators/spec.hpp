@@ -149,7 +149,9 @@ struct Spec {
             bool refresh_direct = true;
             double refresh_threshold = 0.5;
             bool scale_indirect = true;
-            double shadow_filter_px = 0.8; ///< render::RenderSettings::shadow_filter_px
+            double shadow_filter_px = 1.0; ///< render::RenderSettings::shadow_filter_px
+            /// render::RenderSettings::shadow_filter_rim_px
+            double shadow_filter_rim_px = 0.5;
             /// render::RenderSettings::reflection_samples_per_pixel
             int reflection_samples_per_pixel = 4;
             /// render::RenderSettings::edge_samples_per_pixel

@@ -545,15 +545,15 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                           "Samples per pixel (multi-jittered positions, stratified "
                           "wavelengths and, for the fast integrator, the shadow ray's LED and "
                           "point on it from a scrambled Sobol set). Fast integrator at 224 px "
-                          "on 2 cores, with a 0.7 px shadow filter "
-                          "(render.fast.shadow_filter_px) and 16 spp where an LED is mirrored "
-                          "(render.fast.reflection_samples_per_pixel): 4 spp gives 1.07 % RMS "
-                          "of the white level in 0.10 s, 5 spp 0.99 % in 0.12 s, 6 spp 0.85 % "
-                          "in 0.14 s (its own noise and the filter's bias over the image; over "
-                          "the fisheye's circle 1.12 times that); at 896 px, with a 1.5 px "
-                          "filter, 2 spp 0.78 % in 0.83 s, 3 spp 0.61 % in 1.13 s "
-                          "(docs/VALIDATION.md); the path "
-                          "integrator needs thousands for 1 %.",
+                          "on 2 cores (a machine where Embree alone traces 10.2 M rays/s), "
+                          "with the specs' shadow filter (1.0 px, 0.5 px on the markers' rims), "
+                          "8 spp on the rims, 4 where an LED is mirrored and 32 rays for the "
+                          "LEDs by reflection: 2 spp gives 0.89 % RMS of the white level in "
+                          "0.13 s at 1.5 N + 0.6 N (0.92 % at 5 N + 2 N, 0.88 % at rest), 3 spp "
+                          "0.80 % (its own noise and the filter's bias); at 896 px, 1 spp with "
+                          "4 on the rims, 4 where mirrored, 16 LED rays and a 2 px filter 0.74 % "
+                          "in 1.1 s (0.84 % at 5 N + 2 N) (docs/VALIDATION.md, session 26); "
+                          "the path integrator needs thousands for 1 %.",
                           CHROMASIM_FIELD(render.samples_per_pixel)));
     out.push_back(number("render.exposure", 1, left_open(0, 100), "",
                          "Linear scale applied to the rendered radiance before writing.",
@@ -633,22 +633,41 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                           "(docs/VALIDATION.md).",
                           CHROMASIM_FIELD(render.fast.scale_indirect)));
     out.push_back(number(
-        "render.fast.shadow_filter_px", 0.8, closed(0, render::kMaxShadowFilterPx), "px",
+        "render.fast.shadow_filter_px", 1.0, closed(0, render::kMaxShadowFilterPx), "px",
         "Fast integrator: standard deviation of the shadow filter, in pixels; 0: none. The "
         "LEDs' direct light in a pixel is taken without the shadow rays' noise (the light "
         "cache's unshadowed light), per LED, times the fraction of that LED's light that "
         "gets through the markers' shadows, that fraction averaged with Gaussian weights "
         "over the neighbouring pixels' shadow rays that went to that LED (a ratio "
         "estimator; LEDs beyond 8 in groups). It blurs the shadows' edges by about this "
-        "width and leaves the markers' own edges sharp. At 224 px, 16 spp where an LED is "
-        "mirrored (RMS of white, noise and bias): 3 spp with 6 on the markers' rims (0.16.0's "
-        "224 px specs) 0.96 % at 0.8 px against 0.98 % at 0.7 px at 1.5 N + 0.6 "
-        "N, 0.93 against 0.95 % at 5 N + 2 N, 0.93 against 0.94 % at rest; 4 spp alone "
-        "2.0 % unfiltered, 1.06 % at 0.8 px, 1.07 % at 0.7 px (1.14 % with one fraction for "
-        "all LEDs, before 0.16.0), while at 6 spp 0.7 px is better. The bias alone about "
-        "0.4 % at 0.7 px, 0.6 % at 1 px. Larger images want a wider filter: at 896 px, 2 "
-        "spp, 0.78 % at 1.5 px (its bias about 0.2 %) (docs/VALIDATION.md).",
+        "width and leaves the markers' own edges sharp; on the markers' rims "
+        "render.fast.shadow_filter_rim_px takes over. At 224 px with 8 spp on the rims, 4 "
+        "where an LED is mirrored and 32 rays for the LEDs by reflection (RMS of white, noise "
+        "and bias, 1.5 N + 0.6 N): with 0.5 px on the rims, 2 spp gives 0.95 % at 0.8 px, "
+        "0.89 % at 1 px, 0.88 % at 1.2 px, and 3 spp 0.84, 0.80 and 0.81 %; with this width "
+        "on the rims too (0.19.0) 3 spp gave 0.89 % at 0.8 px and 0.90 % at 1 px. At 5 N + "
+        "2 N and at rest 1 px is also better than 0.8 px (2 spp: 0.92 against 0.97 % and "
+        "0.88 against 0.94 %). Larger images want a wider filter: at 896 px, 1 spp with 4 on "
+        "the rims, 4 where mirrored and 16 LED rays, 1.03 % at 1 px, 0.81 % at 1.5 px, 0.74 % "
+        "at 2 px, 0.73 % at 2.5 px (1.5 N + 0.6 N; 5 N + 2 N: 1.08, 0.89, 0.84, 0.84 %). At "
+        "many samples a narrower one: at 224 px and 64 spp, 0.44 % with these widths against "
+        "0.31 % unfiltered and 0.36 % at 0.8 px (docs/VALIDATION.md, session 26).",
         CHROMASIM_FIELD(render.fast.shadow_filter_px)));
+    out.push_back(number(
+        "render.fast.shadow_filter_rim_px", 0.5, closed(0, render::kMaxShadowFilterPx), "px",
+        "Fast integrator: the shadow filter's standard deviation in the pixels on the "
+        "markers' rims (those of render.fast.edge_samples_per_pixel, where it is above "
+        "render.samples_per_pixel; 0: each pools its own samples alone). The LEDs sit beside "
+        "the camera, so a marker's shadow on the coating nearly coincides with its image: "
+        "pooled over the whole filter, the transmittance is blurred across the marker's edge "
+        "(at 224 px and 64 spp the 0.8 px filter alone put 0.38 % RMS of white of bias into "
+        "the image, most of it there). At 224 px, 3 spp, 8 on the rims, 0.8 px elsewhere "
+        "(RMS of white at 1.5 N + 0.6 N): 0.88 % with 0.2 px here, 0.85 % with 0.4, 0.84 % "
+        "with 0.5, 0.85 % with 0.6, 0.89 % with 0.8 (the same filter everywhere, 0.19.0), "
+        "0.94 % with 1; 0.5 px is also the best of these at 5 N + 2 N (0.87 against 0.93 %) "
+        "and at rest (0.83 against 0.88 %). At 896 px (1.5 px elsewhere) 0.5 to 1 px are "
+        "within 0.005 % of each other (docs/VALIDATION.md, session 26).",
+        CHROMASIM_FIELD(render.fast.shadow_filter_rim_px)));
     out.push_back(integer(
         "render.fast.reflection_samples_per_pixel", 4, closed(0, 1024), "",
         "Fast integrator: samples per pixel where the inner surface mirrors an LED (the bright "

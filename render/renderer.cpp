@@ -681,6 +681,16 @@ Image Renderer::render(const RenderSettings& settings) const {
                                     std::to_string(settings.reflection_samples_per_pixel) +
                                     " is invalid; allowed: integer >= 0 (0: none extra)");
     }
+    if (settings.shadow_filter_rim_px && !(*settings.shadow_filter_rim_px >= 0.0 &&
+                                           *settings.shadow_filter_rim_px <= kMaxShadowFilterPx)) {
+        throw std::invalid_argument("RenderSettings: shadow_filter_rim_px = " +
+                                    std::to_string(*settings.shadow_filter_rim_px) +
+                                    " is invalid; allowed: 0 (each rim "
+                                    "pixel alone) to " +
+                                    std::to_string(kMaxShadowFilterPx) +
+                                    " px, or none (as "
+                                    "shadow_filter_px)");
+    }
     if (settings.reflected_led_samples_per_pixel < 0) {
         throw std::invalid_argument("RenderSettings: reflected_led_samples_per_pixel = " +
                                     std::to_string(settings.reflected_led_samples_per_pixel) +
@@ -863,9 +873,18 @@ Image Renderer::render(const RenderSettings& settings) const {
             }
         }
     });
-    if (filter)
+    if (filter) {
+        // The rims' pixels (levels 1) with a sigma of their own, where they were found.
+        std::vector<std::uint8_t> rim_flags;
+        if (rims && settings.shadow_filter_rim_px) {
+            rim_flags.resize(levels.size());
+            for (std::size_t i = 0; i < levels.size(); ++i)
+                rim_flags[i] = levels[i] == 1;
+        }
         detail::shadow_filter(image.width, image.height, int(groups), image.rgb, lit, chosen,
-                              shadowed, settings.shadow_filter_px);
+                              shadowed, settings.shadow_filter_px, rim_flags,
+                              settings.shadow_filter_rim_px.value_or(0.0));
+    }
     return image;
 }
 

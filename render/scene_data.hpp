@@ -211,6 +211,16 @@ struct RenderSettings {
     /// (docs/VALIDATION.md: error against time). The variance channel stays that of the
     /// unfiltered pixel.
     double shadow_filter_px = 0.0;
+    /// Fast integrator, with the shadow filter and the markers' rims found
+    /// (edge_samples_per_pixel above samples_per_pixel): the filter's standard deviation in
+    /// the rims' pixels, px (0: each pools its own samples alone); none: shadow_filter_px
+    /// there too. The LEDs sit beside the camera, so a marker's shadow on the coating nearly
+    /// coincides with its image and the transmittance changes at a rim just as the view
+    /// does: pooled over shadow_filter_px it is blurred across the edge. At 224 px the 0.8 px
+    /// filter put about 0.38 % RMS of white of bias into the image, most of it at the rims;
+    /// 0.5 px there took 3 spp (8 on the rims) from 0.89 to 0.84 % at 1.5 N + 0.6 N, and
+    /// let the rest of the image take a wider filter (docs/VALIDATION.md, session 26).
+    std::optional<double> shadow_filter_rim_px;
     /// Fast integrator: samples per pixel in the pixels where the inner surface mirrors an
     /// LED (the bright streaks near the rim) and in their 8 neighbours; where it is at most
     /// samples_per_pixel (0 included), none take more. Which pixels: the ray through the

@@ -25,10 +25,13 @@ constexpr int kBandRows = 32;
 /// parallel, each summed along x into a buffer of its own (plus the reach above and below),
 /// then along y. The sums in floats (7 to 49 terms each), each in a fixed order whatever the
 /// band, so the bytes do not depend on the threads.
+/// The rim pixels' weights (filter()): (2 radius + 1)^2 of them, row by row, empty without
+/// rims.
 template <int G>
 void bands(int width, int height, int radius, const std::vector<float>& w, std::span<float> rgb,
            std::span<const float> lit, std::span<const float> chosen,
-           std::span<const float> shadowed) {
+           std::span<const float> shadowed, std::span<const std::uint8_t> rims,
+           const std::vector<float>& rim_w) {
     constexpr int per = 3 * G, values = 2 * per; // C_g's (g, c), then S_g's
     const auto at = [width](int x, int y) { return std::size_t(y) * std::size_t(width) + x; };
     const int count = (height + kBandRows - 1) / kBandRows;
@@ -68,6 +71,27 @@ void bands(int width, int height, int radius, const std::vector<float>& w, std::
                             sum[v] += wd * r[v];
                     }
                     const std::size_t p = at(x, y);
+                    if (!rims.empty() && rims[p]) {
+                        // A rim: the same window, the 2-D Gaussian of its own sigma.
+                        std::fill(sum, sum + values, 0.0f);
+                        const int xl = std::max(0, x - radius),
+                                  xh = std::min(width - 1, x + radius);
+                        const int side = 2 * radius + 1;
+                        for (int qy = lo; qy <= hi; ++qy) {
+                            const float* wr =
+                                rim_w.data() + std::size_t(qy - y + radius) * std::size_t(side);
+                            for (int qx = xl; qx <= xh; ++qx) {
+                                const float wd = wr[qx - x + radius];
+                                if (wd == 0.0f) continue;
+                                const float* cq = chosen.data() + per * at(qx, qy);
+                                const float* sq = shadowed.data() + per * at(qx, qy);
+                                for (int v = 0; v < per; ++v) {
+                                    sum[v] += wd * cq[v];
+                                    sum[per + v] += wd * sq[v];
+                                }
+                            }
+                        }
+                    }
                     for (int c = 0; c < 3; ++c) {
                         // All groups' ratio, for a group without shadow rays near.
                         float all_c = 0.0f, all_s = 0.0f;
@@ -97,7 +121,8 @@ void bands(int width, int height, int radius, const std::vector<float>& w, std::
 
 /// Both overloads (one group: `chosen` is `lit`).
 void filter(int width, int height, int groups, std::span<float> rgb, std::span<const float> lit,
-            std::span<const float> chosen, std::span<const float> shadowed, double sigma_px) {
+            std::span<const float> chosen, std::span<const float> shadowed, double sigma_px,
+            std::span<const std::uint8_t> rims, double rim_sigma_px) {
     const std::size_t pixels = std::size_t(std::max(width, 0)) * std::size_t(std::max(height, 0));
     const std::size_t per = 3 * std::size_t(std::clamp(groups, 0, kMaxShadowGroups));
     if (width < 1 || height < 1 || groups < 1 || groups > kMaxShadowGroups ||
@@ -117,31 +142,61 @@ void filter(int width, int height, int groups, std::span<float> rgb, std::span<c
             "shadow_filter: sigma = " + std::to_string(sigma_px) +
             " px; allowed: 0 < sigma <= " + std::to_string(kMaxShadowFilterPx));
     }
-    const int radius = int(std::ceil(3.0 * sigma_px));
+    if (!rims.empty() && rims.size() != pixels) {
+        throw std::invalid_argument("shadow_filter: " + std::to_string(rims.size()) +
+                                    " rim flags for " + std::to_string(pixels) +
+                                    " pixels; allowed: none or one a pixel");
+    }
+    if (!(rim_sigma_px >= 0.0 && rim_sigma_px <= kMaxShadowFilterPx)) {
+        throw std::invalid_argument(
+            "shadow_filter: rim sigma = " + std::to_string(rim_sigma_px) +
+            " px; allowed: 0 <= sigma <= " + std::to_string(kMaxShadowFilterPx));
+    }
+    // The window reaches 3 sigma of the wider of the two (the rims' only where they have one).
+    const bool with_rims = std::find(rims.begin(), rims.end(), std::uint8_t(1)) != rims.end();
+    const int radius =
+        int(std::ceil(3.0 * (with_rims ? std::max(sigma_px, rim_sigma_px) : sigma_px)));
     std::vector<float> w(std::size_t(radius) + 1);
     for (int d = 0; d <= radius; ++d)
         w[std::size_t(d)] = float(std::exp(-0.5 * d * d / (sigma_px * sigma_px)));
+    // The rims' 2-D weights: the Gaussian of their sigma (0: the pixel alone).
+    std::vector<float> rim_w;
+    if (with_rims) {
+        const int side = 2 * radius + 1;
+        rim_w.assign(std::size_t(side) * std::size_t(side), 0.0f);
+        for (int dy = -radius; dy <= radius; ++dy)
+            for (int dx = -radius; dx <= radius; ++dx) {
+                const double d2 = double(dx * dx + dy * dy);
+                rim_w[std::size_t(dy + radius) * std::size_t(side) + std::size_t(dx + radius)] =
+                    rim_sigma_px > 0.0 ? float(std::exp(-0.5 * d2 / (rim_sigma_px * rim_sigma_px)))
+                    : d2 == 0.0        ? 1.0f
+                                       : 0.0f;
+            }
+    }
     // bands<1> .. bands<kMaxShadowGroups>, by the group count.
     using Kernel = void (*)(int, int, int, const std::vector<float>&, std::span<float>,
-                            std::span<const float>, std::span<const float>, std::span<const float>);
+                            std::span<const float>, std::span<const float>, std::span<const float>,
+                            std::span<const std::uint8_t>, const std::vector<float>&);
     static constexpr auto kernels = []<std::size_t... G>(std::index_sequence<G...>) {
         return std::array<Kernel, sizeof...(G)>{&bands<int(G) + 1>...};
     }
     (std::make_index_sequence<kMaxShadowGroups>{});
-    kernels[std::size_t(groups - 1)](width, height, radius, w, rgb, lit, chosen, shadowed);
+    kernels[std::size_t(groups - 1)](width, height, radius, w, rgb, lit, chosen, shadowed,
+                                     with_rims ? rims : std::span<const std::uint8_t>{}, rim_w);
 }
 
 } // namespace
 
 void shadow_filter(int width, int height, int groups, std::span<float> rgb,
                    std::span<const float> lit, std::span<const float> chosen,
-                   std::span<const float> shadowed, double sigma_px) {
-    filter(width, height, groups, rgb, lit, chosen, shadowed, sigma_px);
+                   std::span<const float> shadowed, double sigma_px,
+                   std::span<const std::uint8_t> rims, double rim_sigma_px) {
+    filter(width, height, groups, rgb, lit, chosen, shadowed, sigma_px, rims, rim_sigma_px);
 }
 
 void shadow_filter(int width, int height, std::span<float> rgb, std::span<const float> lit,
                    std::span<const float> shadowed, double sigma_px) {
-    filter(width, height, 1, rgb, lit, lit, shadowed, sigma_px);
+    filter(width, height, 1, rgb, lit, lit, shadowed, sigma_px, {}, 0.0);
 }
 
 } // namespace chromasim::render::detail

@@ -21,6 +21,15 @@
 /// where it changes (a shadow's edge), R_g blurs it by about sigma. A group none of whose shadow
 /// rays is in the neighbourhood takes all groups' ratio, sum S / sum C; with none at all the
 /// pixel keeps its own S_g. docs/VALIDATION.md (session 22) measures the groups against one.
+///
+/// The markers' rims (`rims`, a flag per pixel) may take a narrower sigma of their own
+/// (RenderSettings::shadow_filter_rim_px): the LEDs sit beside the camera, so a marker's
+/// shadow on the coating nearly coincides with its image, and pooling the transmittance over
+/// a rim blurs it across the marker's edge (at 224 px the 0.8 px filter alone put 0.38 % RMS
+/// of white of bias into the image, most at the rims: docs/VALIDATION.md, session 26). A rim
+/// pixel's sums are taken over the same window with the 2-D Gaussian of its own sigma (0: the
+/// pixel alone); the other pixels' are as without rims, bit for bit.
+#include <cstdint>
 #include <span>
 
 namespace chromasim::render::detail {
@@ -29,10 +38,12 @@ namespace chromasim::render::detail {
 /// pixel's A + S becomes A + sum_g U_g R_g (above). `lit`, `chosen`, `shadowed`: each pixel's
 /// U_g, C_g and S_g in the image's units, [(pixel * groups + g) * 3 + channel]. Deterministic:
 /// the same bytes on any number of threads. Throws std::invalid_argument on mismatched sizes,
-/// groups outside [1, kMaxShadowGroups] or sigma_px outside (0, kMaxShadowFilterPx].
+/// groups outside [1, kMaxShadowGroups], sigma_px outside (0, kMaxShadowFilterPx], `rims`
+/// neither empty nor one flag a pixel, or rim_sigma_px outside [0, kMaxShadowFilterPx].
 void shadow_filter(int width, int height, int groups, std::span<float> rgb,
                    std::span<const float> lit, std::span<const float> chosen,
-                   std::span<const float> shadowed, double sigma_px);
+                   std::span<const float> shadowed, double sigma_px,
+                   std::span<const std::uint8_t> rims = {}, double rim_sigma_px = 0.0);
 
 /// One group (C = U): A + U R, R = sum_q w_q S_q / sum_q w_q U_q; pixels whose neighbourhood
 /// has no unshadowed direct light (sum w U <= 0 in a channel) keep that channel.

@@ -296,6 +296,12 @@ int main(int argc, char** argv) {
         ->check(CLI::ExistingFile);
     bench_render->add_option("--reference-out", render_bench.reference_out,
                              "write the rendered reference (with variance) to this EXR");
+    bench_render
+        ->add_option("--shadow-filter-rim", render_bench.shadow_filter_rim_px,
+                     "fast integrator: the shadow filter's widths on the markers' rims to time, "
+                     "px, each at every filter (render.fast.shadow_filter_rim_px; none given: "
+                     "the filter's own)")
+        ->check(CLI::Range(0.0, 8.0));
     bench_render->add_option("--images-out", render_bench.images_out,
                              "write each timed setting's image to this folder as an EXR named "
                              "after the setting, to see where its error lies: one more render, "

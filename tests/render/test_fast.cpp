@@ -791,6 +791,61 @@ TEST_CASE("fast integrator: the pixels on a marker's rim take edge_samples_per_p
                       Catch::Contains("edge_samples_per_pixel = -1 is invalid"));
 }
 
+TEST_CASE("fast integrator: the shadow filter's own width on the markers' rims changes the rims' "
+          "pixels only, and only where the rims are found",
+          "[render][fast]") {
+    const SensorFrame rest = dome_with_box_markers();
+    const SensorFrame pressed = pressed_flat(rest);
+    Renderer renderer(CameraParams{96, 96, 84.0}, OpticsParams{});
+    small_cache_on(renderer, rest, pressed);
+    RenderSettings settings{2, 5};
+    settings.integrator = Integrator::fast;
+    settings.edge_samples_per_pixel = 6;
+    settings.shadow_filter_px = 1.0;
+    const Image plain = renderer.render(settings);
+    // The rims' pixels: those that take 6 (their bytes differ from a 2-spp render's without
+    // the filter; the filter spreads nothing here as both renders have none).
+    RenderSettings unfiltered = settings;
+    unfiltered.shadow_filter_px = 0.0;
+    const Image rims_at_six = renderer.render(unfiltered);
+    unfiltered.edge_samples_per_pixel = 0;
+    const Image at_two = renderer.render(unfiltered);
+    const std::size_t pixels = plain.rgb.size() / 3;
+    std::vector<bool> rim(pixels);
+    int rim_count = 0;
+    for (std::size_t p = 0; p < pixels; ++p) {
+        for (std::size_t c = 3 * p; c < 3 * p + 3; ++c)
+            rim[p] = rim[p] || rims_at_six.rgb[c] != at_two.rgb[c];
+        rim_count += rim[p];
+    }
+    REQUIRE(rim_count > 50);
+    for (const double rim_sigma : {0.0, 0.4}) {
+        INFO("rim sigma " << rim_sigma);
+        settings.shadow_filter_rim_px = rim_sigma;
+        const Image own = renderer.render(settings);
+        int other_changed = 0, rims_changed = 0;
+        for (std::size_t p = 0; p < pixels; ++p) {
+            bool changed = false;
+            for (std::size_t c = 3 * p; c < 3 * p + 3; ++c)
+                changed = changed || own.rgb[c] != plain.rgb[c];
+            (rim[p] ? rims_changed : other_changed) += changed;
+        }
+        CHECK(other_changed == 0);
+        CHECK(rims_changed > rim_count / 4);
+    }
+    // Without the rims found (none take more samples) it changes nothing.
+    settings.edge_samples_per_pixel = 0;
+    settings.shadow_filter_rim_px.reset();
+    const Image without = renderer.render(settings);
+    settings.shadow_filter_rim_px = 0.4;
+    CHECK(renderer.render(settings).rgb == without.rgb);
+    for (const double bad : {-0.5, kMaxShadowFilterPx + 1.0}) {
+        settings.shadow_filter_rim_px = bad;
+        CHECK_THROWS_WITH(renderer.render(settings), Catch::Contains("shadow_filter_rim_px = ") &&
+                                                         Catch::Contains("is invalid; allowed: 0"));
+    }
+}
+
 TEST_CASE("fast integrator: shadow rays culled where they provably meet nothing leave the image "
           "as it was, at rest, pressed and where the coating folds inwards",
           "[render][fast]") {

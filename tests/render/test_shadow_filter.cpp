@@ -7,7 +7,9 @@
 #include <catch2/catch.hpp>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <random>
 #include <vector>
 
@@ -261,4 +263,97 @@ TEST_CASE("shadow filter in groups of LEDs: which group each pixel's shadow ray 
                 off = std::max(off, std::abs(grouped[3 * p + c] - expected) / expected);
             }
     CHECK(off < 1e-5);
+}
+
+TEST_CASE("shadow filter on the markers' rims: a rim pixel's ratio takes the 2-D Gaussian of its "
+          "own sigma over the window, the other pixels keep their bytes, bad rims are refused",
+          "[render][shadow_filter]") {
+    // A random shadow fraction per pixel and channel (so every weight shows), two groups,
+    // rims on a diagonal band and one corner pixel.
+    constexpr int groups = 2, width = 17, height = 12;
+    const std::size_t n = std::size_t(width) * height;
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<double> uniform(0.1, 1.0);
+    std::vector<float> rest(3 * n), lit(3 * groups * n), chosen(3 * groups * n),
+        shadowed(3 * groups * n), image(3 * n);
+    for (std::size_t p = 0; p < n; ++p)
+        for (int c = 0; c < 3; ++c) {
+            rest[3 * p + c] = float(0.1 * uniform(rng));
+            double sum = 0.0;
+            for (int g = 0; g < groups; ++g) {
+                const std::size_t i = 3 * (groups * p + g) + c;
+                lit[i] = float(uniform(rng));
+                chosen[i] = float(uniform(rng));
+                shadowed[i] = float(chosen[i] * uniform(rng));
+                sum += shadowed[i];
+            }
+            image[3 * p + c] = float(rest[3 * p + c] + sum);
+        }
+    std::vector<std::uint8_t> rims(n, 0);
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x)
+            rims[std::size_t(y) * width + x] = std::abs(x - y - 2) <= 1 || (x == 0 && y == 0);
+    const double sigma = 1.2;
+    std::vector<float> plain = image;
+    shadow_filter(width, height, groups, plain, lit, chosen, shadowed, sigma);
+    for (const double rim_sigma : {0.0, 0.5, 1.2, 2.0}) {
+        INFO("rim sigma " << rim_sigma);
+        std::vector<float> out = image;
+        shadow_filter(width, height, groups, out, lit, chosen, shadowed, sigma, rims, rim_sigma);
+        // The window: 3 sigma of the wider.
+        const int radius = int(std::ceil(3.0 * std::max(sigma, rim_sigma)));
+        double worst = 0.0;
+        int kept = 0, differ = 0;
+        for (int y = 0; y < height; ++y)
+            for (int x = 0; x < width; ++x) {
+                const std::size_t p = std::size_t(y) * width + x;
+                if (!rims[p]) {
+                    // Bit for bit as without rims, where the window is the same.
+                    if (rim_sigma <= sigma) {
+                        for (int c = 0; c < 3; ++c)
+                            kept += out[3 * p + c] == plain[3 * p + c];
+                    }
+                    continue;
+                }
+                for (int c = 0; c < 3; ++c) {
+                    double expected = rest[3 * p + c];
+                    for (int g = 0; g < groups; ++g) {
+                        double sc = 0.0, ss = 0.0;
+                        for (int qy = std::max(0, y - radius);
+                             qy <= std::min(height - 1, y + radius); ++qy)
+                            for (int qx = std::max(0, x - radius);
+                                 qx <= std::min(width - 1, x + radius); ++qx) {
+                                const double d2 = double((qx - x) * (qx - x) + (qy - y) * (qy - y));
+                                const double w = rim_sigma > 0.0
+                                                     ? std::exp(-0.5 * d2 / (rim_sigma * rim_sigma))
+                                                     : (d2 == 0.0 ? 1.0 : 0.0);
+                                const std::size_t j =
+                                    3 * (groups * (std::size_t(qy) * width + qx) + g) + c;
+                                sc += w * chosen[j];
+                                ss += w * shadowed[j];
+                            }
+                        expected += lit[3 * (groups * p + g) + c] * ss / sc;
+                    }
+                    worst = std::max(worst, std::abs(out[3 * p + c] - expected) / expected);
+                    differ += out[3 * p + c] != plain[3 * p + c];
+                }
+            }
+        CHECK(worst < 1e-5);
+        if (rim_sigma <= sigma)
+            CHECK(kept == 3 * int(n - std::size_t(std::count(rims.begin(), rims.end(), 1))));
+        // The rims' own sigma shows (at the filter's own sigma only by round-off).
+        if (rim_sigma != sigma) CHECK(differ > 40);
+    }
+    // No rim flagged: the bytes without rims.
+    std::vector<float> none = image;
+    shadow_filter(width, height, groups, none, lit, chosen, shadowed, sigma,
+                  std::vector<std::uint8_t>(n, 0), 0.3);
+    CHECK(none == plain);
+    CHECK_THROWS_WITH(shadow_filter(width, height, groups, none, lit, chosen, shadowed, sigma,
+                                    std::vector<std::uint8_t>(n - 1, 0), 0.3),
+                      Catch::Contains("allowed: none or one a pixel"));
+    for (const double bad : {-0.1, kMaxShadowFilterPx + 0.5, std::nan("")})
+        CHECK_THROWS_WITH(
+            shadow_filter(width, height, groups, none, lit, chosen, shadowed, sigma, rims, bad),
+            Catch::Contains("allowed: 0 <= sigma <= "));
 }
