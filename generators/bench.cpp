@@ -285,6 +285,7 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
         s.seed = seed;
         s.integrator = integrator_of(integrator);
         s.batch_pixels = o.batch_pixels;
+        s.cull_reflected_leds = o.cull_reflected_leds;
         return s;
     };
     render::Image ref;

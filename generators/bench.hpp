@@ -58,6 +58,9 @@ struct RenderBenchOptions {
     /// Fast integrator below 16 spp: neighbouring pixels' samples in one packet
     /// (RenderSettings::batch_pixels; false: each pixel alone, the same image).
     bool batch_pixels = true;
+    /// Fast integrator: skip the LED rays of pixels that provably mirror no LED
+    /// (RenderSettings::cull_reflected_leds; false: trace them, the same image).
+    bool cull_reflected_leds = true;
     /// Fast integrator: the shadow filters to time, px (RenderSettings::shadow_filter_px;
     /// 0: none), each at every spp. The reference never has one.
     std::vector<double> shadow_filter_px{0.0};

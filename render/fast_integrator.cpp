@@ -35,6 +35,10 @@ constexpr double kUnderMarker_mm = 0.05;
 /// The shadow ray's refraction: the sphere model's mismatch (a difference of sines) at which
 /// to stop, about 1e-9 rad and 1e-8 mm across the layers.
 constexpr double kShadowTolerance = 1e-9;
+/// ... or after a Newton step that turns the direction by less than this (rad): what is left
+/// is about its square, 1e-8, and it saves the evaluation that would confirm it
+/// (docs/VALIDATION.md, session 27).
+constexpr double kShadowStepTolerance = 1e-4;
 /// Shadow-ray culling: the margin of each triangle's ball over its corners' paths (mm).
 constexpr double kCullMargin_mm = 0.1;
 /// An edge of the coating folds inwards where its neighbour's far corner rises more than this
@@ -892,7 +896,8 @@ LanesN<N> FastIntegrator::shadow_transmittance(const EmbreeScene& scene, const V
         Vec3 guess = Vec3::Zero();
         for (int i = 0; i < 3; ++i)
             guess += at.weights[i] * guessed_direction(at.triangle[i], k, u1 - 0.5, u2 - 0.5);
-        if (guess.norm() > 0.0) model = solver.newton(guess.normalized(), kShadowTolerance);
+        if (guess.norm() > 0.0)
+            model = solver.newton(guess.normalized(), kShadowTolerance, kShadowStepTolerance);
     }
     // Plus the frame's correction (the deformed surface against the sphere), interpolated.
     const Vec3 w =

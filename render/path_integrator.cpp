@@ -242,6 +242,48 @@ bool PathIntegrator::near_led(const Vec3& q, double margin_mm) const {
     return false;
 }
 
+bool PathIntegrator::quad_near_led(const std::array<Vec3, 4>& q, double margin_mm) const {
+    // In the plane's (x, y): the quad strictly convex (its turns all of one sign), else no
+    // proof.
+    const auto xy = [&](int i) {
+        return Eigen::Vector2d(q[std::size_t(i)].x(), q[std::size_t(i)].y());
+    };
+    double sign = 0.0;
+    for (int i = 0; i < 4; ++i) {
+        const Eigen::Vector2d a = xy((i + 1) % 4) - xy(i), b = xy((i + 2) % 4) - xy((i + 1) % 4);
+        const double turn = a.x() * b.y() - a.y() * b.x();
+        if (!(std::abs(turn) > 0.0) || (sign != 0.0 && turn * sign < 0.0)) return true;
+        sign = turn;
+    }
+    const OpticsParams& o = m_shading.optics();
+    for (std::size_t k = 0; k < m_led_centres.size(); ++k) {
+        const Eigen::Vector2d c(m_led_centres[k].x(), m_led_centres[k].y());
+        const Eigen::Vector2d t(m_led_tangents[k].x(), m_led_tangents[k].y()),
+            r(m_led_radials[k].x(), m_led_radials[k].y());
+        const double ht = 0.5 * o.led_width_mm + margin_mm, hr = 0.5 * o.led_height_mm + margin_mm;
+        const std::array<Eigen::Vector2d, 4> box = {c - ht * t - hr * r, c + ht * t - hr * r,
+                                                    c + ht * t + hr * r, c - ht * t + hr * r};
+        // Separated along an axis: the two shapes' projections do not overlap.
+        const auto separated = [&](const Eigen::Vector2d& axis) {
+            double a_lo = std::numeric_limits<double>::infinity(), a_hi = -a_lo;
+            double b_lo = a_lo, b_hi = -a_lo;
+            for (int i = 0; i < 4; ++i) {
+                const double pa = axis.dot(xy(i)), pb = axis.dot(box[std::size_t(i)]);
+                a_lo = std::min(a_lo, pa), a_hi = std::max(a_hi, pa);
+                b_lo = std::min(b_lo, pb), b_hi = std::max(b_hi, pb);
+            }
+            return a_hi < b_lo || b_hi < a_lo;
+        };
+        bool apart = separated(t) || separated(r);
+        for (int i = 0; i < 4 && !apart; ++i) {
+            const Eigen::Vector2d e = xy((i + 1) % 4) - xy(i);
+            apart = separated(Eigen::Vector2d(-e.y(), e.x()));
+        }
+        if (!apart) return true;
+    }
+    return false;
+}
+
 std::optional<InterfaceConnection> PathIntegrator::along(const EmbreeScene& scene, Chain chain,
                                                          const std::uint32_t* prims, const Vec3& p,
                                                          const Vec3& w, Vec3* landed) const {

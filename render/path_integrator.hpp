@@ -39,6 +39,7 @@
 #include "render/sampling.hpp"
 #include "render/shading.hpp"
 
+#include <array>
 #include <optional>
 #include <vector>
 
@@ -183,6 +184,10 @@ public:
     /// RenderSettings::reflection_samples_per_pixel).
     std::optional<Vec3> led_plane_crossing(const Vec3& origin_mm, const Vec3& direction) const;
     bool near_led(const Vec3& q_mm, double margin_mm) const;
+    /// Whether the quadrilateral q[0] q[1] q[2] q[3] (points on the LEDs' plane, in order
+    /// round it) meets an LED's rectangle grown by margin_mm on each side, by separating axes;
+    /// true (no proof of the contrary) where it is not strictly convex.
+    bool quad_near_led(const std::array<Vec3, 4>& q_mm, double margin_mm) const;
     /// A point on LED `k` from two uniforms.
     Vec3 led_point(int k, double u1, double u2) const;
 

@@ -286,13 +286,88 @@ struct Renderer::Impl {
             batches<detail::kSpectralLanes>(x, y, pixels, nx, ny, settings, scale, out);
         if (!out.led.empty()) reflected_leds(x, y, pixels, settings, out.led);
     }
+    /// RenderSettings::cull_reflected_leds: the pixel's mirrored footprint on the LEDs' plane
+    /// may bulge past its corners' quadrilateral (the inner surface is curved): the LEDs are
+    /// grown by kReflectionMargin_mm plus this share of the quadrilateral's diameter.
+    static constexpr double kLedCullSpread = 0.25;
+    /// Whether each of `pixels` neighbouring pixels of row y from x provably mirrors no LED
+    /// (RenderSettings::cull_reflected_leds; reflected_leds then traces none of its rays:
+    /// they would all miss): the rays through its 4 corners meet the inner surface, and their
+    /// reflections (the interpolated normal, as FastIntegrator::reflected_leds16 reflects)
+    /// cross the LEDs' plane as a strictly convex quadrilateral that meets no LED's rectangle
+    /// grown by kReflectionMargin_mm plus kLedCullSpread times its diameter
+    /// (PathIntegrator::quad_near_led). A corner outside the field, a miss, a reflection that
+    /// never reaches the plane or a folded quadrilateral: no proof, the pixel is traced.
+    void leds_out_of_reach(int x, int y, int pixels, std::span<std::uint8_t> out) const {
+        const double inf = std::numeric_limits<double>::infinity();
+        const bool cavity = scene.in_cavity(camera.origin_mm());
+        std::array<Vec3, 16> origins, directions;
+        origins.fill(camera.origin_mm());
+        std::array<detail::RayHit, 16> hits;
+        // 4 pixels' corners a packet.
+        for (int j0 = 0; j0 < pixels; j0 += 4) {
+            const int n = std::min(4, pixels - j0);
+            std::array<bool, 4> valid{};
+            for (int j = 0; j < n; ++j) {
+                valid[std::size_t(j)] = true;
+                for (int c = 0; c < 4; ++c) {
+                    const auto d =
+                        camera.direction(Eigen::Vector2d(x + j0 + j + (c & 1), y + (c >> 1)));
+                    valid[std::size_t(j)] = valid[std::size_t(j)] && d.has_value();
+                    directions[std::size_t(4 * j + c)] = d ? *d : Vec3::UnitZ();
+                }
+            }
+            const std::size_t m = std::size_t(4 * n);
+            const auto o = std::span(origins.data(), m), d = std::span(directions.data(), m);
+            if (cavity)
+                scene.closest_interface_hits16(o, d, 0.0, inf, std::span(hits.data(), m));
+            else
+                scene.closest_hits16(o, d, 0.0, inf, std::span(hits.data(), m));
+            for (int j = 0; j < n; ++j) {
+                std::array<Vec3, 4> q;
+                bool proof = valid[std::size_t(j)];
+                for (int c = 0; c < 4 && proof; ++c) {
+                    const std::size_t i = std::size_t(4 * j + c);
+                    const detail::RayHit& hit = hits[i];
+                    if (!hit.hit() || hit.kind != detail::SurfaceKind::inner_surface) {
+                        proof = false;
+                        break;
+                    }
+                    const Vec3& dir = directions[i];
+                    const Vec3 normal = detail::facing(hit.shading_normal, dir);
+                    const Vec3 reflected = (dir - 2.0 * dir.dot(normal) * normal).normalized();
+                    const auto crossing =
+                        path.led_plane_crossing(camera.origin_mm() + hit.t_mm * dir, reflected);
+                    if (!crossing || !crossing->allFinite())
+                        proof = false;
+                    else
+                        q[std::size_t(c)] = *crossing;
+                }
+                if (proof) {
+                    double spread = 0.0;
+                    for (int a = 0; a < 4; ++a)
+                        for (int b = a + 1; b < 4; ++b)
+                            spread =
+                                std::max(spread, (q[std::size_t(a)] - q[std::size_t(b)]).norm());
+                    // Round the quad: corners 0 (x, y), 1 (x + 1, y), 3, 2.
+                    proof = !path.quad_near_led({q[0], q[1], q[3], q[2]},
+                                                kReflectionMargin_mm + kLedCullSpread * spread);
+                }
+                out[std::size_t(j0 + j)] = proof;
+            }
+        }
+    }
     /// The LEDs seen by reflection in `pixels` neighbouring pixels of row y from x, apart
     /// (LedSums): RenderSettings::reflected_led_samples_per_pixel rays a pixel, each pixel's
     /// positions multi-jittered over it (draw(), the field's edge as for the samples) from
-    /// its own stream (kReflectedLedSeed), in packets of 16.
+    /// its own stream (kReflectedLedSeed), in packets of 16; none in a pixel that provably
+    /// mirrors no LED (leds_out_of_reach: its rays would all miss, so its sums are the same).
     void reflected_leds(int x, int y, int pixels, const RenderSettings& settings,
                         std::span<LedSums> out) const {
         const int count = settings.reflected_led_samples_per_pixel;
+        std::array<std::uint8_t, kMaxBatchPixels> skip{};
+        if (settings.cull_reflected_leds)
+            leds_out_of_reach(x, y, pixels, std::span(skip.data(), std::size_t(pixels)));
         const auto [nx, ny] = detail::strata_grid(count);
         std::array<Vec3, 16> directions;
         std::array<int, 16> owner;
@@ -316,6 +391,7 @@ struct Renderer::Impl {
             const detail::PixelSeeds seeds(seed, index);
             LedSums& sums = out[std::size_t(j)];
             sums = {};
+            if (skip[std::size_t(j)]) continue;
             for (int k = 0; k < count; ++k) {
                 const Draw d = draw(x + j, y, k, nx, ny, rng, seeds);
                 if (!d.direction) continue;

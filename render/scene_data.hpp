@@ -220,7 +220,7 @@ struct RenderSettings {
     /// filter put about 0.38 % RMS of white of bias into the image, most of it at the rims;
     /// 0.5 px there took 3 spp (8 on the rims) from 0.89 to 0.84 % at 1.5 N + 0.6 N, and
     /// let the rest of the image take a wider filter (docs/VALIDATION.md, session 26).
-    std::optional<double> shadow_filter_rim_px;
+    std::optional<double> shadow_filter_rim_px{};
     /// Fast integrator: samples per pixel in the pixels where the inner surface mirrors an
     /// LED (the bright streaks near the rim) and in their 8 neighbours; where it is at most
     /// samples_per_pixel (0 included), none take more. Which pixels: the ray through the
@@ -255,6 +255,14 @@ struct RenderSettings {
     /// 0: the term stays in the samples. A mirrored pixel takes at least samples_per_pixel
     /// samples.
     int reflected_led_samples_per_pixel = 0;
+    /// Fast integrator, with reflected_led_samples_per_pixel: trace none of those rays in a
+    /// pixel that provably mirrors no LED (the rays through its 4 corners, reflected off the
+    /// inner surface, cross the LEDs' plane as a convex quadrilateral that stays clear of
+    /// every LED's rectangle grown by kReflectionMargin_mm plus a quarter of the
+    /// quadrilateral's diameter: its rays would all miss, so the image is the same bytes).
+    /// At 224 px it skips about a third of those pixels (docs/VALIDATION.md, session 27);
+    /// false: trace them all (for tests and `bench render --no-led-cull`).
+    bool cull_reflected_leds = true;
 };
 /// RenderSettings::reflection_samples_per_pixel: how far from an LED's rectangle on the LEDs'
 /// plane a pixel centre's mirrored ray may cross and still count, mm.

@@ -37,12 +37,13 @@ SphereRefraction::Vec3 SphereRefraction::at(double t) const {
     return m_R * ((1.0 - t * t) * d * m_e1 + 2.0 * t * d * m_e2);
 }
 
-double SphereRefraction::mismatch(double t, double* slope) {
+double SphereRefraction::mismatch(double t, double* slope, double* to_exit) {
     ++m_evaluations;
     const double d = 1.0 / (1.0 + t * t);
     const double c = (1.0 - t * t) * d, s = 2.0 * t * d;
     const double to_x = std::sqrt(std::max(0.0, m_R2 + m_a * m_a - 2.0 * m_a * m_R * c)); // |x-p|
     const double to_l = std::sqrt(std::max(0.0, m_l2 + m_R2 - 2.0 * m_R * (m_lx * c + m_ly * s)));
+    if (to_exit) *to_exit = to_x;
     // A unit direction of zero length (x on p or on l) counts as zero, as Eigen's
     // normalized() leaves it (and has no slope).
     const double towards_l = m_ly * c - m_lx * s; // (l - x) . tau
@@ -91,8 +92,8 @@ SphereRefraction::Vec3 SphereRefraction::solve(double tolerance) {
     return direction_at(regula_falsi(tolerance));
 }
 
-std::optional<SphereRefraction::Vec3> SphereRefraction::newton(const Vec3& guess,
-                                                               double tolerance) {
+std::optional<SphereRefraction::Vec3> SphereRefraction::newton(const Vec3& guess, double tolerance,
+                                                               double step_tolerance) {
     if (m_degenerate) return std::nullopt;
     // Where the guessed ray leaves the sphere (from outside it: p is in the shell).
     const double b = m_p.dot(guess), c = m_a * m_a - m_R2;
@@ -108,12 +109,18 @@ std::optional<SphereRefraction::Vec3> SphereRefraction::newton(const Vec3& guess
     const double t_hi =
         std::min(t_of(m_lx, m_ly), t_of(m_R, std::sqrt(std::max(0.0, m_a * m_a - m_R2))));
     for (int i = 0; i < kNewtonSteps; ++i) {
-        double slope = 0.0;
-        const double f = mismatch(t, &slope);
+        double slope = 0.0, to_exit = 0.0;
+        const double f = mismatch(t, &slope, &to_exit);
         if (std::abs(f) < tolerance) return direction_at(t);
         if (!(slope != 0.0)) return std::nullopt;
-        t -= f / slope;
+        const double step = f / slope;
+        // The step's turn of the direction from p, at most: the exit point moves by
+        // R d psi = 2 R dt / (1 + t^2), seen from p at |x - p|.
+        const double turn = 2.0 * m_R * std::abs(step) / ((1.0 + t * t) * to_exit);
+        t -= step;
         if (!(t >= 0.0 && t <= t_hi)) return std::nullopt;
+        // Converging quadratically: the error after a step is about its turn squared.
+        if (turn < step_tolerance) return direction_at(t);
     }
     return std::nullopt;
 }

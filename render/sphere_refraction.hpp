@@ -13,9 +13,10 @@
 /// Two ways in:
 ///   - solve(): the whole bracket (about 9 evaluations of the mismatch to 1e-9);
 ///   - newton(): Newton's method from a guessed direction (the fast integrator's per-vertex
-///     table, a few hundredths of a radian off): about 3.5 evaluations of the mismatch and its
-///     slope to 1e-9 at the bench's frame (docs/VALIDATION.md, session 20); nothing where it
-///     would leave the bracket or does not get there, and the caller solves.
+///     table, a few hundredths of a radian off): about 3.4 evaluations of the mismatch and its
+///     slope to 1e-9 at the bench's frame (docs/VALIDATION.md, session 20), 2.27 when it also
+///     stops after a step that turns the direction by less than 1e-4 rad (session 27);
+///     nothing where it would leave the bracket or does not get there, and the caller solves.
 #include <Eigen/Core>
 
 #include <cmath>
@@ -36,20 +37,24 @@ public:
     Vec3 solve(double tolerance);
 
     /// The direction by Newton's method on the mismatch, from where the ray from p along the
-    /// unit `guess` leaves the sphere, stopping at a mismatch below `tolerance` (as solve()).
+    /// unit `guess` leaves the sphere, stopping at a mismatch below `tolerance` (as solve()),
+    /// or after a step that turns the direction by less than `step_tolerance` (rad; Newton
+    /// converges quadratically, so what is left after the step is about its turn squared:
+    /// 1e-4 leaves about 1e-8 without the evaluation that would confirm it).
     /// Nothing (use solve()) where the plane is degenerate, the ray does not leave the sphere,
     /// a step leaves the bracket that holds the one root (up to l's direction and on the cap
     /// of the sphere seen from p), the slope vanishes or kNewtonSteps evaluations do not get
     /// there.
-    std::optional<Vec3> newton(const Vec3& guess, double tolerance);
+    std::optional<Vec3> newton(const Vec3& guess, double tolerance, double step_tolerance = 0.0);
     static constexpr int kNewtonSteps = 8;
 
     /// Evaluations of the mismatch so far (for tests and benchmarks).
     int evaluations() const { return m_evaluations; }
 
     /// Snell's mismatch at t (tan of half the exit point's angle from p's foot); `slope`: if
-    /// given, gets its derivative in t (newton(); public for the tests' finite differences).
-    double mismatch(double t, double* slope = nullptr);
+    /// given, gets its derivative in t (newton(); public for the tests' finite differences);
+    /// `to_exit`: if given, gets |x - p|.
+    double mismatch(double t, double* slope = nullptr, double* to_exit = nullptr);
 
 private:
     Vec3 at(double t) const;

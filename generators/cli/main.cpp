@@ -257,6 +257,10 @@ int main(int argc, char** argv) {
     bench_render->add_flag("!--no-shadow-cull", render_bench.light_cache.cull_shadows,
                            "fast integrator: trace every shadow ray, also those that provably "
                            "meet no marker (the same image; to measure what the culling saves)");
+    bench_render->add_flag("!--no-led-cull", render_bench.cull_reflected_leds,
+                           "fast integrator: trace the LED rays (--reflected-led-spp) also in "
+                           "the pixels that provably mirror no LED (the same image; to measure "
+                           "what skipping them saves)");
     bench_render->add_flag("!--no-batch-pixels", render_bench.batch_pixels,
                            "fast integrator: trace each pixel's samples alone, never with its "
                            "neighbours' in one packet (the same image; to measure what the "

@@ -14,6 +14,7 @@
 #include <tbb/global_control.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <numbers>
@@ -729,6 +730,72 @@ TEST_CASE("fast integrator: with the LEDs by reflection from rays of their own "
     settings.reflected_led_samples_per_pixel = -1;
     CHECK_THROWS_WITH(renderer.render(settings),
                       Catch::Contains("reflected_led_samples_per_pixel = -1 is invalid"));
+}
+
+TEST_CASE("fast integrator: the LED rays are skipped only in pixels that provably mirror no "
+          "LED: the same bytes as tracing them all, 256 a pixel, at rest and pressed, in fewer "
+          "rays",
+          "[render][fast]") {
+    const SensorFrame rest = dome_with_box_markers();
+    for (const auto& [name, frame] : {std::pair<const char*, SensorFrame>{"at rest", rest},
+                                      {"pressed flat", pressed_flat(rest)}}) {
+        Renderer renderer(CameraParams{48, 48, 84.0}, OpticsParams{});
+        small_cache_on(renderer, rest, frame);
+        RenderSettings settings = fast_with_variance(1, 3);
+        settings.reflection_samples_per_pixel = 1;
+        settings.reflected_led_samples_per_pixel = 256;
+        Image images[2];
+        std::uint64_t rays[2] = {0, 0};
+        for (const bool cull : {false, true}) {
+            settings.cull_reflected_leds = cull;
+            renderer.count_rays(true);
+            images[cull] = renderer.render(settings);
+            rays[cull] = renderer.rays_counted();
+            renderer.count_rays(false);
+        }
+        INFO(name << ": rays " << rays[1] << " with the skipped pixels, " << rays[0]
+                  << " tracing all");
+        // A skipped pixel's 256 rays would all have missed: not one byte changes.
+        CHECK(images[1].rgb == images[0].rgb);
+        CHECK(images[1].variance == images[0].variance);
+        // Some pixels were skipped (each saves 256 rays, less its 4 corners').
+        CHECK(rays[1] + 1000 < rays[0]);
+    }
+}
+
+TEST_CASE("the quadrilateral test of the LED culling: clear of the LEDs, overlapping, within the "
+          "margin, enclosing one, and folded",
+          "[render][fast]") {
+    const ShadingModel shading{OpticsParams{}};
+    const PathIntegrator path{shading};
+    const OpticsParams& o = shading.optics();
+    const Vec3 c = path.led_point(0, 0.5, 0.5);
+    const Vec3 t = (path.led_point(0, 1.0, 0.5) - c).normalized(),
+               r = (path.led_point(0, 0.5, 1.0) - c).normalized();
+    // A square of half-size h about centre m (in the LEDs' plane), in order round it.
+    const auto square = [&](const Vec3& m, double h) {
+        return std::array<Vec3, 4>{m - h * t - h * r, m + h * t - h * r, m + h * t + h * r,
+                                   m - h * t + h * r};
+    };
+    const double half_w = 0.5 * o.led_width_mm;
+    // Beside the LED along its width, 0.3 mm clear of it.
+    const Vec3 beside = c + (half_w + 0.3 + 0.2) * t;
+    CHECK_FALSE(path.quad_near_led(square(beside, 0.2), 0.25));
+    CHECK(path.quad_near_led(square(beside, 0.2), 0.35));        // within the margin
+    CHECK(path.quad_near_led(square(c + half_w * t, 0.2), 0.0)); // over its edge
+    CHECK(path.quad_near_led(square(c, 5.0), 0.0));              // around the whole LED
+    // A diamond off the LED's corner, its side facing the corner 0.28 mm away: the LED's own
+    // axes overlap it, only the diamond's side separates them; grown by 0.25 mm, they meet.
+    const Vec3 corner = c + half_w * t + 0.5 * o.led_height_mm * r;
+    const Vec3 m = corner + 0.7 * t + 0.7 * r;
+    const std::array<Vec3, 4> diamond = {m - 1.0 * t, m - 1.0 * r, m + 1.0 * t, m + 1.0 * r};
+    CHECK_FALSE(path.quad_near_led(diamond, 0.0));
+    CHECK(path.quad_near_led(diamond, 0.25));
+    // Folded (a bow tie) or flat: no proof.
+    std::array<Vec3, 4> bow = square(beside, 0.2);
+    std::swap(bow[2], bow[3]);
+    CHECK(path.quad_near_led(bow, 0.0));
+    CHECK(path.quad_near_led({beside, beside, beside, beside}, 0.0));
 }
 
 TEST_CASE("fast integrator: the pixels on a marker's rim take edge_samples_per_pixel, each as "

@@ -210,8 +210,8 @@ TEST_CASE("the sphere model's refraction by Newton from a guess ends where the w
     const PathIntegrator integrator(shading);
     const double eta = shading.optics().refractive_index;
     const double R = 10.5;
-    int converged = 0, tried = 0, newton = 0, full = 0;
-    double worst = 0.0, worst9 = 0.0;
+    int converged = 0, tried = 0, newton = 0, full = 0, stepped = 0;
+    double worst = 0.0, worst9 = 0.0, worst_stepped = 0.0;
     for (double radius : {12.7, R + 0.01}) {
         for (double polar : {0.0, 20.0, 45.0, 70.0, 85.0}) {
             for (double azimuth : {0.0, 75.0, 200.0}) {
@@ -240,6 +240,16 @@ TEST_CASE("the sphere model's refraction by Newton from a guess ends where the w
                             full += counted.evaluations();
                             worst = std::max(worst, (*got - w).norm());
                             CHECK((*got - w).norm() < 1e-8);
+                            // Also stopping after a step that turns the direction by less
+                            // than 1e-4 rad (the shadow rays'): within about its square, in
+                            // fewer evaluations.
+                            SphereRefraction stepping(p, l, R, eta);
+                            const auto early = stepping.newton(
+                                (w + off * (e1 + e2) / std::sqrt(2.0)).normalized(), 1e-9, 1e-4);
+                            REQUIRE(early);
+                            stepped += stepping.evaluations();
+                            worst_stepped = std::max(worst_stepped, (*early - w).norm());
+                            CHECK((*early - w).norm() < 1e-7);
                         }
                         // A guess far off (straight at the LED, or away from it): the root,
                         // or nothing for solve() to take over; never another direction.
@@ -255,9 +265,11 @@ TEST_CASE("the sphere model's refraction by Newton from a guess ends where the w
         }
     }
     INFO(converged << " of " << tried << " converged; mismatch evaluations " << newton
-                   << " by Newton, " << full << " by the whole bracket for the same; worst "
-                   << worst << " solve(1e-9) worst " << worst9);
+                   << " by Newton, " << stepped << " stopping after a turn below 1e-4, " << full
+                   << " by the whole bracket for the same; worst " << worst << ", stopping early "
+                   << worst_stepped << ", solve(1e-9) " << worst9);
     CHECK(converged >= tried * 95 / 100);
+    CHECK(stepped < newton * 3 / 4);
     // Newton's evaluation also takes the slope, about half as much again: it pays below
     // half the whole bracket's count.
     CHECK(newton < 0.5 * full);
