@@ -906,6 +906,11 @@ LanesN<N> FastIntegrator::shadow_transmittance(const EmbreeScene& scene, const V
     // to p it is traced, unless the culling shows it meets nothing.
     const auto exit = sphere_exit(p, w, at.radius_mm);
     if (!exit || (!m_guess.empty() && path_clear(at.prim, k, p, *exit))) return LanesN<N>::Ones();
+    // This also tests the frame's plane. Near the rim the sphere model's exit lies below
+    // z = 0, where no real connection goes, so it blocks light the cache counts as unshadowed
+    // (and is the noise of the field's outer ring); it happens to offset the light the cache's
+    // rim vertices gather from under the frame (ShadingModel::crosses_frame). Why neither is
+    // removed alone: docs/VALIDATION.md, session 28.
     return m_shading.transmittance(scene, *exit, p, lanes, kHitGap_mm);
 }
 

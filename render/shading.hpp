@@ -140,7 +140,10 @@ public:
     LanesN<N> marker_absorption(const LaneOptics<N>& lanes, bool outer, double path_mm) const;
 
     /// True if the segment origin + t * direction, t in (t0, t1), crosses the rim plane z = 0
-    /// on the frame (at a radius >= frame_inner_radius_mm).
+    /// on the frame (at a radius >= frame_inner_radius_mm). A segment that starts on or below
+    /// the plane and goes down does not cross it: the light cache's paths from the coating's
+    /// rim vertices (z = -4e-5 mm) reach the LEDs under the frame that way (docs/VALIDATION.md,
+    /// session 28, for why this stays for now).
     bool crosses_frame(const Vec3& origin_mm, const Vec3& direction, double t0, double t1) const {
         if (direction.z() == 0.0) return false;
         const double t = -origin_mm.z() / direction.z();
