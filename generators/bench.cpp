@@ -377,86 +377,82 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
                 out << "| fast | " << mode << " | frame update | " << std::setprecision(1)
                     << 1e3 * update_s << " (once per frame) | | | | |\n";
             }
-            // The shadow filters apply to the fast integrator only.
-            const std::vector<double> filters =
-                integrator == "fast" ? o.shadow_filter_px : std::vector<double>{0.0};
-            // So do the pixels mirroring an LED at their own count.
-            const std::vector<int> mirrors =
-                integrator == "fast" ? o.reflection_spp : std::vector<int>{0};
-            // And the pixels on the markers' rims.
-            const std::vector<int> edges = integrator == "fast" ? o.edge_spp : std::vector<int>{0};
-            // And the LEDs seen by reflection, apart.
-            const std::vector<int> led_rays =
-                integrator == "fast" ? o.reflected_led_spp : std::vector<int>{0};
-            // And the rims' own filter widths (none: the filter's).
+            // The timed settings: every combination of the fast integrator's knobs (the
+            // other integrators have none of them), spp innermost.
+            struct Knobs {
+                double filter = 0.0;
+                std::optional<double> rim_filter;
+                int mirror = 0, edge = 0, led = 0, shadow_rays = 0, spp = 1;
+            };
+            const bool fast = integrator == "fast";
+            const auto knob = [fast]<class T>(const std::vector<T>& values) {
+                return fast ? values : std::vector<T>{T{}};
+            };
+            // The rims' own filter widths (none given: the filter's).
             std::vector<std::optional<double>> rim_filters{std::nullopt};
-            if (integrator == "fast" && !o.shadow_filter_rim_px.empty())
+            if (fast && !o.shadow_filter_rim_px.empty())
                 rim_filters.assign(o.shadow_filter_rim_px.begin(), o.shadow_filter_rim_px.end());
-            for (const double filter : filters)
+            std::vector<Knobs> grid;
+            for (const double filter : knob(o.shadow_filter_px))
                 for (const std::optional<double>& rim_filter : rim_filters)
-                    for (const int mirror : mirrors)
-                        for (const int edge : edges)
-                            for (const int led : led_rays)
-                                for (int spp : o.samples_per_pixel) {
-                                    render::RenderSettings rs =
-                                        settings(spp, kTimedSeed, integrator);
-                                    rs.shadow_filter_px = filter;
-                                    rs.shadow_filter_rim_px = rim_filter;
-                                    rs.reflection_samples_per_pixel = mirror;
-                                    rs.edge_samples_per_pixel = edge;
-                                    rs.reflected_led_samples_per_pixel = led;
-                                    render::Image img;
-                                    const double t =
-                                        time_median(o.repeats, [&] { img = renderer.render(rs); });
-                                    if (!o.images_out.empty()) {
-                                        // One more render, untimed, with the extra channels (the
-                                        // same seed: the same R, G, B as the timed ones).
-                                        render::RenderSettings extra = rs;
-                                        extra.variance = extra.marker_ids = true;
-                                        std::ostringstream file;
-                                        file << integrator << "_" << mode << "_spp" << spp
-                                             << "_filter" << filter;
-                                        if (rim_filter) file << "_rimfilter" << *rim_filter;
-                                        file << "_mirror" << mirror << "_rim" << edge << "_led"
-                                             << led << ".exr";
-                                        write_exr(o.images_out / file.str(),
-                                                  renderer.render(extra));
-                                    }
-                                    const ErrorAgainstReference error =
-                                        error_against(img.rgb, ref.rgb, ref.variance);
-                                    if (spp == o.samples_per_pixel.front() &&
-                                        filter == filters.front() &&
-                                        rim_filter == rim_filters.front() &&
-                                        mirror == mirrors.front() && edge == edges.front() &&
-                                        led == led_rays.front()) {
-                                        // rays of one render, counted once
-                                        renderer.count_rays(true);
-                                        renderer.render(rs);
-                                        rays[integrator + " " + mode] = {
-                                            double(renderer.rays_counted()), t};
-                                        renderer.count_rays(false);
-                                    }
-                                    std::ostringstream name;
-                                    name << integrator;
-                                    if (filter > 0.0)
-                                        name << ", shadow filter " << std::setprecision(2) << filter
-                                             << " px";
-                                    if (filter > 0.0 && rim_filter && edge > spp)
-                                        name << " (" << std::setprecision(2) << *rim_filter
-                                             << " px on the rims)";
-                                    if (mirror > spp)
-                                        name << ", " << mirror << " spp where an LED is mirrored";
-                                    if (edge > spp) name << ", " << edge << " on the markers' rims";
-                                    if (led > 0)
-                                        name << ", the LEDs by reflection apart from " << led
-                                             << " rays a pixel";
-                                    out << "| " << name.str() << " | " << mode << " | " << spp
-                                        << " | " << std::setprecision(1) << 1e3 * t << " | "
-                                        << std::setprecision(3) << 100 * error.rms / kWhite << " | "
-                                        << 100 * error.less_reference_noise / kWhite << " | "
-                                        << 100 * error.in_circle / kWhite << " | "
-                                        << 100 * error.max / kWhite << " |\n";
-                                }
+                    for (const int mirror : knob(o.reflection_spp))
+                        for (const int edge : knob(o.edge_spp))
+                            for (const int led : knob(o.reflected_led_spp))
+                                for (const int shadow_rays : knob(o.shadow_rays_per_pixel))
+                                    for (const int spp : o.samples_per_pixel)
+                                        grid.push_back({filter, rim_filter, mirror, edge, led,
+                                                        shadow_rays, spp});
+            for (std::size_t i = 0; i < grid.size(); ++i) {
+                const Knobs& k = grid[i];
+                render::RenderSettings rs = settings(k.spp, kTimedSeed, integrator);
+                rs.shadow_filter_px = k.filter;
+                rs.shadow_filter_rim_px = k.rim_filter;
+                rs.reflection_samples_per_pixel = k.mirror;
+                rs.edge_samples_per_pixel = k.edge;
+                rs.reflected_led_samples_per_pixel = k.led;
+                rs.shadow_rays_per_pixel = k.shadow_rays;
+                render::Image img;
+                const double t = time_median(o.repeats, [&] { img = renderer.render(rs); });
+                if (!o.images_out.empty()) {
+                    // One more render, untimed, with the extra channels (the same seed: the
+                    // same R, G, B as the timed ones).
+                    render::RenderSettings extra = rs;
+                    extra.variance = extra.marker_ids = true;
+                    std::ostringstream file;
+                    file << integrator << "_" << mode << "_spp" << k.spp << "_filter" << k.filter;
+                    if (k.rim_filter) file << "_rimfilter" << *k.rim_filter;
+                    file << "_mirror" << k.mirror << "_rim" << k.edge << "_led" << k.led;
+                    if (k.shadow_rays > 0) file << "_shadow" << k.shadow_rays;
+                    file << ".exr";
+                    write_exr(o.images_out / file.str(), renderer.render(extra));
+                }
+                const ErrorAgainstReference error = error_against(img.rgb, ref.rgb, ref.variance);
+                if (i == 0) {
+                    // rays of one render, counted once
+                    renderer.count_rays(true);
+                    renderer.render(rs);
+                    rays[integrator + " " + mode] = {double(renderer.rays_counted()), t};
+                    renderer.count_rays(false);
+                }
+                std::ostringstream name;
+                name << integrator;
+                if (k.filter > 0.0)
+                    name << ", shadow filter " << std::setprecision(2) << k.filter << " px";
+                if (k.filter > 0.0 && k.rim_filter && k.edge > k.spp)
+                    name << " (" << std::setprecision(2) << *k.rim_filter << " px on the rims)";
+                if (k.shadow_rays > k.spp)
+                    name << ", at least " << k.shadow_rays << " shadow rays a pixel";
+                if (k.mirror > k.spp) name << ", " << k.mirror << " spp where an LED is mirrored";
+                if (k.edge > k.spp) name << ", " << k.edge << " on the markers' rims";
+                if (k.led > 0)
+                    name << ", the LEDs by reflection apart from " << k.led << " rays a pixel";
+                out << "| " << name.str() << " | " << mode << " | " << k.spp << " | "
+                    << std::setprecision(1) << 1e3 * t << " | " << std::setprecision(3)
+                    << 100 * error.rms / kWhite << " | "
+                    << 100 * error.less_reference_noise / kWhite << " | "
+                    << 100 * error.in_circle / kWhite << " | " << 100 * error.max / kWhite
+                    << " |\n";
+            }
         }
     // Embree's raw rate on the same scene: incoherent rays from the camera and the LEDs in
     // uniformly random directions, nothing but closest_hit, in parallel as the renderer does.

@@ -79,6 +79,10 @@ struct RenderBenchOptions {
     /// (RenderSettings::reflected_led_samples_per_pixel; 0: in the samples), each at every
     /// spp, filter, reflection and rim count. The reference never has them.
     std::vector<int> reflected_led_spp{0};
+    /// Fast integrator: the fewest shadow rays a pixel to time (RenderSettings::
+    /// shadow_rays_per_pixel; 0: one a sample), each at every spp, filter, reflection, rim
+    /// and LED-ray count. The reference has one a sample.
+    std::vector<int> shadow_rays_per_pixel{0};
     /// Write each timed setting's image to this folder as an EXR named after the setting, to
     /// see where its error lies: one more render after the timed ones (the same seed, so the
     /// same R, G, B), with its variance and marker id channels. The folder is made before the

@@ -164,6 +164,7 @@ render::RenderSettings render_settings(const Spec& spec) {
     s.reflection_samples_per_pixel = spec.render.fast.reflection_samples_per_pixel;
     s.edge_samples_per_pixel = spec.render.fast.edge_samples_per_pixel;
     s.reflected_led_samples_per_pixel = spec.render.fast.reflected_led_samples_per_pixel;
+    s.shadow_rays_per_pixel = spec.render.fast.shadow_rays_per_pixel;
     return s;
 }
 

@@ -158,6 +158,8 @@ struct Spec {
             int edge_samples_per_pixel = 8;
             /// render::RenderSettings::reflected_led_samples_per_pixel
             int reflected_led_samples_per_pixel = 32;
+            /// render::RenderSettings::shadow_rays_per_pixel
+            int shadow_rays_per_pixel = 0;
         } fast;
         /// The camera sensor model (render/sensor_model.hpp); the PNG only, the EXR stays the
         /// noise-free render.

@@ -718,6 +718,23 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
         "defaults); 32 such rays cost about as much as 4 samples of the pixel. At 896 px (2 "
         "spp, 1.5 px filter) 0.53 % against 0.54 % (docs/VALIDATION.md).",
         CHROMASIM_FIELD(render.fast.reflected_led_samples_per_pixel)));
+    out.push_back(integer(
+        "render.fast.shadow_rays_per_pixel", 0, closed(0, 4096), "",
+        "Fast integrator: the fewest shadow rays (from a sample's coating hit towards the "
+        "LEDs, through the markers' shadows) a pixel traces, spread evenly over its samples, "
+        "at least one and at most 4 a sample; 0, or up to the pixel's sample count: one a "
+        "sample. A pixel with 2 samples and 4 here traces 2 a sample, one with 8 (a marker's "
+        "rim) one a sample. The shadow rays' noise is most of the error in the bulk of the "
+        "image; this spends time there without more camera samples. Best at a multiple of "
+        "render.samples_per_pixel. At 224 px with 2 spp, 8 on the rims, 4 where mirrored, 32 "
+        "LED rays and the 1 px filter (RMS of white; times: medians of alternated runs on one "
+        "2-core machine): at 1.5 N + 0.6 N, 0 gives 0.89 % in 100 ms, 4 gives 0.77 % in 113 "
+        "ms, where 3 spp with 0 gives 0.80 % in 113 ms; at 5 N + 2 N 0.92 % in 120 ms, 0.79 % "
+        "in 135 ms, 0.84 % in 138 ms; at rest 0.87, 0.75 and 0.79 %. At 896 px, 1 spp, 4 on "
+        "the rims, 4 where mirrored, 16 LED rays and the 2 px filter (one run each): 0 gives "
+        "0.74 % in 0.73 s, 2 0.67 % in 0.87 s, 4 0.63 % in 1.15 s (docs/VALIDATION.md, "
+        "session 29).",
+        CHROMASIM_FIELD(render.fast.shadow_rays_per_pixel)));
     add_render_sensor(out);
     out.push_back(boolean("outputs.images", true,
                           "Write a PNG per frame (8-bit sRGB); with outputs.exr false too, the "

@@ -840,47 +840,57 @@ LanesN<N> FastIntegrator::spectral_at(const std::vector<float>& values, const st
 template <int N>
 LanesN<N> FastIntegrator::shade(const EmbreeScene& scene, const Vec3& p, const Lookup<N>& at,
                                 const LanesN<N>& indirect, const LaneOptics<N>& lanes,
-                                PixelRng& rng, const ShadowDraw& shadow,
-                                DirectPart<N>* direct) const {
+                                PixelRng& rng, const ShadowDraw& shadow, DirectLight<N>* direct,
+                                const LanesN<N>& factor) const {
     // E / pi per unit LED emission: the cached indirect term, plus the direct term with the
-    // markers' shadows, sum_k G_k T_k, estimated by one LED k drawn with probability
-    // G_k / sum G (one shadow ray; exact where the LEDs' shadows agree).
+    // markers' shadows, sum_k G_k T_k, estimated by the mean of shadow.rays shadow rays, each
+    // to one LED k drawn with probability G_k / sum G (exact where the LEDs' shadows agree).
+    const int leds = m_cache->leds;
     double total = 0.0;
-    for (int k = 0; k < m_cache->leds; ++k)
+    for (int k = 0; k < leds; ++k)
         total += at.direct[std::size_t(k)];
-    if (!(total > 0.0)) {
-        if (direct) {
-            direct->lit = direct->shadowed = LanesN<N>::Zero();
-            direct->clear = true;
-            direct->group = 0;
-            direct->share.fill(0.0);
-        }
-        return indirect;
-    }
-    ShadowDraw draw = shadow;
-    if (!(draw.u_led >= 0.0)) draw = {rng.uniform(), rng.uniform(), rng.uniform()};
-    const double u = draw.u_led * total, u1 = draw.u1, u2 = draw.u2;
-    int k = 0;
-    for (double acc = at.direct[0]; acc <= u && k + 1 < m_cache->leds;)
-        acc += at.direct[std::size_t(++k)];
-    LanesN<N> T = LanesN<N>::Ones();
-    if (!scene.has_interface())
-        T = m_shading.transmittance(scene, m_path.led_point(k, u1, u2), p, lanes);
-    else if (at.radius_mm > 0.0)
-        T = shadow_transmittance(scene, p, at, k, u1, u2, lanes);
-    if (direct) {
-        direct->lit = LanesN<N>::Constant(total * kInvPi);
-        direct->shadowed = (total * kInvPi) * T;
-        direct->clear = (T == 1.0).all();
-        const int leds = m_cache->leds, groups = shadow_groups();
-        direct->group = shadow_group(k, leds, groups);
-        direct->share.fill(0.0);
+    if (!(total > 0.0)) return indirect;
+    const int rays = std::clamp(shadow.rays, 1, kMaxShadowRaysPerSample);
+    const LanesN<N> lit = LanesN<N>::Constant(total * kInvPi / rays);
+    // The next DirectPart: its unshadowed light (the share of the lit light its ray carries,
+    // times `factor`) and its LED groups' shares.
+    const auto next_part = [&]() -> DirectPart<N>& {
+        if (direct->parts >= kMaxDirectParts)
+            throw std::logic_error("FastIntegrator: more than kMaxDirectParts direct-light parts "
+                                   "in one sample");
+        DirectPart<N>& part = direct->part[std::size_t(direct->parts++)];
+        part.lit = factor * lit;
+        const int groups = shadow_groups();
+        part.share.fill(0.0);
         const double inv = 1.0 / total;
         for (int j = 0; j < leds; ++j)
-            direct->share[std::size_t(shadow_group(j, leds, groups))] +=
+            part.share[std::size_t(shadow_group(j, leds, groups))] +=
                 at.direct[std::size_t(j)] * inv;
+        return part;
+    };
+    LanesN<N> sum = LanesN<N>::Zero();
+    for (int r = 0; r < rays; ++r) {
+        std::array<double, 3> u = r == 0 ? std::array<double, 3>{shadow.u_led, shadow.u1, shadow.u2}
+                                         : shadow.further[std::size_t(r - 1)];
+        if (!(u[0] >= 0.0)) u = {rng.uniform(), rng.uniform(), rng.uniform()};
+        const double pick = u[0] * total;
+        int k = 0;
+        for (double acc = at.direct[0]; acc <= pick && k + 1 < leds;)
+            acc += at.direct[std::size_t(++k)];
+        LanesN<N> T = LanesN<N>::Ones();
+        if (!scene.has_interface())
+            T = m_shading.transmittance(scene, m_path.led_point(k, u[1], u[2]), p, lanes);
+        else if (at.radius_mm > 0.0)
+            T = shadow_transmittance(scene, p, at, k, u[1], u[2], lanes);
+        if (direct) {
+            DirectPart<N>& part = next_part();
+            part.clear = (T == 1.0).all();
+            part.shadowed = part.clear ? part.lit : LanesN<N>(part.lit * T);
+            part.group = shadow_group(k, leds, shadow_groups());
+        }
+        sum += T;
     }
-    return (total * kInvPi) * T + indirect;
+    return lit * sum + indirect;
 }
 
 template <int N>
@@ -1002,38 +1012,26 @@ LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, c
                 chord > 0.0 || pending > 0 ? cached(m_cache->indirect_above) : LanesN<N>::Zero();
             const LanesN<N> f = beta * lanes.coating_albedo * lanes.led;
             LanesN<N> L;
-            // The direct light's part, when asked for: each shade()'s times its factor.
-            DirectPart<N> part;
-            DirectPart<N>* const want = direct ? &part : nullptr;
-            const auto add = [&](const LanesN<N>& factor) {
-                // At most 1 + 4 parts here, and two calls per sample (kMaxDirectParts).
-                if (direct->parts >= kMaxDirectParts)
-                    throw std::logic_error("FastIntegrator: more than kMaxDirectParts shaded "
-                                           "points in one sample");
-                DirectPart<N>& to = direct->part[std::size_t(direct->parts++)];
-                to.lit = factor * part.lit;
-                to.shadowed = part.clear ? to.lit : factor * part.shadowed;
-                to.clear = part.clear;
-                to.group = part.group;
-                to.share = part.share;
-            };
+            // The direct light's parts, when asked for: each shade()'s times its factor.
             if (chord > 0.0) {
                 const LanesN<N> through = (1.0 - s) *
                                           diffuse_transmittance<N>(lanes.outer_absorption_per_mm *
                                                                    (chord * std::abs(cos_g))) *
                                           above;
                 const LanesN<N> below = 1.0 - s * lanes.outer_albedo * lanes.coating_albedo;
-                L = f * (shade(scene, p, at, through, lanes, rng, shadow, want) / below);
-                if (direct) add(weight * (f / below));
+                L = f * (shade(scene, p, at, through, lanes, rng, shadow, direct,
+                               LanesN<N>(weight * (f / below))) /
+                         below);
             } else {
-                L = f * shade(scene, p, at, cached(m_cache->indirect), lanes, rng, shadow, want);
-                if (direct) add(weight * f);
+                L = f * shade(scene, p, at, cached(m_cache->indirect), lanes, rng, shadow, direct,
+                              LanesN<N>(weight * f));
             }
+            // The outer markers' scattering: one shadow ray each, from the stream.
+            const ShadowDraw one{};
             for (int k = 0; k < pending; ++k) {
                 const LanesN<N> factor = scatters[std::size_t(k)].weight * lanes.led;
-                L += factor *
-                     shade(scene, scatters[std::size_t(k)].p, at, above, lanes, rng, {}, want);
-                if (direct) add(weight * factor);
+                L += factor * shade(scene, scatters[std::size_t(k)].p, at, above, lanes, rng, one,
+                                    direct, LanesN<N>(weight * factor));
             }
             return L;
         }

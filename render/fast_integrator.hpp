@@ -120,12 +120,19 @@ template <int N> struct CacheLambdas {
 /// 2.14 and 2.37 % at 5 N (docs/VALIDATION.md).
 inline constexpr double kCacheBsdfPerNee = 4.0;
 
-/// A camera sample's uniforms for its coating hit's shadow ray: u_led picks the LED (with
-/// probability G_k / sum G), (u1, u2) the point on it (PathIntegrator::led_point). The renderer
-/// stratifies them jointly over a pixel's samples (shadow_uniforms); u_led < 0: all three
-/// drawn from the pixel's stream.
+/// The most shadow rays one camera sample traces from its coating hit (ShadowDraw::rays).
+inline constexpr int kMaxShadowRaysPerSample = 4;
+
+/// A camera sample's uniforms for its coating hit's shadow rays, `rays` of them (1 to
+/// kMaxShadowRaysPerSample, RenderSettings::shadow_rays_per_pixel; their mean estimates the
+/// shadows): per ray, u_led picks the LED (with probability G_k / sum G), (u1, u2) the point
+/// on it (PathIntegrator::led_point); the first ray's in (u_led, u1, u2), the others' in
+/// `further`. The renderer stratifies them jointly over a pixel's shadow rays
+/// (shadow_uniforms); u_led < 0: that ray's three drawn from the pixel's stream.
 struct ShadowDraw {
     double u_led = -1.0, u1 = 0.0, u2 = 0.0;
+    int rays = 1;
+    std::array<std::array<double, 3>, kMaxShadowRaysPerSample - 1> further{};
 };
 
 /// The shadow filter (RenderSettings::shadow_filter_px, render/shadow_filter.hpp) takes the
@@ -136,10 +143,11 @@ inline int shadow_group(int k, int leds, int groups) {
     return leds == groups ? k : k * groups / leds; // no division with up to 8 LEDs
 }
 
-/// One coating point's share of a camera sample's direct light (one shade): `lit` as if no
-/// marker or fold cast a shadow (sum_k G_k times the path's factors), `shadowed` with the
-/// shadow ray's transmittance (the share of the radiance the shadow ray estimated), `group`
-/// the shadow group of the LED the shadow ray went to, `share[g]` group g's part of `lit`
+/// One shadow ray's share of a camera sample's direct light at one coating point (a shade
+/// with n shadow rays gives n of these, each 1 / n of the point's light): `lit` as if no
+/// marker or fold cast a shadow (sum_k G_k times the path's factors, over n), `shadowed` with
+/// the shadow ray's transmittance, `group` the shadow group of the LED the shadow ray went to,
+/// `share[g]` group g's part of `lit`
 /// (sum over its LEDs of G_k / sum G; the first shadow_groups() add up to 1, or all 0 where
 /// no LED lights the point).
 template <int N> struct DirectPart {
@@ -149,9 +157,10 @@ template <int N> struct DirectPart {
     std::array<double, kMaxShadowGroups> share;
 };
 
-/// The most coating points a camera sample shades: in each of its refracted and reflected
-/// branches, the coating hit and the outer markers' scattering (at most 4) above it.
-inline constexpr int kMaxDirectParts = 10;
+/// The most direct-light parts of a camera sample: in each of its refracted and reflected
+/// branches, the coating hit's shadow rays (at most kMaxShadowRaysPerSample) and the outer
+/// markers' scattering above it (at most 4, one shadow ray each).
+inline constexpr int kMaxDirectParts = 2 * (kMaxShadowRaysPerSample + 4);
 
 /// The LEDs' direct light in a camera sample's radiance, apart (the renderer's shadow
 /// filter), one DirectPart per coating point the sample shades (each times the path's factors
@@ -296,12 +305,13 @@ private:
                    std::uint64_t stream) const;
     template <int N>
     Lookup<N> lookup(std::uint32_t prim, double u, double v, const Vec3& normal) const;
-    /// `direct`: if given, set to the direct light's part of the result (DirectPart, with no
-    /// path factor).
+    /// `direct`: if given, the direct light's parts of the result times `factor` (the path's
+    /// factors up to p) are added to it, one per shadow ray.
     template <int N>
     LanesN<N> shade(const EmbreeScene& scene, const Vec3& p, const Lookup<N>& at,
                     const LanesN<N>& indirect, const LaneOptics<N>& lanes, PixelRng& rng,
-                    const ShadowDraw& shadow, DirectPart<N>* direct) const;
+                    const ShadowDraw& shadow, DirectLight<N>* direct,
+                    const LanesN<N>& factor) const;
     /// The shadow ray's direction from the coating hit `p` towards `led_point` of LED k: the
     /// sphere model's refraction, plus the frame's correction to it interpolated over the
     /// hit triangle (m_shadow).

@@ -410,6 +410,10 @@ struct Renderer::Impl {
                  double scale, const PixelSums& out) const {
         const int count = nx * ny;
         const bool split = !out.direct.empty();
+        // A pixel's shadow rays (RenderSettings::shadow_rays_per_pixel): at least one a
+        // sample, at most kMaxShadowRaysPerSample a sample.
+        const int rays = std::clamp(settings.shadow_rays_per_pixel, count,
+                                    detail::kMaxShadowRaysPerSample * count);
         const auto groups = std::size_t(split ? fast.shadow_groups() : 0);
         const detail::LaneOptics<N> rgb = [&] {
             if constexpr (N == detail::kRgbLanes)
@@ -460,8 +464,17 @@ struct Renderer::Impl {
                 if (!d.direction) continue;
                 ++out.inside[std::size_t(j)];
                 directions[m] = *d.direction;
-                const std::array<double, 3> u = detail::shadow_uniforms(k, count, seed);
-                shadow[m] = {u[0], u[1], u[2]};
+                // The sample's shadow rays: the pixel's `rays` spread evenly over its samples
+                // (at least one each), their uniforms stratified over the pixel's rays.
+                const int r0 = k * rays / count, r1 = (k + 1) * rays / count;
+                shadow[m] = {.rays = r1 - r0};
+                for (int r = r0; r < r1; ++r) {
+                    const std::array<double, 3> u = detail::shadow_uniforms(r, rays, seed);
+                    if (r == r0)
+                        shadow[m].u_led = u[0], shadow[m].u1 = u[1], shadow[m].u2 = u[2];
+                    else
+                        shadow[m].further[std::size_t(r - r0 - 1)] = u;
+                }
                 streams[m] = &rng;
                 owner[m] = j;
                 if constexpr (N == detail::kSpectralLanes) {
@@ -772,6 +785,11 @@ Image Renderer::render(const RenderSettings& settings) const {
                                     std::to_string(settings.reflected_led_samples_per_pixel) +
                                     " is invalid; allowed: integer >= 0 (0: in the samples)");
     }
+    if (settings.shadow_rays_per_pixel < 0) {
+        throw std::invalid_argument("RenderSettings: shadow_rays_per_pixel = " +
+                                    std::to_string(settings.shadow_rays_per_pixel) +
+                                    " is invalid; allowed: integer >= 0 (0: one a sample)");
+    }
     if (settings.edge_samples_per_pixel < 0) {
         throw std::invalid_argument("RenderSettings: edge_samples_per_pixel = " +
                                     std::to_string(settings.edge_samples_per_pixel) +
@@ -858,7 +876,8 @@ Image Renderer::render(const RenderSettings& settings) const {
         const int count = edge ? inside : samples;
         const double weight =
             edge ? (inside > 0 ? scale * coverage / inside : 0.0) : scale / samples;
-        detail::Rgb value = sum * weight;
+        const detail::Rgb samples_mean = sum * weight; // the samples' own, for the variance
+        detail::Rgb value = samples_mean;
         // The LEDs by reflection: their own mean F (at the edge, coverage times the mean over
         // the rays inside), and its variance added to the samples'.
         const int led_count = led ? (edge ? led->inside : n_led) : 0;
@@ -889,7 +908,9 @@ Image Renderer::render(const RenderSettings& settings) const {
         if (settings.variance && count > 1) {
             // Sample variance (count - 1 in the denominator) over count, floored at 0 against
             // round-off; at the edge, of the samples inside, times coverage^2.
-            const detail::Rgb mean = edge ? detail::Rgb(sum * (scale / count)) : value;
+            // About the samples' own mean, without the LEDs by reflection (their variance is
+            // led_var's).
+            const detail::Rgb mean = edge ? detail::Rgb(sum * (scale / count)) : samples_mean;
             const detail::Rgb var =
                 (edge ? coverage * coverage : 1.0) *
                     ((sum2 - count * mean.square()) / (count - 1.0) / count).max(0.0) +

@@ -221,6 +221,16 @@ struct RenderSettings {
     /// 0.5 px there took 3 spp (8 on the rims) from 0.89 to 0.84 % at 1.5 N + 0.6 N, and
     /// let the rest of the image take a wider filter (docs/VALIDATION.md, session 26).
     std::optional<double> shadow_filter_rim_px{};
+    /// Fast integrator: the fewest shadow rays a pixel traces from its samples' coating hits,
+    /// spread evenly over its samples, at least one and at most
+    /// detail::kMaxShadowRaysPerSample (4) a sample, their LED points stratified over the
+    /// pixel's rays; a sample with several takes their mean. 0 (or at most the pixel's sample
+    /// count): one a sample. The pixels with few samples (the bulk of the image) then trace
+    /// more, where the shadow rays' noise is most of the error, without more camera samples;
+    /// those with many (the markers' rims, the mirrored pixels) keep one a sample. At 224 px
+    /// with 2 spp, 8 on the rims, 4 where mirrored, 32 LED rays and the 1 px filter, 4 take
+    /// the RMS of white from 0.89 to 0.77 % at 1.5 N + 0.6 N (docs/VALIDATION.md, session 29).
+    int shadow_rays_per_pixel = 0;
     /// Fast integrator: samples per pixel in the pixels where the inner surface mirrors an
     /// LED (the bright streaks near the rim) and in their 8 neighbours; where it is at most
     /// samples_per_pixel (0 included), none take more. Which pixels: the ray through the

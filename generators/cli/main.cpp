@@ -293,6 +293,13 @@ int main(int argc, char** argv) {
                      "reference has none")
         ->check(CLI::Range(0, 4096));
     bench_render
+        ->add_option("--shadow-rays", render_bench.shadow_rays_per_pixel,
+                     "fast integrator: the fewest shadow rays a pixel to time (at least one "
+                     "and at most 4 a sample), each at every spp, filter, reflection, rim and "
+                     "LED-ray count (render.fast.shadow_rays_per_pixel; 0: one a sample); the "
+                     "reference has one a sample")
+        ->check(CLI::Range(0, 4096));
+    bench_render
         ->add_option("--reference-in", render_bench.reference_in,
                      "read the reference from this EXR (written by --reference-out); two or "
                      "more: independent renders (--reference-seed), averaged, their spread "

@@ -465,6 +465,40 @@ TEST_CASE("the render.sensor keys reach the sensor model", "[generators][spec]")
     }
 }
 
+TEST_CASE("the render.fast keys reach the renderer's settings", "[generators][spec]") {
+    SECTION("the defaults") {
+        const chromasim::render::RenderSettings r =
+            render_settings(parse_spec("render: {integrator: fast}\n", "ok.yaml"));
+        CHECK(r.integrator == chromasim::render::Integrator::fast);
+        CHECK(r.shadow_filter_px == 1.0);
+        CHECK(r.shadow_filter_rim_px == 0.5);
+        CHECK(r.reflection_samples_per_pixel == 4);
+        CHECK(r.edge_samples_per_pixel == 8);
+        CHECK(r.reflected_led_samples_per_pixel == 32);
+        CHECK(r.shadow_rays_per_pixel == 0);
+    }
+    SECTION("every key is passed on") {
+        const chromasim::render::RenderSettings r = render_settings(
+            parse_spec("render:\n  integrator: fast\n  samples_per_pixel: 3\n  fast:\n"
+                       "    shadow_filter_px: 1.5\n    shadow_filter_rim_px: 0.25\n"
+                       "    reflection_samples_per_pixel: 6\n    edge_samples_per_pixel: 10\n"
+                       "    reflected_led_samples_per_pixel: 16\n    shadow_rays_per_pixel: 6\n",
+                       "ok.yaml"));
+        CHECK(r.samples_per_pixel == 3);
+        CHECK(r.shadow_filter_px == 1.5);
+        CHECK(r.shadow_filter_rim_px == 0.25);
+        CHECK(r.reflection_samples_per_pixel == 6);
+        CHECK(r.edge_samples_per_pixel == 10);
+        CHECK(r.reflected_led_samples_per_pixel == 16);
+        CHECK(r.shadow_rays_per_pixel == 6);
+    }
+    SECTION("out of range values are rejected with what is allowed") {
+        CHECK(error_of("render:\n  fast:\n    shadow_rays_per_pixel: -2\n") ==
+              "bad.yaml:3:28: render.fast.shadow_rays_per_pixel: value '-2' is out of range; "
+              "allowed: integer in [0, 4096]");
+    }
+}
+
 TEST_CASE("a spec file that cannot be read names its path", "[generators][spec]") {
     const std::filesystem::path missing = repo_file("datasets_spec/does_not_exist.yaml");
     try {

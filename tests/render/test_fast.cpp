@@ -720,8 +720,16 @@ TEST_CASE("fast integrator: with the LEDs by reflection from rays of their own "
         CHECK(std::abs(sum_apart - sum_plain) < 4.0 * std::sqrt(var_plain + var_apart));
         CHECK(std::abs(sum_apart - sum_converged) < 4.0 * std::sqrt(var_apart) + 1e-3);
         // The LEDs' images were most of those pixels' noise.
-        CHECK(var_apart < 0.5 * var_plain);
+        CHECK(var_apart < 0.6 * var_plain);
         CHECK(err2_apart < 0.6 * err2_plain);
+        // And the variance channel says how much is left: the samples' variance about their
+        // own mean plus the LED rays' (0.21.0 took it about the pixel's mean with the LEDs
+        // in, a third too low here), of the order of the squared error against the converged
+        // image (above it: the channel takes the stratified samples as independent).
+        CHECK(var_apart > 0.3 * err2_apart);
+        CHECK(var_apart < 3.0 * err2_apart);
+        CHECK(var_plain > 0.3 * err2_plain);
+        CHECK(var_plain < 3.0 * err2_plain);
     }
     Renderer renderer(CameraParams{16, 16, 84.0}, OpticsParams{});
     small_cache_on(renderer, rest, pressed);
@@ -1118,4 +1126,127 @@ TEST_CASE("fast integrator: the shadow filter brings a noisy image nearer the co
         settings.shadow_filter_px = bad;
         CHECK_THROWS_WITH(renderer.render(settings), Catch::Contains("shadow_filter_px"));
     }
+}
+
+TEST_CASE("fast integrator: more shadow rays a pixel (shadow_rays_per_pixel): up to the sample "
+          "count the same bytes, above it the same image on average with less noise, their "
+          "parts adding up to the same unshadowed light, the same bytes on 1 and 2 threads",
+          "[render][fast]") {
+    const SensorFrame rest = dome_with_box_markers();
+    const SensorFrame pressed = pressed_flat(rest);
+    // A sample's parts: with 3 shadow rays, 3 parts at the coating hit, their unshadowed
+    // light adding up to the one-ray sample's, the radiance the mean of the rays' (its
+    // shadowed light within the unshadowed).
+    {
+        FastOnFrame on(pressed, rest);
+        auto& [scene, shading, path, fast] = on;
+        const LaneOptics<kRgbLanes> lanes = shading.rgb_lanes();
+        constexpr std::size_t n = 16;
+        std::vector<Vec3> directions;
+        std::vector<ShadowDraw> one, three;
+        for (std::size_t i = 0; i < n; ++i) {
+            directions.push_back(unit_from_angles(10.0 + 4.0 * double(i), 15.0 * double(i)));
+            one.push_back({(double(i) + 0.5) / double(n), 0.3, 0.7});
+            ShadowDraw d = one.back();
+            d.rays = 3;
+            d.further[0] = {0.9 - 0.05 * double(i), 0.6, 0.2};
+            d.further[1] = {0.05 * double(i), 0.1, 0.9};
+            three.push_back(d);
+        }
+        const std::vector<const LaneOptics<kRgbLanes>*> lane_sets(n, &lanes);
+        const std::vector<const CacheLambdas<kRgbLanes>*> lambdas(n, nullptr);
+        std::vector<RgbLanes> r1(n), r3(n);
+        std::vector<DirectLight<kRgbLanes>> d1(n), d3(n);
+        PixelRng a(3, 9), b = a;
+        std::vector<PixelRng*> sa(n, &a), sb(n, &b);
+        fast.radiance16<kRgbLanes>(scene, Vec3::Zero(), directions, lane_sets, lambdas, one, sa, r1,
+                                   d1);
+        fast.radiance16<kRgbLanes>(scene, Vec3::Zero(), directions, lane_sets, lambdas, three, sb,
+                                   r3, d3);
+        int lit = 0, differ = 0;
+        for (std::size_t i = 0; i < n; ++i) {
+            INFO("sample " << i << ": " << d1[i].parts << " and " << d3[i].parts << " parts");
+            CHECK((d3[i].lit() - d1[i].lit()).abs().maxCoeff() <=
+                  1e-12 * (1.0 + d1[i].lit().abs().maxCoeff()));
+            CHECK((d3[i].shadowed() <= d3[i].lit() * (1 + 1e-12)).all());
+            // The indirect light is the same: the radiances differ by the shadowed light's.
+            CHECK(((r3[i] - d3[i].shadowed()) - (r1[i] - d1[i].shadowed())).abs().maxCoeff() <=
+                  1e-12);
+            if ((d1[i].lit() > 0.0).any()) {
+                ++lit;
+                CHECK(d3[i].parts == d1[i].parts + 2);
+                differ += (d3[i].shadowed() != d1[i].shadowed()).any();
+            }
+        }
+        CHECK(lit > 8);
+        CHECK(differ > 0); // the other rays found other shadows somewhere
+    }
+    Renderer renderer(CameraParams{96, 96, 84.0}, OpticsParams{});
+    small_cache_on(renderer, rest, pressed);
+    RenderSettings settings{256, 3};
+    settings.integrator = Integrator::fast;
+    const Image converged = renderer.render(settings);
+    settings = fast_with_variance(2, 4);
+    const Image plain = renderer.render(settings);
+    // Up to the pixel's sample count: one a sample, the same bytes.
+    for (const int rays : {1, 2}) {
+        settings.shadow_rays_per_pixel = rays;
+        CHECK(renderer.render(settings).rgb == plain.rgb);
+    }
+    // 8 (4 a sample at 2 spp) and more: the same, at most 4 a sample.
+    settings.shadow_rays_per_pixel = 8;
+    const Image more = renderer.render(settings);
+    settings.shadow_rays_per_pixel = 50;
+    CHECK(renderer.render(settings).rgb == more.rgb);
+    // The error against 256 spp, and the sums over the image against the converged one's
+    // (both unbiased: within 4 standard deviations of the sum, from the variance channel).
+    const auto compare = [&](const Image& image, double& rms, double& sum, double& var,
+                             double& converged_sum) {
+        rms = sum = var = converged_sum = 0.0;
+        for (std::size_t i = 0; i < image.rgb.size(); ++i) {
+            rms += std::pow(double(image.rgb[i]) - converged.rgb[i], 2);
+            sum += image.rgb[i], var += image.variance[i], converged_sum += converged.rgb[i];
+        }
+        rms = std::sqrt(rms / double(image.rgb.size()));
+    };
+    double rms_plain, sum_plain, var_plain, rms_more, sum_more, var_more, sum_converged;
+    compare(plain, rms_plain, sum_plain, var_plain, sum_converged);
+    compare(more, rms_more, sum_more, var_more, sum_converged);
+    INFO("RMS against 256 spp: " << rms_plain << " with one shadow ray a sample, " << rms_more
+                                 << " with 4; sums " << sum_plain << ", " << sum_more
+                                 << ", converged " << sum_converged << "; summed variances "
+                                 << var_plain << ", " << var_more);
+    CHECK(more.rgb != plain.rgb);
+    CHECK(std::abs(sum_more - sum_converged) < 4.0 * std::sqrt(var_more));
+    CHECK(std::abs(sum_plain - sum_converged) < 4.0 * std::sqrt(var_plain));
+    // The shadow rays' noise is part of each sample's: less of it, with the filter too.
+    CHECK(rms_more < 0.97 * rms_plain);
+    CHECK(var_more < 0.97 * var_plain);
+    settings.shadow_filter_px = 1.0;
+    settings.shadow_rays_per_pixel = 0;
+    const Image filtered_plain = renderer.render(settings);
+    settings.shadow_rays_per_pixel = 8;
+    const Image filtered_more = renderer.render(settings);
+    double rms_fp, rms_fm, unused;
+    compare(filtered_plain, rms_fp, unused, unused, unused);
+    compare(filtered_more, rms_fm, unused, unused, unused);
+    INFO("filtered: " << rms_fp << " with one a sample, " << rms_fm << " with 4");
+    CHECK(rms_fm < rms_fp);
+    // The same bytes on 1 and 2 threads.
+    Image threads_one, threads_two;
+    {
+        tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 1);
+        threads_one = renderer.render(settings);
+    }
+    {
+        tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 2);
+        threads_two = renderer.render(settings);
+    }
+    CHECK(threads_one.rgb == filtered_more.rgb);
+    CHECK(threads_two.rgb == filtered_more.rgb);
+    CHECK(threads_one.variance == threads_two.variance);
+    settings.shadow_rays_per_pixel = -1;
+    CHECK_THROWS_WITH(renderer.render(settings),
+                      Catch::Contains("shadow_rays_per_pixel = -1 is invalid") &&
+                          Catch::Contains("allowed: integer >= 0"));
 }
