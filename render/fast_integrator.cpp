@@ -852,22 +852,15 @@ LanesN<N> FastIntegrator::shade(const EmbreeScene& scene, const Vec3& p, const L
     if (!(total > 0.0)) return indirect;
     const int rays = std::clamp(shadow.rays, 1, kMaxShadowRaysPerSample);
     const LanesN<N> lit = LanesN<N>::Constant(total * kInvPi / rays);
-    // The next DirectPart: its unshadowed light (the share of the lit light its ray carries,
-    // times `factor`) and its LED groups' shares.
-    const auto next_part = [&]() -> DirectPart<N>& {
-        if (direct->parts >= kMaxDirectParts)
-            throw std::logic_error("FastIntegrator: more than kMaxDirectParts direct-light parts "
-                                   "in one sample");
-        DirectPart<N>& part = direct->part[std::size_t(direct->parts++)];
-        part.lit = factor * lit;
-        const int groups = shadow_groups();
-        part.share.fill(0.0);
+    // The direct light's parts, when asked for: one a ray, each with the unshadowed light its
+    // ray carries (times `factor`) and the LED groups' shares of it (the same for every ray).
+    const int groups = shadow_groups();
+    std::array<double, kMaxShadowGroups> share{};
+    if (direct) {
         const double inv = 1.0 / total;
         for (int j = 0; j < leds; ++j)
-            part.share[std::size_t(shadow_group(j, leds, groups))] +=
-                at.direct[std::size_t(j)] * inv;
-        return part;
-    };
+            share[std::size_t(shadow_group(j, leds, groups))] += at.direct[std::size_t(j)] * inv;
+    }
     LanesN<N> sum = LanesN<N>::Zero();
     for (int r = 0; r < rays; ++r) {
         std::array<double, 3> u = r == 0 ? std::array<double, 3>{shadow.u_led, shadow.u1, shadow.u2}
@@ -883,10 +876,15 @@ LanesN<N> FastIntegrator::shade(const EmbreeScene& scene, const Vec3& p, const L
         else if (at.radius_mm > 0.0)
             T = shadow_transmittance(scene, p, at, k, u[1], u[2], lanes);
         if (direct) {
-            DirectPart<N>& part = next_part();
+            if (direct->parts >= kMaxDirectParts)
+                throw std::logic_error("FastIntegrator: more than kMaxDirectParts direct-light "
+                                       "parts in one sample");
+            DirectPart<N>& part = direct->part[std::size_t(direct->parts++)];
+            part.lit = factor * lit;
+            part.share = share;
             part.clear = (T == 1.0).all();
             part.shadowed = part.clear ? part.lit : LanesN<N>(part.lit * T);
-            part.group = shadow_group(k, leds, shadow_groups());
+            part.group = shadow_group(k, leds, groups);
         }
         sum += T;
     }
