@@ -1024,11 +1024,10 @@ LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, c
                 L = f * shade(scene, p, at, cached(m_cache->indirect), lanes, rng, shadow, direct,
                               LanesN<N>(weight * f));
             }
-            // The outer markers' scattering: one shadow ray each, from the stream.
-            const ShadowDraw one{};
+            // The outer markers' scattering: one shadow ray each, from the stream ({}).
             for (int k = 0; k < pending; ++k) {
                 const LanesN<N> factor = scatters[std::size_t(k)].weight * lanes.led;
-                L += factor * shade(scene, scatters[std::size_t(k)].p, at, above, lanes, rng, one,
+                L += factor * shade(scene, scatters[std::size_t(k)].p, at, above, lanes, rng, {},
                                     direct, LanesN<N>(weight * factor));
             }
             return L;
