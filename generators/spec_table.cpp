@@ -687,9 +687,11 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
         CHROMASIM_FIELD(render.fast.reflection_samples_per_pixel)));
     out.push_back(integer(
         "render.fast.edge_samples_per_pixel", 8, closed(0, 1024), "",
-        "Fast integrator: samples per pixel on the markers' rims: the pixels whose centre's first "
-        "marker of each layer differs from one of its 8 neighbours' (15 % of the fisheye's circle "
-        "at 224 px); at most render.samples_per_pixel (0 included): none take more; pixels that "
+        "Fast integrator: samples per pixel on the markers' rims: the pixels whose 4 corners' "
+        "first marker of each layer are not all the same (8 to 11 % of the fisheye's circle at "
+        "224 px; up to 0.22.0 the pixels whose centre's markers differed from one of its 8 "
+        "neighbours', 15 to 18 %, for the numbers below up to 0.22.0); at most "
+        "render.samples_per_pixel (0 included): none take more; pixels that "
         "mirror an LED keep render.fast.reflection_samples_per_pixel. Chosen from the frame's "
         "geometry before any sample, so each pixel stays unbiased. At 224 px, 1.5 N + 0.6 N, "
         "with the 0.7 px shadow filter and 16 spp where an LED is mirrored, RMS of white: 3 spp "
@@ -702,7 +704,11 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
         "on the rims (the shipped 224 px specs) gives 0.92 % at 1.5 N + 0.6 N, 0.93 % at 5 N "
         "+ 2 N and 0.87 % at rest, against 0.96, 0.93 and 0.93 % with 6 and 16 (0.16.0's "
         "defaults), with 2 % more rays, 3 % fewer and 5 % more. Finding the rims costs about "
-        "7 ms at 224 px (docs/VALIDATION.md).",
+        "7 ms at 224 px. 0.23.0 (the corners' rule, the frame's share apart): 2 spp with 8 on "
+        "the rims, 4 where mirrored, 32 LED rays, 1 px filter and 0.5 px on the rims (the shipped "
+        "224 px specs) give 0.83 % at 1.5 N + 0.6 N in 86 ms and 0.90 % at 5 N + 2 N in 108 ms, "
+        "with 6 on the rims 0.90 % in 79 ms and 0.95 % in 103 ms (docs/VALIDATION.md, session "
+        "31).",
         CHROMASIM_FIELD(render.fast.edge_samples_per_pixel)));
     out.push_back(integer(
         "render.fast.reflected_led_samples_per_pixel", 32, closed(0, 1024), "",

@@ -36,9 +36,12 @@ constexpr double kUnderMarker_mm = 0.05;
 /// to stop, about 1e-9 rad and 1e-8 mm across the layers.
 constexpr double kShadowTolerance = 1e-9;
 /// ... or after a Newton step that turns the direction by less than this (rad): what is left
-/// is about its square, 1e-8, and it saves the evaluation that would confirm it
-/// (docs/VALIDATION.md, session 27).
-constexpr double kShadowStepTolerance = 1e-4;
+/// is about its square, and it saves the evaluations that would confirm it. 1e-2 leaves
+/// 8e-6 rad on average and at most 3.4e-3 rad (in the contact at 5 N + 2 N), below the
+/// frame correction's own 8e-3 rad against the refracted solve, in 1.33 evaluations a shadow
+/// ray where 1e-4 (to 0.22.0) took 2.28 for at most 1.5e-7 rad (docs/VALIDATION.md,
+/// sessions 27 and 31).
+constexpr double kShadowStepTolerance = 1e-2;
 /// Shadow-ray culling: the margin of each triangle's ball over its corners' paths (mm).
 constexpr double kCullMargin_mm = 0.1;
 /// An edge of the coating folds inwards where its neighbour's far corner rises more than this
@@ -46,6 +49,9 @@ constexpr double kCullMargin_mm = 0.1;
 /// the dome's radius (coplanar triangles of a tessellated sphere are no fold), a hundredth of
 /// the rays' kHitGap_mm.
 constexpr double kFoldHeight_mm = 1e-5;
+/// LightCacheSettings::frame_share: the LED points a side (their cells' centres) over which
+/// the frame's share of an LED's light is taken at a coating vertex or edge midpoint.
+constexpr int kFrameShareGrid = 8;
 /// radiance16 sends a level's rays to Embree as one packet from this many on, else one by one.
 constexpr std::size_t kMinPacket = 4;
 
@@ -172,6 +178,9 @@ template <int N> struct FastIntegrator::Lookup {
     const std::uint32_t* triangle = nullptr; ///< the hit triangle's vertices
     double weights[3] = {0.0, 0.0, 0.0};     ///< and their barycentric weights
     std::uint32_t prim = 0;                  ///< the hit triangle
+    /// Bit k: the frame's share of LED k's light is off `direct` here (m_frame_triangle), and
+    /// shadow rays to it leave the frame's plane out.
+    std::uint64_t frame_share = 0;
 };
 
 FastIntegrator::FastIntegrator(const ShadingModel& shading, const PathIntegrator& path)
@@ -390,6 +399,7 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
     m_edges = std::move(edges);
     m_triangle_edges = std::move(triangle_edges);
     m_rest_paths = std::move(rest_paths);
+    tabulate_frame_share(rest, bare);
     m_direct.clear(); // set_frame brings the frame's data up to date
 }
 
@@ -442,11 +452,11 @@ void FastIntegrator::adopt_cache(LightCache cache, const render::LightCacheSetti
     auto adopted = std::make_shared<const LightCache>(std::move(cache));
     std::swap(m_cache, adopted);
     std::vector<PointLedPaths> rest_paths;
+    EmbreeScene bare;
     try {
         check_topology(rest);
         // The point LEDs' connections at rest, where each frame's solves start (as
         // build_cache finds them: on the coating and inner surface alone).
-        EmbreeScene bare;
         bare.set_frame(coating_and_interface(rest));
         rest_paths = point_paths(rest, bare, nullptr);
     } catch (...) {
@@ -457,7 +467,132 @@ void FastIntegrator::adopt_cache(LightCache cache, const render::LightCacheSetti
     m_settings = settings;
     m_edges = std::move(edges);
     m_triangle_edges = std::move(triangle_edges);
+    tabulate_frame_share(rest, bare);
     m_direct.clear(); // set_frame brings the frame's data up to date
+}
+
+void FastIntegrator::tabulate_frame_share(const SensorFrame& rest, const EmbreeScene& bare) {
+    m_frame_vertex.clear();
+    m_frame_edge.clear();
+    m_frame_triangle.clear();
+    m_frame_vertex_pairs.clear();
+    m_frame_edge_pairs.clear();
+    if (!m_settings.frame_share || !bare.has_interface()) return;
+    const std::size_t nv = std::size_t(rest.coating.V.rows()), leds = std::size_t(m_cache->leds);
+    const std::vector<Vec3> normals = coating_normals(rest.coating);
+    // At rest the frame's correction to the sphere model is the tessellation's: the shares
+    // as a frame without guesses or corrections would take them, over the whole bracket.
+    std::vector<float> radius(nv, 0.0f);
+    tbb::parallel_for(std::size_t(0), nv, [&](std::size_t v) {
+        const Vec3 p = rest.coating.V.row(Eigen::Index(v)).cast<double>().transpose() +
+                       kHitGap_mm * normals[v];
+        if (const auto R = m_path.radius_below(bare, p)) radius[v] = float(*R);
+    });
+    std::vector<float> at_vertex(nv * leds, 0.0f), at_edge(m_edges.size() * leds, 0.0f);
+    const auto no_guess = [](std::uint32_t, int, double, double) { return Vec3::Zero(); };
+    tbb::parallel_for(std::size_t(0), nv, [&](std::size_t v) {
+        for (std::size_t k = 0; k < leds; ++k)
+            at_vertex[v * leds + k] = frame_share_at(rest.coating, radius, {}, no_guess,
+                                                     std::uint32_t(v), std::uint32_t(v), int(k));
+    });
+    tbb::parallel_for(std::size_t(0), m_edges.size(), [&](std::size_t e) {
+        const auto [a, b] = m_edges[e];
+        for (std::size_t k = 0; k < leds; ++k)
+            at_edge[e * leds + k] =
+                frame_share_at(rest.coating, radius, {}, no_guess, a, b, int(k));
+    });
+    // The (triangle, LED) pairs with a share at a corner or edge midpoint at rest, and their
+    // corners' and edges' pairs, which each frame takes anew.
+    const std::size_t nf = m_cache->coating_triangles.size() / 3;
+    std::vector<std::uint8_t> flagged(nf * leds, 0), corner(nv * leds, 0),
+        side(m_edges.size() * leds, 0);
+    bool any = false;
+    for (std::size_t f = 0; f < nf; ++f)
+        for (std::size_t k = 0; k < leds; ++k) {
+            bool has = false;
+            for (std::size_t i = 0; i < 3; ++i)
+                has = has || at_vertex[m_cache->coating_triangles[3 * f + i] * leds + k] > 0.0f ||
+                      at_edge[m_triangle_edges[3 * f + i] * leds + k] > 0.0f;
+            if (!has) continue;
+            flagged[f * leds + k] = 1;
+            any = true;
+            for (std::size_t i = 0; i < 3; ++i) {
+                corner[m_cache->coating_triangles[3 * f + i] * leds + k] = 1;
+                side[m_triangle_edges[3 * f + i] * leds + k] = 1;
+            }
+        }
+    if (!any) return;
+    for (std::size_t i = 0; i < corner.size(); ++i)
+        if (corner[i]) m_frame_vertex_pairs.push_back(std::uint32_t(i));
+    for (std::size_t i = 0; i < side.size(); ++i)
+        if (side[i]) m_frame_edge_pairs.push_back(std::uint32_t(i));
+    m_frame_vertex.assign(at_vertex.size(), 0.0f);
+    m_frame_edge.assign(at_edge.size(), 0.0f);
+    m_frame_triangle = std::move(flagged);
+}
+
+template <class Guess>
+float FastIntegrator::frame_share_at(const SurfaceMesh& coating, const std::vector<float>& radius,
+                                     const std::vector<float>& correction, Guess&& guess,
+                                     std::uint32_t a, std::uint32_t b, int k) const {
+    // The point between corners a and b (a == b: the corner), as a sample there takes it.
+    const double R = 0.5 * (double(radius[a]) + double(radius[b]));
+    if (!(R > 0.0)) return 0.0f;
+    const Vec3 p = 0.5 * (coating.V.row(Eigen::Index(a)).cast<double>().transpose() +
+                          coating.V.row(Eigen::Index(b)).cast<double>().transpose());
+    // The path runs from where the model leaves the layers, at most the tangent's length from
+    // p, to p: from a point higher than that above the plane it cannot cross it.
+    if (!(p.squaredNorm() > R * R) || p.z() > std::sqrt(p.squaredNorm() - R * R)) return 0.0f;
+    const double eta = m_shading.optics().refractive_index;
+    const std::size_t leds = std::size_t(m_cache->leds);
+    Vec3 offset = Vec3::Zero();
+    if (!correction.empty())
+        for (const std::uint32_t v : {a, b})
+            for (int x = 0; x < 3; ++x)
+                offset[x] += 0.5 * correction[3 * (std::size_t(v) * leds + std::size_t(k)) +
+                                              std::size_t(x)];
+    int blocked = 0;
+    for (int i = 0; i < kFrameShareGrid; ++i)
+        for (int j = 0; j < kFrameShareGrid; ++j) {
+            const double u1 = (i + 0.5) / kFrameShareGrid, u2 = (j + 0.5) / kFrameShareGrid;
+            // As shadow_exit: Newton from the frame's guess where there is one, else the
+            // whole bracket, plus the frame's correction.
+            SphereRefraction solver(p, m_path.led_point(k, u1, u2), R, eta);
+            const Vec3 g = 0.5 * (guess(a, k, u1 - 0.5, u2 - 0.5) + guess(b, k, u1 - 0.5, u2 - 0.5));
+            std::optional<Vec3> model;
+            if (g.norm() > 0.0)
+                model = solver.newton(g.normalized(), kShadowTolerance, kShadowStepTolerance);
+            const Vec3 w = ((model ? *model : solver.solve(kShadowTolerance)) + offset).normalized();
+            const auto exit = sphere_exit(p, w, R);
+            if (!exit) continue;
+            const Vec3 segment = p - *exit;
+            const double length = segment.norm();
+            blocked += m_shading.crosses_frame(*exit, segment / length, kHitGap_mm,
+                                               length - kHitGap_mm);
+        }
+    return float(blocked) / float(kFrameShareGrid * kFrameShareGrid);
+}
+
+void FastIntegrator::update_frame_share(const SensorFrame& frame) {
+    if (m_frame_triangle.empty() || m_radius.empty()) return;
+    const std::size_t leds = std::size_t(m_cache->leds);
+    const auto guess = [this](std::uint32_t v, int k, double d1, double d2) -> Vec3 {
+        return m_guess.empty() ? Vec3::Zero() : guessed_direction(v, k, d1, d2);
+    };
+    tbb::parallel_for(std::size_t(0), m_frame_vertex_pairs.size(), [&](std::size_t i) {
+        const std::uint32_t pair = m_frame_vertex_pairs[i];
+        const auto v = std::uint32_t(pair / leds);
+        m_frame_vertex[pair] =
+            frame_share_at(frame.coating, m_radius, m_shadow, guess, v, v, int(pair % leds));
+    });
+    tbb::parallel_for(std::size_t(0), m_frame_edge_pairs.size(), [&](std::size_t i) {
+        const std::uint32_t pair = m_frame_edge_pairs[i];
+        const std::size_t e = pair / leds, k = pair % leds;
+        const auto [a, b] = m_edges[e];
+        m_frame_edge[pair] =
+            frame_share_at(frame.coating, m_radius, m_shadow, guess, a, b, int(k)) -
+            0.5f * (m_frame_vertex[a * leds + k] + m_frame_vertex[b * leds + k]);
+    });
 }
 
 void FastIntegrator::check_topology(const SensorFrame& frame) const {
@@ -584,6 +719,7 @@ void FastIntegrator::set_frame(const SensorFrame& frame, const EmbreeScene& scen
             for (int x = 0; x < 3; ++x)
                 m_direct_edge[i + std::size_t(x)] = scale * c.direct_edge[i + std::size_t(x)];
         }
+    update_frame_share(frame);
     // The indirect light follows the LEDs' light the coating receives: this frame's
     // unshadowed flux onto the coating over the rest cache's (docs/VALIDATION.md).
     m_indirect_scale = 1.0;
@@ -765,6 +901,20 @@ FastIntegrator::Lookup<N> FastIntegrator::lookup(std::uint32_t prim, double u, d
         }
         at.direct[std::size_t(k)] = std::max(0.0, g);
     }
+    if (!m_frame_triangle.empty()) {
+        // The frame's share of each LED's light, interpolated as G_k is, taken off where it
+        // is tabulated for this triangle.
+        const std::uint8_t* flagged = m_frame_triangle.data() + std::size_t(prim) * c.leds;
+        for (int k = 0; k < c.leds; ++k) {
+            if (!flagged[k]) continue;
+            at.frame_share |= std::uint64_t(1) << k;
+            double share = 0.0;
+            for (int i = 0; i < 3; ++i)
+                share += w[i] * m_frame_vertex[std::size_t(f[i]) * c.leds + k] +
+                         bubble[i] * m_frame_edge[std::size_t(edges[i]) * c.leds + k];
+            at.direct[std::size_t(k)] *= std::clamp(1.0 - share, 0.0, 1.0);
+        }
+    }
     if (!m_radius.empty())
         for (int i = 0; i < 3; ++i)
             at.radius_mm += w[i] * m_radius[f[i]];
@@ -892,9 +1042,8 @@ LanesN<N> FastIntegrator::shade(const EmbreeScene& scene, const Vec3& p, const L
 }
 
 template <int N>
-LanesN<N> FastIntegrator::shadow_transmittance(const EmbreeScene& scene, const Vec3& p,
-                                               const Lookup<N>& at, int k, double u1, double u2,
-                                               const LaneOptics<N>& lanes) const {
+std::optional<Vec3> FastIntegrator::shadow_exit(const Lookup<N>& at, const Vec3& p, int k,
+                                                double u1, double u2) const {
     const Vec3 l = m_path.led_point(k, u1, u2);
     // The sphere model's refraction towards l: by Newton from the frame's guess where there
     // is one (with the culling), else over the whole bracket.
@@ -910,24 +1059,36 @@ LanesN<N> FastIntegrator::shadow_transmittance(const EmbreeScene& scene, const V
     // Plus the frame's correction (the deformed surface against the sphere), interpolated.
     const Vec3 w =
         ((model ? *model : solver.solve(kShadowTolerance)) + shadow_correction(at, k)).normalized();
-    // Where the shadow ray towards l leaves the layers (through the sphere below); from there
-    // to p it is traced, unless the culling shows it meets nothing.
-    const auto exit = sphere_exit(p, w, at.radius_mm);
-    if (!exit || (!m_guess.empty() && path_clear(at.prim, k, p, *exit))) return LanesN<N>::Ones();
+    // Where the shadow ray towards l leaves the layers (through the sphere below).
+    return sphere_exit(p, w, at.radius_mm);
+}
+
+template <int N>
+LanesN<N> FastIntegrator::shadow_transmittance(const EmbreeScene& scene, const Vec3& p,
+                                               const Lookup<N>& at, int k, double u1, double u2,
+                                               const LaneOptics<N>& lanes) const {
+    // From where the shadow ray towards the LED point leaves the layers to p it is traced,
+    // unless the culling shows it meets nothing.
+    const auto exit = shadow_exit(at, p, k, u1, u2);
+    const bool frame_apart = (at.frame_share >> k) & 1u;
+    if (!exit || (!m_guess.empty() && path_clear(at.prim, k, p, *exit, frame_apart)))
+        return LanesN<N>::Ones();
     // This also tests the frame's plane. Near the rim the sphere model's exit lies below
     // z = 0, where no real connection goes, so it blocks light the cache counts as unshadowed
     // (and is the noise of the field's outer ring); it happens to offset the light the cache's
     // rim vertices gather from under the frame (ShadingModel::crosses_frame). Why neither is
     // removed alone: docs/VALIDATION.md, session 28.
-    return m_shading.transmittance(scene, *exit, p, lanes, kHitGap_mm);
+    // Where the frame's share is taken off G_k (LightCacheSettings::frame_share), not again.
+    return m_shading.transmittance(scene, *exit, p, lanes, kHitGap_mm, !frame_apart);
 }
 
-bool FastIntegrator::path_clear(std::uint32_t prim, int k, const Vec3& p, const Vec3& q) const {
+bool FastIntegrator::path_clear(std::uint32_t prim, int k, const Vec3& p, const Vec3& q,
+                                bool frame_apart) const {
     const std::size_t i = std::size_t(prim) * std::size_t(m_cache->leds) + std::size_t(k);
     const Eigen::Vector4d& ball = m_cull_ball[i];
     if (!(ball.w() > 0.0)) return false;
-    // Above the rim plane, so not across the frame.
-    if (!(p.z() > 0.0 && q.z() > 0.0)) return false;
+    // Above the rim plane, so not across the frame (unless its share is taken apart).
+    if (!frame_apart && !(p.z() > 0.0 && q.z() > 0.0)) return false;
     // Inside the ball, so only its markers can be in the way.
     const Vec3 centre = ball.head<3>();
     const double r2 = ball.w() * ball.w();

@@ -69,6 +69,14 @@
 /// refraction through the inner surface below the point (PathIntegrator::refracted_direction) plus
 /// the frame's correction, interpolated over the hit triangle: the sphere model alone is 0.08 rad
 /// off near a flattened contact, 0.008 rad with the correction (tests/render/test_fast.cpp).
+/// Near the rim the sphere model's shadow paths leave the layers below the rim plane, and the
+/// frame's plane blocks some (docs/VALIDATION.md, session 28: an artefact that offsets the
+/// cache's light from under the frame). With LightCacheSettings::frame_share, the share of
+/// LED k's light so blocked is taken per frame at the corners and edge midpoints of the
+/// triangles that had one at rest (8 x 8 LED points each, the shadow rays' own paths),
+/// interpolated as G_k and taken off it; the shadow rays to LED k from those triangles leave
+/// the plane out. The same mean without that binary noise: at 224 px it was a fifth of the
+/// image's squared error, in the field's outer ring (session 31).
 ///
 /// What it leaves out or approximates, each part of its measured error against the path
 /// integrator (docs/VALIDATION.md): the indirect light's change with the deformation beyond the
@@ -333,7 +341,33 @@ private:
     /// `prim`'s ball for LED k, and no marker of that ball's list comes that close (markers by
     /// their balls; folds by their cones of directions, against the path's directions from the
     /// origin).
-    bool path_clear(std::uint32_t prim, int k, const Vec3& p, const Vec3& q) const;
+    /// `frame_apart`: the frame's share of LED k's light is taken apart (m_frame_triangle):
+    /// the path may cross the rim plane.
+    bool path_clear(std::uint32_t prim, int k, const Vec3& p, const Vec3& q,
+                    bool frame_apart) const;
+    /// LightCacheSettings::frame_share, once per cache on the sensor at rest (`bare`: its
+    /// coating and inner surface): which (triangle, LED) pairs take the frame's share apart
+    /// (m_frame_triangle) and the corners' and edges' pairs each frame takes it at.
+    void tabulate_frame_share(const SensorFrame& rest, const EmbreeScene& bare);
+    /// The frame's share of LED k's light at the midpoint of coating vertices a and b (a ==
+    /// b: at the vertex): of kFrameShareGrid^2 LED points (their cells' centres), the
+    /// fraction whose shadow path, as shadow_exit takes it (the sphere model of the mean
+    /// `radius` of a and b, Newton from the mean of `guess`(vertex, k, d1, d2) where it is
+    /// not zero, plus the mean `correction`, [(vertex * leds + k) * 3], none if empty),
+    /// crosses the frame's plane (ShadingModel::crosses_frame).
+    template <class Guess>
+    float frame_share_at(const SurfaceMesh& coating, const std::vector<float>& radius,
+                         const std::vector<float>& correction, Guess&& guess, std::uint32_t a,
+                         std::uint32_t b, int k) const;
+    /// Per frame (after the frame's radii, corrections and guesses): the shares at the
+    /// tabulated pairs, as the frame's shadow rays take their paths.
+    void update_frame_share(const SensorFrame& frame);
+    /// Where the shadow ray from p (a sample at `at`) towards the point (u1, u2) of LED k
+    /// leaves the layers: the sphere model's refraction (by Newton from the frame's guess
+    /// where there is one) plus the frame's correction; none if it misses the sphere.
+    template <int N>
+    std::optional<Vec3> shadow_exit(const Lookup<N>& at, const Vec3& p, int k, double u1,
+                                    double u2) const;
     /// Per frame (LightCacheSettings::cull_shadows): the markers' balls, the coating's inward
     /// folds, and each coating triangle's ball per LED with the markers and folds near it.
     void build_shadow_culling(const SensorFrame& frame);
@@ -385,6 +419,18 @@ private:
     /// Where the coating folds inwards: each such edge's cone of directions from the origin
     /// (unit axis, chord to its ends); in m_cull_markers after the markers (index - markers).
     std::vector<Eigen::Vector4d> m_fold_cones;
+    /// The frame's share (LightCacheSettings::frame_share; empty: none, or off), this
+    /// frame's: of LED k's light at each coating vertex, [vertex * leds + k], the fraction of
+    /// its points whose shadow path crosses the frame's plane (frame_share_at); per edge,
+    /// [edge * leds + k], the same at its midpoint less the mean of its ends' (the quadratic
+    /// term, as m_direct_edge). Per (triangle, LED), [triangle * leds + k]: 1 where a corner or
+    /// edge midpoint had a share at rest; there the lookup takes the interpolated share off
+    /// G_k and the shadow rays to LED k leave the frame's plane out (elsewhere they test it).
+    /// Each frame takes the shares anew at the flagged pairs' corners and edges
+    /// (m_frame_vertex_pairs: vertex * leds + k; m_frame_edge_pairs: edge * leds + k).
+    std::vector<float> m_frame_vertex, m_frame_edge;
+    std::vector<std::uint8_t> m_frame_triangle;
+    std::vector<std::uint32_t> m_frame_vertex_pairs, m_frame_edge_pairs;
 };
 
 } // namespace chromasim::render::detail

@@ -547,54 +547,49 @@ struct Renderer::Impl {
         return detail::Rgb(h.to_rgb * radiance.matrix());
     }
 
-    /// Each pixel's count class (render()'s `levels`), row by row, from its centre's ray:
-    /// 2 where an LED is mirrored (with `mirrors`), 1 on a marker's rim (with `rims`: markers
-    /// with triangles, render() checks), 0 elsewhere; a pixel that is both is 2.
+    /// Each pixel's count class (render()'s `levels`): 2 where an LED is mirrored (with
+    /// `mirrors`), 1 on a marker's rim (with `rims`: markers with triangles, render() checks),
+    /// 0 elsewhere; a pixel that is both is 2.
     /// - Mirrored (RenderSettings::reflection_samples_per_pixel): the pixels whose centre's
     ///   ray, reflected off the inner surface it meets first (the interpolated normal),
     ///   crosses the LEDs' plane within kReflectionMargin_mm of an LED plus the pixel's reach
     ///   there (half the largest distance to its 4 neighbours' crossings), and their 8
     ///   neighbours.
-    /// - Rims (RenderSettings::edge_samples_per_pixel): the pixels whose centre's markers
-    ///   (marker_ids: the first of each layer before the coating) differ from one of its 8
-    ///   neighbours' (a marker's rim crosses the pixel or its neighbour's).
-    /// From a camera in the cavity the centres' rays of a row go 16 at a time, as Embree
-    /// packets: to the inner surface (its own BVH; one packet for both rules), then, for the
-    /// rims, on from just past each crossing; a ray whose next surface is the coating has no
-    /// marker (marker_ids would find the same), the others take marker_ids' walk.
+    /// - Rims (RenderSettings::edge_samples_per_pixel): the pixels whose 4 corners' markers
+    ///   (marker_ids_at: the first of each layer before the coating) are not all the same: a
+    ///   marker's rim crosses the pixel. (Up to 0.22.0: the pixels whose centre's markers
+    ///   differed from one of its 8 neighbours', a band about twice as wide, whose extra
+    ///   pixels hold no rim and gained little from their samples; docs/VALIDATION.md, session
+    ///   31.) A rim that enters and leaves the pixel between the same two corners is missed:
+    ///   a sliver of at most w^2 / (8 r) of it for a marker of radius r px (0.04 px^2 for the
+    ///   markers' 3.5 px at 224 px), sampled at the pixel's own count.
     std::vector<std::uint8_t> pixel_levels(bool mirrors, bool rims) const {
         const int w = camera.width_px(), h = camera.height_px();
         const std::size_t pixels = std::size_t(w) * std::size_t(h);
         const auto at = [w](int x, int y) { return std::size_t(y) * std::size_t(w) + x; };
-        std::vector<std::optional<Vec3>> crossing(mirrors ? pixels : 0);
-        std::vector<std::pair<std::int32_t, std::int32_t>> ids(rims ? pixels : 0);
         const bool cavity = scene.in_cavity(camera.origin_mm());
         const double inf = std::numeric_limits<double>::infinity();
-        tbb::parallel_for(0, h, [&](int y) {
-            if (rims && !cavity)
-                for (int x = 0; x < w; ++x)
-                    ids[at(x, y)] = marker_ids(x, y);
-            if (!mirrors && !cavity) return;
-            std::array<Vec3, 16> origins, directions, past;
-            std::array<detail::RayHit, 16> first, next;
-            std::array<int, 16> xs;
-            origins.fill(camera.origin_mm());
-            for (int x0 = 0; x0 < w; x0 += 16) {
-                std::size_t m = 0;
-                for (int x = x0; x < std::min(w, x0 + 16); ++x) {
-                    if (rims && cavity) ids[at(x, y)] = {-1, -1}; // outside the field: none
-                    if (const auto d = camera.direction(Eigen::Vector2d(x + 0.5, y + 0.5)))
-                        directions[m] = *d, xs[m++] = x;
-                }
-                if (m == 0) continue;
-                const auto o = std::span(origins.data(), m), d = std::span(directions.data(), m);
-                // Against the inner surface alone where the camera is in the cavity (the
-                // centres' first surface, if any).
-                if (cavity)
-                    scene.closest_interface_hits16(o, d, 0.0, inf, std::span(first.data(), m));
-                else
-                    scene.closest_hits16(o, d, 0.0, inf, std::span(first.data(), m));
-                if (mirrors)
+        // The centres' reflections onto the LEDs' plane, 16 rays a packet (from a camera in
+        // the cavity against the inner surface alone: the centres' first surface, if any).
+        std::vector<std::optional<Vec3>> crossing(mirrors ? pixels : 0);
+        if (mirrors)
+            tbb::parallel_for(0, h, [&](int y) {
+                std::array<Vec3, 16> origins, directions;
+                std::array<detail::RayHit, 16> first;
+                std::array<int, 16> xs;
+                origins.fill(camera.origin_mm());
+                for (int x0 = 0; x0 < w; x0 += 16) {
+                    std::size_t m = 0;
+                    for (int x = x0; x < std::min(w, x0 + 16); ++x)
+                        if (const auto d = camera.direction(Eigen::Vector2d(x + 0.5, y + 0.5)))
+                            directions[m] = *d, xs[m++] = x;
+                    if (m == 0) continue;
+                    const auto o = std::span(origins.data(), m),
+                               d = std::span(directions.data(), m);
+                    if (cavity)
+                        scene.closest_interface_hits16(o, d, 0.0, inf, std::span(first.data(), m));
+                    else
+                        scene.closest_hits16(o, d, 0.0, inf, std::span(first.data(), m));
                     for (std::size_t i = 0; i < m; ++i) {
                         const detail::RayHit& hit = first[i];
                         if (!hit.hit() || hit.kind != detail::SurfaceKind::inner_surface) continue;
@@ -604,22 +599,19 @@ struct Renderer::Impl {
                         crossing[at(xs[i], y)] =
                             path.led_plane_crossing(camera.origin_mm() + hit.t_mm * dir, reflected);
                     }
-                if (!rims || !cavity) continue;
-                // On from just past each ray's crossing (a ray that missed the inner surface
-                // starts where it did; it takes the walk anyway).
-                for (std::size_t i = 0; i < m; ++i)
-                    past[i] =
-                        camera.origin_mm() +
-                        (first[i].hit() ? first[i].t_mm + detail::kHitGap_mm : 0.0) * directions[i];
-                scene.closest_hits16(std::span(past.data(), m), d, 0.0, inf,
-                                     std::span(next.data(), m));
-                for (std::size_t i = 0; i < m; ++i) {
-                    const bool coating = first[i].hit() && next[i].hit() &&
-                                         next[i].kind == detail::SurfaceKind::coating;
-                    if (!coating) ids[at(xs[i], y)] = marker_ids(xs[i], y);
                 }
-            }
-        });
+            });
+        // The markers at the pixels' corners, (w + 1) x (h + 1): corner (x, y) at image point
+        // (x, y), the top left one of pixel (x, y).
+        const std::size_t corners_per_row = std::size_t(w) + 1;
+        std::vector<std::pair<std::int32_t, std::int32_t>> corner_ids(
+            rims ? corners_per_row * (std::size_t(h) + 1) : 0);
+        if (rims)
+            tbb::parallel_for(0, h + 1, [&](int y) {
+                marker_ids_row(double(y), std::span(corner_ids.data() + std::size_t(y) *
+                                                                            corners_per_row,
+                                                    corners_per_row));
+            });
         // The pixels that mirror an LED themselves, then with their 8 neighbours.
         std::vector<std::uint8_t> mirrored(mirrors ? pixels : 0, 0);
         if (mirrors)
@@ -639,23 +631,78 @@ struct Renderer::Impl {
         tbb::parallel_for(0, h, [&](int y) {
             for (int x = 0; x < w; ++x) {
                 std::uint8_t& level = out[at(x, y)];
-                for (int dy = -1; dy <= 1; ++dy)
-                    for (int dx = -1; dx <= 1; ++dx) {
-                        const int qx = x + dx, qy = y + dy;
-                        if (qx < 0 || qy < 0 || qx >= w || qy >= h) continue;
-                        if (mirrors && mirrored[at(qx, qy)]) level = 2;
-                        if (rims && level == 0 && ids[at(qx, qy)] != ids[at(x, y)]) level = 1;
-                    }
+                if (mirrors)
+                    for (int dy = -1; dy <= 1 && level == 0; ++dy)
+                        for (int dx = -1; dx <= 1; ++dx) {
+                            const int qx = x + dx, qy = y + dy;
+                            if (qx < 0 || qy < 0 || qx >= w || qy >= h) continue;
+                            if (mirrored[at(qx, qy)]) level = 2;
+                        }
+                if (rims && level == 0) {
+                    const std::size_t c = std::size_t(y) * corners_per_row + std::size_t(x);
+                    const auto& ids = corner_ids[c];
+                    if (corner_ids[c + 1] != ids || corner_ids[c + corners_per_row] != ids ||
+                        corner_ids[c + corners_per_row + 1] != ids)
+                        level = 1;
+                }
             }
         });
         return out;
     }
 
+    /// marker_ids_at for the image points (i, y), i = 0 .. out.size() - 1; outside the field
+    /// none (-1, -1). From a camera in the cavity 16 rays at a time, as Embree packets: to
+    /// the inner surface (its own BVH), then on from just past each crossing; a ray whose next
+    /// surface is the coating has no marker (marker_ids_at would find the same), the others
+    /// take marker_ids_at's walk.
+    void marker_ids_row(double y, std::span<std::pair<std::int32_t, std::int32_t>> out) const {
+        const int n = int(out.size());
+        if (!scene.in_cavity(camera.origin_mm())) {
+            for (int x = 0; x < n; ++x)
+                out[std::size_t(x)] = marker_ids_at(Eigen::Vector2d(x, y));
+            return;
+        }
+        const double inf = std::numeric_limits<double>::infinity();
+        std::array<Vec3, 16> origins, directions, past;
+        std::array<detail::RayHit, 16> first, next;
+        std::array<int, 16> xs;
+        origins.fill(camera.origin_mm());
+        for (int x0 = 0; x0 < n; x0 += 16) {
+            std::size_t m = 0;
+            for (int x = x0; x < std::min(n, x0 + 16); ++x) {
+                out[std::size_t(x)] = {-1, -1};
+                if (const auto d = camera.direction(Eigen::Vector2d(x, y)))
+                    directions[m] = *d, xs[m++] = x;
+            }
+            if (m == 0) continue;
+            const auto o = std::span(origins.data(), m), d = std::span(directions.data(), m);
+            scene.closest_interface_hits16(o, d, 0.0, inf, std::span(first.data(), m));
+            // On from just past each ray's crossing (a ray that missed the inner surface
+            // starts where it did; it takes the walk anyway).
+            for (std::size_t i = 0; i < m; ++i)
+                past[i] =
+                    camera.origin_mm() +
+                    (first[i].hit() ? first[i].t_mm + detail::kHitGap_mm : 0.0) * directions[i];
+            scene.closest_hits16(std::span(past.data(), m), d, 0.0, inf,
+                                 std::span(next.data(), m));
+            for (std::size_t i = 0; i < m; ++i) {
+                const bool coating = first[i].hit() && next[i].hit() &&
+                                     next[i].kind == detail::SurfaceKind::coating;
+                if (!coating) out[std::size_t(xs[i])] = marker_ids_at(Eigen::Vector2d(xs[i], y));
+            }
+        }
+    }
+
     /// The marker of each layer (index within the layer, or -1) that the ray through the
     /// pixel's centre meets first before the coating.
     std::pair<std::int32_t, std::int32_t> marker_ids(int x, int y) const {
+        return marker_ids_at(Eigen::Vector2d(x + 0.5, y + 0.5));
+    }
+    /// The same for the ray through image point `at` (px; pixel (x, y) spans [x, x + 1) x
+    /// [y, y + 1)); outside the field none.
+    std::pair<std::int32_t, std::int32_t> marker_ids_at(const Eigen::Vector2d& at) const {
         std::int32_t ids[2] = {-1, -1};
-        const auto direction = camera.direction(Eigen::Vector2d(x + 0.5, y + 0.5));
+        const auto direction = camera.direction(at);
         if (!direction || triangles_per_marker < 1) return {-1, -1};
         // The hits past the inner surface (left out of the query: the ray goes straight
         // through it), the markers before the coating from one traversal (RayHits).

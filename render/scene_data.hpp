@@ -156,6 +156,15 @@ struct LightCacheSettings {
     /// refraction solve's tolerance; off only to measure what it saves (bench render
     /// --no-shadow-cull).
     bool cull_shadows = true;
+    /// Not part of the stored cache: near the rim the shadow rays' sphere model leaves the
+    /// layers below the rim plane, so the frame's plane blocks some of them (an artefact that
+    /// offsets the cache's light from under the frame: docs/VALIDATION.md, session 28). On:
+    /// the share of each LED's light it blocks is tabulated once per cache, on the sensor at
+    /// rest (64 LED points at each coating vertex and edge midpoint a shadow path can reach the
+    /// plane from), and taken off the LEDs' light there, where the shadow rays then leave the
+    /// plane out: the same mean without the noise it made in the field's outer ring
+    /// (session 31). Off only to measure it (bench render --no-frame-share).
+    bool frame_share = true;
 };
 
 /// The fast integrator's per-sensor light cache on the coating vertices (plain data, structure

@@ -145,13 +145,13 @@ Rgb ShadingModel::irradiance(const EmbreeScene& scene, const Vec3& p_mm, const V
 template <int N>
 LanesN<N> ShadingModel::transmittance(const EmbreeScene& scene, const Vec3& from_mm,
                                       const Vec3& to_mm, const LaneOptics<N>& lanes,
-                                      double tnear_mm) const {
+                                      double tnear_mm, bool frame) const {
     const Vec3 segment = to_mm - from_mm;
     const double length_mm = segment.norm();
     const double tfar_mm = length_mm - kHitGap_mm;
     if (!(tfar_mm > tnear_mm)) return LanesN<N>::Ones();
     const Vec3 w = segment / length_mm;
-    if (crosses_frame(from_mm, w, tnear_mm, tfar_mm)) return LanesN<N>::Zero();
+    if (frame && crosses_frame(from_mm, w, tnear_mm, tfar_mm)) return LanesN<N>::Zero();
     LanesN<N> result = LanesN<N>::Ones();
     MarkerPath path(tnear_mm);
     RayHits hits(scene, from_mm, w, tnear_mm, tfar_mm, kSeenThroughInterface);
@@ -249,11 +249,12 @@ template LanesN<kRgbLanes> ShadingModel::radiance(const EmbreeScene&, const Vec3
 template LanesN<kSpectralLanes> ShadingModel::radiance(const EmbreeScene&, const Vec3&, const Vec3&,
                                                        const LaneOptics<kSpectralLanes>&) const;
 template LanesN<kRgbLanes> ShadingModel::transmittance(const EmbreeScene&, const Vec3&, const Vec3&,
-                                                       const LaneOptics<kRgbLanes>&, double) const;
+                                                       const LaneOptics<kRgbLanes>&, double,
+                                                       bool) const;
 template LanesN<kSpectralLanes> ShadingModel::transmittance(const EmbreeScene&, const Vec3&,
                                                             const Vec3&,
                                                             const LaneOptics<kSpectralLanes>&,
-                                                            double) const;
+                                                            double, bool) const;
 
 template LanesN<kRgbLanes> ShadingModel::marker_absorption(const LaneOptics<kRgbLanes>&, bool,
                                                            double) const;

@@ -129,9 +129,12 @@ public:
     /// coating is in the way.
     /// `tnear_mm` > 0 skips the start of the segment (a start on a surface). The inner surface
     /// (the air / clear-layer interface) does not attenuate: callers that refract handle it.
+    /// A segment across the frame (crosses_frame) is blocked, unless `frame` is false (the
+    /// fast integrator's shadow rays where it takes the frame's share off apart).
     template <int N>
     LanesN<N> transmittance(const EmbreeScene& scene, const Vec3& from_mm, const Vec3& to_mm,
-                            const LaneOptics<N>& lanes, double tnear_mm = 0.0) const;
+                            const LaneOptics<N>& lanes, double tnear_mm = 0.0,
+                            bool frame = true) const;
     Rgb transmittance(const EmbreeScene& scene, const Vec3& from_mm, const Vec3& to_mm) const;
 
     /// Beer-Lambert transmittance exp(-absorption * path_mm) of `path_mm` inside a marker of

@@ -15,8 +15,9 @@
 ///   - newton(): Newton's method from a guessed direction (the fast integrator's per-vertex
 ///     table, a few hundredths of a radian off): about 3.4 evaluations of the mismatch and its
 ///     slope to 1e-9 at the bench's frame (docs/VALIDATION.md, session 20), 2.27 when it also
-///     stops after a step that turns the direction by less than 1e-4 rad (session 27);
-///     nothing where it would leave the bracket or does not get there, and the caller solves.
+///     stops after a step that turns the direction by less than 1e-4 rad (session 27), 1.33
+///     with the fast integrator's 1e-2 (session 31); nothing where it would leave the bracket
+///     or does not get there, and the caller solves.
 #include <Eigen/Core>
 
 #include <cmath>

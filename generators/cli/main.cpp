@@ -257,6 +257,11 @@ int main(int argc, char** argv) {
     bench_render->add_flag("!--no-shadow-cull", render_bench.light_cache.cull_shadows,
                            "fast integrator: trace every shadow ray, also those that provably "
                            "meet no marker (the same image; to measure what the culling saves)");
+    bench_render->add_flag("!--no-frame-share", render_bench.light_cache.frame_share,
+                           "fast integrator: let each shadow ray near the rim test the frame's "
+                           "plane, instead of taking the share it blocks off the LEDs' light "
+                           "once per cache (about the same mean, more noise in the field's "
+                           "outer ring; to measure what the share saves)");
     bench_render->add_flag("!--no-led-cull", render_bench.cull_reflected_leds,
                            "fast integrator: trace the LED rays (--reflected-led-spp) also in "
                            "the pixels that provably mirror no LED (the same image; to measure "
