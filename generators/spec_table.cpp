@@ -706,9 +706,9 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
         "defaults), with 2 % more rays, 3 % fewer and 5 % more. Finding the rims costs about "
         "7 ms at 224 px. 0.23.0 (the corners' rule, the frame's share apart): 2 spp with 8 on "
         "the rims, 4 where mirrored, 32 LED rays, 1 px filter and 0.5 px on the rims (the shipped "
-        "224 px specs) give 0.83 % at 1.5 N + 0.6 N in 86 ms and 0.90 % at 5 N + 2 N in 108 ms, "
-        "with 6 on the rims 0.90 % in 79 ms and 0.95 % in 103 ms (docs/VALIDATION.md, session "
-        "31).",
+        "224 px specs) give 0.83 % at 1.5 N + 0.6 N in 86 ms and 0.90 % at 5 N + 2 N in 101 to "
+        "108 ms, with 6 on the rims 0.90 % in 79 ms and 0.95 % in 98 to 103 ms on a 2-core Xeon "
+        "(docs/VALIDATION.md, session 31).",
         CHROMASIM_FIELD(render.fast.edge_samples_per_pixel)));
     out.push_back(integer(
         "render.fast.reflected_led_samples_per_pixel", 32, closed(0, 1024), "",
