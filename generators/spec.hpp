@@ -155,7 +155,7 @@ struct Spec {
             /// render::RenderSettings::reflection_samples_per_pixel
             int reflection_samples_per_pixel = 4;
             /// render::RenderSettings::edge_samples_per_pixel
-            int edge_samples_per_pixel = 8;
+            int edge_samples_per_pixel = 6;
             /// render::RenderSettings::reflected_led_samples_per_pixel
             int reflected_led_samples_per_pixel = 32;
             /// render::RenderSettings::shadow_rays_per_pixel

@@ -686,7 +686,7 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
         "and about 0 % less time (docs/VALIDATION.md).",
         CHROMASIM_FIELD(render.fast.reflection_samples_per_pixel)));
     out.push_back(integer(
-        "render.fast.edge_samples_per_pixel", 8, closed(0, 1024), "",
+        "render.fast.edge_samples_per_pixel", 6, closed(0, 1024), "",
         "Fast integrator: samples per pixel on the markers' rims: the pixels whose 4 corners' "
         "first marker of each layer are not all the same (8 to 11 % of the fisheye's circle at "
         "224 px; up to 0.22.0 the pixels whose centre's markers differed from one of its 8 "
@@ -704,10 +704,11 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
         "on the rims (the shipped 224 px specs) gives 0.92 % at 1.5 N + 0.6 N, 0.93 % at 5 N "
         "+ 2 N and 0.87 % at rest, against 0.96, 0.93 and 0.93 % with 6 and 16 (0.16.0's "
         "defaults), with 2 % more rays, 3 % fewer and 5 % more. Finding the rims costs about "
-        "7 ms at 224 px. 0.23.0 (the corners' rule, the frame's share apart): 2 spp with 8 on "
-        "the rims, 4 where mirrored, 32 LED rays, 1 px filter and 0.5 px on the rims (the shipped "
-        "224 px specs) give 0.83 % at 1.5 N + 0.6 N in 86 ms and 0.90 % at 5 N + 2 N in 101 to "
-        "108 ms, with 6 on the rims 0.90 % in 79 ms and 0.95 % in 98 to 103 ms on a 2-core Xeon "
+        "7 ms at 224 px. 0.23.0 (the corners' rule, the frame's share apart; 6 by default, 8 up "
+        "to 0.22.0): 2 spp with 6 on the rims, 4 where mirrored, 32 LED rays, 1 px filter and "
+        "0.5 px on the rims (the shipped 224 px specs) give 0.90 % at 1.5 N + 0.6 N in 75 to 79 "
+        "ms, 0.95 % at 5 N + 2 N in 93 to 103 ms and 0.87 % at rest in 67 ms on a 2-core Xeon; "
+        "8 on the rims 0.83, 0.90 and 0.79 % in 80 to 86, 99 to 108 and 74 ms "
         "(docs/VALIDATION.md, session 31).",
         CHROMASIM_FIELD(render.fast.edge_samples_per_pixel)));
     out.push_back(integer(

@@ -473,7 +473,7 @@ TEST_CASE("the render.fast keys reach the renderer's settings", "[generators][sp
         CHECK(r.shadow_filter_px == 1.0);
         CHECK(r.shadow_filter_rim_px == 0.5);
         CHECK(r.reflection_samples_per_pixel == 4);
-        CHECK(r.edge_samples_per_pixel == 8);
+        CHECK(r.edge_samples_per_pixel == 6);
         CHECK(r.reflected_led_samples_per_pixel == 32);
         CHECK(r.shadow_rays_per_pixel == 0);
     }
