@@ -669,9 +669,16 @@ void FastIntegrator::set_frame(const SensorFrame& frame, const EmbreeScene& scen
             }
             if (!m_guess.empty() && radius) {
                 // The culling's guess: the centre's direction and its change across the LED
-                // (central differences over the middle half of each side).
+                // (central differences over the middle half of each side), each by Newton
+                // from the centre's (the whole bracket where that fails), as the samples'
+                // shadow rays solve (1e-9 in the sines, then steps below 1e-4 rad).
                 const auto towards = [&](double u1, double u2) {
-                    return m_path.refracted_direction(p, m_path.led_point(k, u1, u2), *radius);
+                    SphereRefraction solver(p, m_path.led_point(k, u1, u2), *radius,
+                                            m_shading.optics().refractive_index);
+                    const auto near = model.squaredNorm() > 0.0
+                                          ? solver.newton(model, kShadowTolerance, 1e-4)
+                                          : std::nullopt;
+                    return near ? *near : solver.solve(kShadowTolerance);
                 };
                 const Vec3 across = 2.0 * (towards(0.75, 0.5) - towards(0.25, 0.5));
                 const Vec3 up = 2.0 * (towards(0.5, 0.75) - towards(0.5, 0.25));
