@@ -489,17 +489,26 @@ void FastIntegrator::tabulate_frame_share(const SensorFrame& rest, const EmbreeS
         if (const auto R = m_path.radius_below(bare, p)) radius[v] = float(*R);
     });
     std::vector<float> at_vertex(nv * leds, 0.0f), at_edge(m_edges.size() * leds, 0.0f);
-    const auto no_guess = [](std::uint32_t, int, double, double) { return Vec3::Zero(); };
+    const auto vertex = [&](std::uint32_t v) -> Vec3 {
+        return rest.coating.V.row(Eigen::Index(v)).cast<double>().transpose();
+    };
+    // Between vertices a and b (a == b: at the vertex), over the whole bracket.
+    const auto at_rest = [&](std::uint32_t a, std::uint32_t b, int k) {
+        const Vec3 p = 0.5 * (vertex(a) + vertex(b));
+        const double R = 0.5 * (double(radius[a]) + double(radius[b]));
+        return frame_share(p, R, [&](double u1, double u2) {
+            return sphere_exit(p, m_path.refracted_direction(p, m_path.led_point(k, u1, u2), R),
+                               R);
+        });
+    };
     tbb::parallel_for(std::size_t(0), nv, [&](std::size_t v) {
         for (std::size_t k = 0; k < leds; ++k)
-            at_vertex[v * leds + k] = frame_share_at(rest.coating, radius, {}, no_guess,
-                                                     std::uint32_t(v), std::uint32_t(v), int(k));
+            at_vertex[v * leds + k] = at_rest(std::uint32_t(v), std::uint32_t(v), int(k));
     });
     tbb::parallel_for(std::size_t(0), m_edges.size(), [&](std::size_t e) {
         const auto [a, b] = m_edges[e];
         for (std::size_t k = 0; k < leds; ++k)
-            at_edge[e * leds + k] =
-                frame_share_at(rest.coating, radius, {}, no_guess, a, b, int(k));
+            at_edge[e * leds + k] = at_rest(a, b, int(k));
     });
     // The (triangle, LED) pairs with a share at a corner or edge midpoint at rest, and their
     // corners' and edges' pairs, which each frame takes anew.
@@ -531,39 +540,18 @@ void FastIntegrator::tabulate_frame_share(const SensorFrame& rest, const EmbreeS
     m_frame_triangle = std::move(flagged);
 }
 
-template <class Guess>
-float FastIntegrator::frame_share_at(const SurfaceMesh& coating, const std::vector<float>& radius,
-                                     const std::vector<float>& correction, Guess&& guess,
-                                     std::uint32_t a, std::uint32_t b, int k) const {
-    // The point between corners a and b (a == b: the corner), as a sample there takes it.
-    const double R = 0.5 * (double(radius[a]) + double(radius[b]));
-    if (!(R > 0.0)) return 0.0f;
-    const Vec3 p = 0.5 * (coating.V.row(Eigen::Index(a)).cast<double>().transpose() +
-                          coating.V.row(Eigen::Index(b)).cast<double>().transpose());
+template <class Exit>
+float FastIntegrator::frame_share(const Vec3& p, double radius_mm, Exit&& exit_towards) const {
+    if (!(radius_mm > 0.0)) return 0.0f;
     // The path runs from where the model leaves the layers, at most the tangent's length from
     // p, to p: from a point higher than that above the plane it cannot cross it.
-    if (!(p.squaredNorm() > R * R) || p.z() > std::sqrt(p.squaredNorm() - R * R)) return 0.0f;
-    const double eta = m_shading.optics().refractive_index;
-    const std::size_t leds = std::size_t(m_cache->leds);
-    Vec3 offset = Vec3::Zero();
-    if (!correction.empty())
-        for (const std::uint32_t v : {a, b})
-            for (int x = 0; x < 3; ++x)
-                offset[x] += 0.5 * correction[3 * (std::size_t(v) * leds + std::size_t(k)) +
-                                              std::size_t(x)];
+    const double R2 = radius_mm * radius_mm;
+    if (!(p.squaredNorm() > R2) || p.z() > std::sqrt(p.squaredNorm() - R2)) return 0.0f;
     int blocked = 0;
     for (int i = 0; i < kFrameShareGrid; ++i)
         for (int j = 0; j < kFrameShareGrid; ++j) {
-            const double u1 = (i + 0.5) / kFrameShareGrid, u2 = (j + 0.5) / kFrameShareGrid;
-            // As shadow_exit: Newton from the frame's guess where there is one, else the
-            // whole bracket, plus the frame's correction.
-            SphereRefraction solver(p, m_path.led_point(k, u1, u2), R, eta);
-            const Vec3 g = 0.5 * (guess(a, k, u1 - 0.5, u2 - 0.5) + guess(b, k, u1 - 0.5, u2 - 0.5));
-            std::optional<Vec3> model;
-            if (g.norm() > 0.0)
-                model = solver.newton(g.normalized(), kShadowTolerance, kShadowStepTolerance);
-            const Vec3 w = ((model ? *model : solver.solve(kShadowTolerance)) + offset).normalized();
-            const auto exit = sphere_exit(p, w, R);
+            const std::optional<Vec3> exit =
+                exit_towards((i + 0.5) / kFrameShareGrid, (j + 0.5) / kFrameShareGrid);
             if (!exit) continue;
             const Vec3 segment = p - *exit;
             const double length = segment.norm();
@@ -576,22 +564,33 @@ float FastIntegrator::frame_share_at(const SurfaceMesh& coating, const std::vect
 void FastIntegrator::update_frame_share(const SensorFrame& frame) {
     if (m_frame_triangle.empty() || m_radius.empty()) return;
     const std::size_t leds = std::size_t(m_cache->leds);
-    const auto guess = [this](std::uint32_t v, int k, double d1, double d2) -> Vec3 {
-        return m_guess.empty() ? Vec3::Zero() : guessed_direction(v, k, d1, d2);
+    const auto vertex = [&](std::uint32_t v) -> Vec3 {
+        return frame.coating.V.row(Eigen::Index(v)).cast<double>().transpose();
+    };
+    // Between vertices a and b (a == b: at the vertex), as a sample there takes its shadow
+    // rays (shadow_exit: the frame's radius, guess and correction, interpolated).
+    const auto now = [&](std::uint32_t a, std::uint32_t b, int k) {
+        const std::array<std::uint32_t, 3> corners{a, b, a};
+        Lookup<kRgbLanes> at;
+        at.triangle = corners.data();
+        at.weights[0] = at.weights[1] = 0.5;
+        at.radius_mm = 0.5 * (double(m_radius[a]) + double(m_radius[b]));
+        const Vec3 p = 0.5 * (vertex(a) + vertex(b));
+        return frame_share(p, at.radius_mm, [&](double u1, double u2) {
+            return shadow_exit(at, p, k, u1, u2);
+        });
     };
     tbb::parallel_for(std::size_t(0), m_frame_vertex_pairs.size(), [&](std::size_t i) {
         const std::uint32_t pair = m_frame_vertex_pairs[i];
         const auto v = std::uint32_t(pair / leds);
-        m_frame_vertex[pair] =
-            frame_share_at(frame.coating, m_radius, m_shadow, guess, v, v, int(pair % leds));
+        m_frame_vertex[pair] = now(v, v, int(pair % leds));
     });
     tbb::parallel_for(std::size_t(0), m_frame_edge_pairs.size(), [&](std::size_t i) {
         const std::uint32_t pair = m_frame_edge_pairs[i];
         const std::size_t e = pair / leds, k = pair % leds;
         const auto [a, b] = m_edges[e];
-        m_frame_edge[pair] =
-            frame_share_at(frame.coating, m_radius, m_shadow, guess, a, b, int(k)) -
-            0.5f * (m_frame_vertex[a * leds + k] + m_frame_vertex[b * leds + k]);
+        m_frame_edge[pair] = now(a, b, int(k)) - 0.5f * (m_frame_vertex[a * leds + k] +
+                                                        m_frame_vertex[b * leds + k]);
     });
 }
 

@@ -349,16 +349,12 @@ private:
     /// coating and inner surface): which (triangle, LED) pairs take the frame's share apart
     /// (m_frame_triangle) and the corners' and edges' pairs each frame takes it at.
     void tabulate_frame_share(const SensorFrame& rest, const EmbreeScene& bare);
-    /// The frame's share of LED k's light at the midpoint of coating vertices a and b (a ==
-    /// b: at the vertex): of kFrameShareGrid^2 LED points (their cells' centres), the
-    /// fraction whose shadow path, as shadow_exit takes it (the sphere model of the mean
-    /// `radius` of a and b, Newton from the mean of `guess`(vertex, k, d1, d2) where it is
-    /// not zero, plus the mean `correction`, [(vertex * leds + k) * 3], none if empty),
-    /// crosses the frame's plane (ShadingModel::crosses_frame).
-    template <class Guess>
-    float frame_share_at(const SurfaceMesh& coating, const std::vector<float>& radius,
-                         const std::vector<float>& correction, Guess&& guess, std::uint32_t a,
-                         std::uint32_t b, int k) const;
+    /// The frame's share of an LED's light at p (the sphere model's radius below it
+    /// `radius_mm`): of kFrameShareGrid^2 points (u1, u2) of the LED (their cells' centres),
+    /// the fraction whose shadow path from where it leaves the layers, exit_towards(u1, u2)
+    /// (none: no path), to p crosses the frame's plane (ShadingModel::crosses_frame).
+    template <class Exit>
+    float frame_share(const Vec3& p, double radius_mm, Exit&& exit_towards) const;
     /// Per frame (after the frame's radii, corrections and guesses): the shares at the
     /// tabulated pairs, as the frame's shadow rays take their paths.
     void update_frame_share(const SensorFrame& frame);
