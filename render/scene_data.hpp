@@ -159,11 +159,11 @@ struct LightCacheSettings {
     /// Not part of the stored cache: near the rim the shadow rays' sphere model leaves the
     /// layers below the rim plane, so the frame's plane blocks some of them (an artefact that
     /// offsets the cache's light from under the frame: docs/VALIDATION.md, session 28). On:
-    /// the share of each LED's light it blocks is tabulated once per cache, on the sensor at
-    /// rest (64 LED points at each coating vertex and edge midpoint a shadow path can reach the
-    /// plane from), and taken off the LEDs' light there, where the shadow rays then leave the
-    /// plane out: the same mean without the noise it made in the field's outer ring
-    /// (session 31). Off only to measure it (bench render --no-frame-share).
+    /// per frame, the share of each LED's light it blocks is counted over 64 LED points at
+    /// the corners and edge midpoints of the coating triangles where it blocked any at rest,
+    /// and taken off the LEDs' light there, where the shadow rays then leave the plane out:
+    /// the same mean without the noise it made in the field's outer ring (session 31). Off
+    /// only to measure it (bench render --no-frame-share).
     bool frame_share = true;
 };
 
