@@ -286,6 +286,7 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
         s.integrator = integrator_of(integrator);
         s.batch_pixels = o.batch_pixels;
         s.cull_reflected_leds = o.cull_reflected_leds;
+        if (!o.keep_camera_samples) s.camera_cache_mb = 0.0;
         return s;
     };
     render::Image ref;
@@ -359,6 +360,7 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
            "circle % | max error % |\n"
         << "|---|---|---|---|---|---|---|---|\n";
     std::map<std::string, std::pair<double, double>> rays; // mode -> (rays, seconds)
+    std::map<std::string, std::size_t> kept;                // mode -> camera samples kept, bytes
     for (const std::string& integrator : o.integrators)
         for (const std::string& mode : o.modes) {
             render::Renderer renderer(camera, mode == "rgb" ? rgb : spectral);
@@ -432,6 +434,7 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
                     renderer.count_rays(true);
                     renderer.render(rs);
                     rays[integrator + " " + mode] = {double(renderer.rays_counted()), t};
+                    kept[integrator + " " + mode] = renderer.camera_samples_bytes();
                     renderer.count_rays(false);
                 }
                 std::ostringstream name;
@@ -529,7 +532,11 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
         out << mode << " at " << o.samples_per_pixel.front() << " spp: " << std::setprecision(0)
             << counted.first << " rays (Embree traversals), " << std::setprecision(2) << rate / 1e6
             << " M rays/s; time outside Embree at most about " << std::setprecision(0)
-            << 100 * std::max(0.0, 1.0 - rate / raw_rate) << " %\n";
+            << 100 * std::max(0.0, 1.0 - rate / raw_rate) << " %";
+        if (const std::size_t bytes = kept[mode]; bytes > 0)
+            out << "; camera samples kept from render to render: " << std::setprecision(1)
+                << double(bytes) / (1024.0 * 1024.0) << " MiB";
+        out << "\n";
     }
 }
 

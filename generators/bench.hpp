@@ -61,6 +61,9 @@ struct RenderBenchOptions {
     /// Fast integrator: skip the LED rays of pixels that provably mirror no LED
     /// (RenderSettings::cull_reflected_leds; false: trace them, the same image).
     bool cull_reflected_leds = true;
+    /// Fast integrator: keep the camera samples at the main count from render to render
+    /// (RenderSettings::camera_cache_mb; false: 0, drawn anew each render, the same image).
+    bool keep_camera_samples = true;
     /// Fast integrator: the shadow filters to time, px (RenderSettings::shadow_filter_px;
     /// 0: none), each at every spp. The reference never has one.
     std::vector<double> shadow_filter_px{0.0};

@@ -32,8 +32,6 @@ constexpr double kConnectMaxStep = 0.1;
 /// starts may find the same); the solves stop within 1e-6 mm on the LED plane, some 20 mm
 /// away.
 constexpr double kSameConnection = 1e-6;
-/// Central-difference step on the direction (rad) for the connection's Jacobian.
-constexpr double kJacobianStep = 1e-6;
 
 /// Power heuristic weight of the strategy with density `a` against `b`.
 double power_heuristic(double a, double b) {
@@ -48,15 +46,35 @@ struct PlanePoint {
     double fresnel; ///< (1 - F) of the refraction, times F of the reflection
 };
 
+/// Columns: derivatives of a vector with respect to the direction's two tangent coordinates.
+using Tangents = Eigen::Matrix<double, 3, 2>;
+
+/// The derivative of v / |v| from v's, `unit` = v / |v|.
+Tangents normalized_derivative(const Vec3& unit, double length, const Tangents& dv) {
+    return (dv - unit * (unit.transpose() * dv)) / length;
+}
+
 /// p (inside the clear layers) along w through the events of `chain` on the planes of
 /// `tris` (normals interpolated from the vertex normals, linearly extrapolated off the
 /// triangle): refract into the air (index 1) at the first, reflect off the second from the
-/// cavity side; then on to the plane z = led_z.
+/// cavity side; then on to the plane z = led_z. With `J`, also the 2 x 2 Jacobian of the
+/// LED-plane point (x, y) with respect to w in the tangent coordinates (b1, b2) of w
+/// (orthonormal_basis; an isometry to first order, so |det J| is per steradian), carried
+/// exactly through each step with the value (forward differences took two more passes; the
+/// Fresnel factors are not differentiated).
 std::optional<PlanePoint> to_led_plane(const EmbreeScene::Triangle* tris, Chain chain,
-                                       const Vec3& p, const Vec3& w, double eta, double led_z) {
+                                       const Vec3& p, const Vec3& w, double eta, double led_z,
+                                       Eigen::Matrix2d* J = nullptr) {
     PlanePoint out{};
     out.fresnel = 1.0;
     Vec3 pos = p, dir = w;
+    // d pos and d dir: none and the tangents at the start.
+    Tangents dpos = Tangents::Zero(), ddir;
+    if (J) {
+        Vec3 b1, b2;
+        orthonormal_basis(w, b1, b2);
+        ddir << b1, b2;
+    }
     for (int k = 0; k < chain_length(chain); ++k) {
         const EmbreeScene::Triangle& t = tris[k];
         const Vec3 e1 = t.p[1] - t.p[0], e2 = t.p[2] - t.p[0];
@@ -73,46 +91,66 @@ std::optional<PlanePoint> to_led_plane(const EmbreeScene::Triangle* tris, Chain 
         const double det = d00 * d11 - d01 * d01;
         if (!(det > 0.0)) return std::nullopt;
         const double b1 = (d11 * d20 - d01 * d21) / det, b2 = (d00 * d21 - d01 * d20) / det;
-        Vec3 n = (1.0 - b1 - b2) * t.n[0] + b1 * t.n[1] + b2 * t.n[2];
-        if (!(n.norm() > 0.0)) return std::nullopt;
-        n = facing(n.normalized(), dir);
+        const Vec3 n_raw = (1.0 - b1 - b2) * t.n[0] + b1 * t.n[1] + b2 * t.n[2];
+        const double n_length = n_raw.norm();
+        if (!(n_length > 0.0)) return std::nullopt;
+        const double flip = n_raw.dot(dir) > 0.0 ? -1.0 : 1.0; // facing(): against dir
+        const Vec3 n = flip * n_raw / n_length;
         const double cos_i = -dir.dot(n);
+        // The derivatives of x, then of the normal through the barycentrics.
+        Tangents dx, dn;
+        if (J) {
+            const Eigen::RowVector2d ds =
+                -(ng.transpose() * dpos + s * (ng.transpose() * ddir)) / denom;
+            dx = dpos + dir * ds + s * ddir;
+            const Eigen::RowVector2d db1 = (d11 * e1 - d01 * e2).transpose() * dx / det;
+            const Eigen::RowVector2d db2 = (d00 * e2 - d01 * e1).transpose() * dx / det;
+            dn = normalized_derivative(n, n_length,
+                                       flip * ((t.n[1] - t.n[0]) * db1 + (t.n[2] - t.n[0]) * db2));
+        }
         if (k == 0) { // out of the layers
-            Vec3 refracted;
-            if (!refract(dir, n, eta, refracted)) return std::nullopt; // total reflection
+            const double sin2_t = eta * eta * (1.0 - cos_i * cos_i);
+            if (sin2_t >= 1.0) return std::nullopt; // total reflection
+            const double cos_t = std::sqrt(1.0 - sin2_t);
             out.fresnel *= 1.0 - fresnel_dielectric(cos_i, eta);
+            // refract(), with its derivative.
+            const Vec3 raw = eta * dir + (eta * cos_i - cos_t) * n;
+            const double length = raw.norm();
+            const Vec3 refracted = raw / length;
+            if (J) {
+                const Eigen::RowVector2d dcos_i = -(n.transpose() * ddir + dir.transpose() * dn);
+                const Eigen::RowVector2d dcos_t = (eta * eta * cos_i / cos_t) * dcos_i;
+                ddir = normalized_derivative(refracted, length,
+                                             eta * ddir + n * (eta * dcos_i - dcos_t) +
+                                                 (eta * cos_i - cos_t) * dn);
+            }
             dir = refracted;
         } else { // off the surface, from the air
             out.fresnel *= fresnel_dielectric(cos_i, 1.0 / eta);
-            dir = (dir + 2.0 * cos_i * n).normalized();
+            const Vec3 raw = dir + 2.0 * cos_i * n;
+            const double length = raw.norm();
+            const Vec3 reflected = raw / length;
+            if (J) {
+                const Eigen::RowVector2d dcos_i = -(n.transpose() * ddir + dir.transpose() * dn);
+                ddir = normalized_derivative(reflected, length,
+                                             ddir + 2.0 * n * dcos_i + 2.0 * cos_i * dn);
+            }
+            dir = reflected;
         }
         out.x[k] = pos = x;
+        if (J) dpos = dx;
     }
     if (!(dir.z() < 0.0)) return std::nullopt;
     const double r = (led_z - pos.z()) / dir.z();
     if (!(r > 0.0)) return std::nullopt;
     out.l = pos + r * dir;
-    return out;
-}
-
-/// 2 x 2 Jacobian of the LED-plane point (x, y) with respect to the direction w, in the
-/// tangent coordinates (b1, b2) of w (an isometry to first order: |det| is per steradian), by
-/// forward differences from `at_w`, the point of w itself (two evaluations where central
-/// differences take four; the step's truncation error, about 1e-6 relative, is far below
-/// what the Newton steps and the flux need).
-bool led_plane_jacobian(const EmbreeScene::Triangle* tris, Chain chain, const Vec3& p,
-                        const Vec3& w, const Vec3& at_w, double eta, double led_z,
-                        Eigen::Matrix2d& J) {
-    Vec3 b1, b2;
-    orthonormal_basis(w, b1, b2);
-    const Vec3 tangents[2] = {b1, b2};
-    for (int c = 0; c < 2; ++c) {
-        const auto plus = to_led_plane(tris, chain, p,
-                                       (w + kJacobianStep * tangents[c]).normalized(), eta, led_z);
-        if (!plus) return false;
-        J.col(c) = (plus->l - at_w).head<2>() / kJacobianStep;
+    if (J) {
+        const Eigen::RowVector2d dr = -(dpos.row(2) + r * ddir.row(2)) / dir.z();
+        const Tangents dl = dpos + dir * dr + r * ddir;
+        *J = dl.topRows<2>();
+        if (!J->allFinite()) return std::nullopt;
     }
-    return J.allFinite();
+    return out;
 }
 
 /// The point on the circle of radius R about the origin, in the plane of unit vectors e1, e2,
@@ -297,10 +335,9 @@ std::optional<InterfaceConnection> PathIntegrator::along(const EmbreeScene& scen
     for (int k = 0; k < chain_length(chain); ++k)
         tris[k] = scene.interface_triangle(prims[k]);
     const double led_z = m_shading.optics().led_z_mm;
-    const auto point = to_led_plane(tris, chain, p, w, m_eta, led_z);
     Eigen::Matrix2d J;
-    if (!point || !led_plane_jacobian(tris, chain, p, w, point->l, m_eta, led_z, J))
-        return std::nullopt;
+    const auto point = to_led_plane(tris, chain, p, w, m_eta, led_z, &J);
+    if (!point) return std::nullopt;
     if (landed) *landed = point->l;
     InterfaceConnection c;
     c.direction = w;
@@ -389,10 +426,9 @@ std::optional<InterfaceConnection> PathIntegrator::solve_connection(const Embree
             pos = pos + hit.t_mm * d;
             d = out;
         }
-        const auto point = to_led_plane(tris, chain, p, dir, m_eta, led_z);
         Eigen::Matrix2d J;
-        if (!point || !led_plane_jacobian(tris, chain, p, dir, point->l, m_eta, led_z, J))
-            return std::nullopt;
+        const auto point = to_led_plane(tris, chain, p, dir, m_eta, led_z, &J);
+        if (!point) return std::nullopt;
         Iterate it;
         it.c.direction = dir;
         for (int k = 0; k < n; ++k) {

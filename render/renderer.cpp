@@ -58,6 +58,7 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <numbers>
 #include <optional>
 #include <span>
@@ -274,16 +275,116 @@ struct Renderer::Impl {
         std::span<int> inside;
         std::span<LedSums> led; ///< empty, or one per pixel: the LEDs by reflection apart
     };
+    /// Pixel (x, y)'s index in the image, row by row: its streams' and seeds' name.
+    std::uint64_t pixel_index(int x, int y) const {
+        return std::uint64_t(y) * std::uint64_t(camera.width_px()) + std::uint64_t(x);
+    }
+    /// The fast integrator's seeds of pixel (x, y): its own, with the shadow rays' Sobol
+    /// points shared by each 2 x 2 block of pixels (shadow_uniforms), the pixel's quad row by
+    /// row within its block.
+    detail::PixelSeeds pixel_seeds(std::uint64_t seed, int x, int y) const {
+        const auto px = std::uint64_t(x), py = std::uint64_t(y);
+        const std::uint64_t blocks_per_row = (std::uint64_t(camera.width_px()) + 1) / 2;
+        return detail::PixelSeeds(seed, pixel_index(x, y), (py / 2) * blocks_per_row + px / 2,
+                                  std::uint32_t(px % 2 + 2 * (py % 2)));
+    }
+    /// The fast integrator's shadow rays a pixel of `count` samples traces
+    /// (RenderSettings::shadow_rays_per_pixel): at least one a sample, at most
+    /// kMaxShadowRaysPerSample a sample.
+    static int shadow_rays(const RenderSettings& settings, int count) {
+        return std::clamp(settings.shadow_rays_per_pixel, count,
+                          detail::kMaxShadowRaysPerSample * count);
+    }
+    /// The shading's stream of a fast-integrator pixel (the shade's own draws, where a shadow
+    /// ray has no stratified uniforms): the pixel's seed changed by this, apart from the
+    /// camera draws' stream, so that the camera samples can be kept between frames
+    /// (CameraSamples) and be the same as drawn anew.
+    static constexpr std::uint64_t kShadeSeed = 0x5348414445535431ull;
+    /// Sample k of a fast-integrator pixel: its camera direction (draw) and hero-wavelength
+    /// set (0 in RGB mode); none outside the field.
+    std::optional<std::pair<Vec3, int>> fast_draw(int x, int y, int k, int nx, int ny,
+                                                  detail::PixelRng& rng,
+                                                  const detail::PixelSeeds& seeds) const {
+        const Draw d = draw(x, y, k, nx, ny, rng, seeds);
+        if (!d.direction) return std::nullopt;
+        const int hero =
+            hero_sets.empty() ? 0 : std::clamp(int(d.u_lambda * kHeroSets), 0, kHeroSets - 1);
+        return std::make_pair(*d.direction, hero);
+    }
+    /// The fast integrator's camera samples at samples_per_pixel (the image's bulk; the rims
+    /// and the mirrored pixels take other counts), as fast_draw and shadow_uniforms give them:
+    /// they depend only on the seed, the count and the shadow rays, not on the frame, and a
+    /// dataset renders all its frames with its spec's seed (RenderSettings::camera_cache_mb).
+    struct CameraSamples {
+        static constexpr std::uint16_t kOutside = 0xFFFF; ///< hero: the sample is outside
+        std::uint64_t seed = 0;
+        int count = 0, rays = 0;
+        std::vector<std::int32_t> slot; ///< per pixel: its samples' place; -1: outside the field
+        std::vector<Vec3> direction;     ///< `count` a slot
+        std::vector<std::uint16_t> hero; ///< `count` a slot: the hero set, or kOutside
+        std::vector<std::array<double, 3>> uniforms; ///< `rays` a slot: shadow_uniforms
+    };
+    mutable std::mutex camera_samples_mutex;
+    mutable std::shared_ptr<const CameraSamples> camera_samples;
+    /// The kept camera samples for these settings, drawn now where the seed, the count or
+    /// the shadow rays changed; none where they would take more than camera_cache_mb (then
+    /// each frame draws them anew, the same samples).
+    std::shared_ptr<const CameraSamples> main_samples(const RenderSettings& settings) const {
+        const int count = settings.samples_per_pixel, rays = shadow_rays(settings, count);
+        const std::lock_guard lock(camera_samples_mutex);
+        const auto& kept = camera_samples;
+        if (kept && kept->seed == settings.seed && kept->count == count && kept->rays == rays)
+            return kept;
+        camera_samples.reset(); // the old samples' memory freed before the new is taken
+        const int width = camera.width_px(), height = camera.height_px();
+        auto c = std::make_shared<CameraSamples>();
+        c->seed = settings.seed, c->count = count, c->rays = rays;
+        c->slot.assign(std::size_t(width) * std::size_t(height), -1);
+        std::size_t slots = 0;
+        for (int y = 0; y < height; ++y)
+            for (int x = 0; x < width; ++x)
+                if (camera.field_coverage(x, y) > 0.0)
+                    c->slot[pixel_index(x, y)] = std::int32_t(slots++);
+        const double bytes =
+            double(c->slot.size()) * sizeof(std::int32_t) +
+            double(slots) * (double(count) * (sizeof(Vec3) + sizeof(std::uint16_t)) +
+                             double(rays) * sizeof(std::array<double, 3>));
+        if (!(bytes <= settings.camera_cache_mb * 1024.0 * 1024.0)) return nullptr;
+        c->direction.resize(slots * std::size_t(count));
+        c->hero.resize(slots * std::size_t(count));
+        c->uniforms.resize(slots * std::size_t(rays));
+        const auto [nx, ny] = detail::strata_grid(count);
+        tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const auto& rows) {
+            for (int y = rows.begin(); y != rows.end(); ++y)
+                for (int x = 0; x < width; ++x) {
+                    const std::int32_t slot = c->slot[pixel_index(x, y)];
+                    if (slot < 0) continue;
+                    detail::PixelRng rng(settings.seed, pixel_index(x, y));
+                    const detail::PixelSeeds seeds = pixel_seeds(settings.seed, x, y);
+                    for (int k = 0; k < count; ++k) {
+                        const std::size_t i = std::size_t(slot) * std::size_t(count) + k;
+                        const auto d = fast_draw(x, y, k, nx, ny, rng, seeds);
+                        c->direction[i] = d ? d->first : Vec3::Zero();
+                        c->hero[i] = d ? std::uint16_t(d->second) : CameraSamples::kOutside;
+                    }
+                    for (int r = 0; r < rays; ++r)
+                        c->uniforms[std::size_t(slot) * std::size_t(rays) + std::size_t(r)] =
+                            detail::shadow_uniforms(r, rays, seeds);
+                }
+        });
+        camera_samples = c;
+        return c;
+    }
     /// The stream of the rays for the LEDs seen by reflection: the pixel's own seed and index,
     /// the seed changed by this, so that they are independent of the pixel's samples.
     static constexpr std::uint64_t kReflectedLedSeed = 0x4C45445245464C31ull;
     void sample_pixels_fast(int x, int y, int pixels, int nx, int ny,
-                            const RenderSettings& settings, double scale,
-                            const PixelSums& out) const {
+                            const RenderSettings& settings, double scale, const PixelSums& out,
+                            const CameraSamples* cached) const {
         if (hero_sets.empty())
-            batches<detail::kRgbLanes>(x, y, pixels, nx, ny, settings, scale, out);
+            batches<detail::kRgbLanes>(x, y, pixels, nx, ny, settings, scale, out, cached);
         else
-            batches<detail::kSpectralLanes>(x, y, pixels, nx, ny, settings, scale, out);
+            batches<detail::kSpectralLanes>(x, y, pixels, nx, ny, settings, scale, out, cached);
         if (!out.led.empty()) reflected_leds(x, y, pixels, settings, out.led);
     }
     /// RenderSettings::cull_reflected_leds: the pixel's mirrored footprint on the LEDs' plane
@@ -407,13 +508,10 @@ struct Renderer::Impl {
     static constexpr int kMaxBatchPixels = 16;
     template <int N>
     void batches(int x, int y, int pixels, int nx, int ny, const RenderSettings& settings,
-                 double scale, const PixelSums& out) const {
+                 double scale, const PixelSums& out, const CameraSamples* cached) const {
         const int count = nx * ny;
         const bool split = !out.direct.empty();
-        // A pixel's shadow rays (RenderSettings::shadow_rays_per_pixel): at least one a
-        // sample, at most kMaxShadowRaysPerSample a sample.
-        const int rays = std::clamp(settings.shadow_rays_per_pixel, count,
-                                    detail::kMaxShadowRaysPerSample * count);
+        const int rays = shadow_rays(settings, count);
         const auto groups = std::size_t(split ? fast.shadow_groups() : 0);
         const detail::LaneOptics<N> rgb = [&] {
             if constexpr (N == detail::kRgbLanes)
@@ -421,18 +519,19 @@ struct Renderer::Impl {
             else
                 return detail::LaneOptics<N>{};
         }();
-        std::array<std::optional<detail::PixelRng>, kMaxBatchPixels> rngs;
+        // The camera draws' streams and seeds (none where the samples are cached), and the
+        // shading's streams (kShadeSeed: apart from the draws, so that a cached sample is
+        // the one drawn anew).
+        std::array<std::optional<detail::PixelRng>, kMaxBatchPixels> rngs, shade_rngs;
         std::array<std::optional<detail::PixelSeeds>, kMaxBatchPixels> seeds;
         for (int j = 0; j < pixels; ++j) {
-            const std::uint64_t index =
-                std::uint64_t(y) * std::uint64_t(camera.width_px()) + std::uint64_t(x + j);
-            rngs[std::size_t(j)].emplace(settings.seed, index);
-            // The shadow rays' Sobol points shared by each 2 x 2 block of pixels
-            // (shadow_uniforms), the pixel's quad row by row within its block.
-            const std::uint64_t px = std::uint64_t(x + j), py = std::uint64_t(y);
-            const std::uint64_t blocks_per_row = (std::uint64_t(camera.width_px()) + 1) / 2;
-            seeds[std::size_t(j)].emplace(settings.seed, index, (py / 2) * blocks_per_row + px / 2,
-                                          std::uint32_t(px % 2 + 2 * (py % 2)));
+            const std::uint64_t index = pixel_index(x + j, y);
+            // A pixel wholly outside the field draws nothing (as CameraSamples keeps none).
+            if (!cached && camera.field_coverage(x + j, y) > 0.0) {
+                rngs[std::size_t(j)].emplace(settings.seed, index);
+                seeds[std::size_t(j)].emplace(pixel_seeds(settings.seed, x + j, y));
+            }
+            shade_rngs[std::size_t(j)].emplace(settings.seed ^ kShadeSeed, index);
             out.sums[std::size_t(j)] = detail::Rgb::Zero();
             out.inside[std::size_t(j)] = 0;
             if (!out.sum2.empty()) out.sum2[std::size_t(j)] = detail::Rgb::Zero();
@@ -458,28 +557,42 @@ struct Renderer::Impl {
             std::size_t m = 0;
             for (int s = first; s < std::min(total, first + size); ++s) {
                 const int j = s / count, k = s % count;
-                detail::PixelRng& rng = *rngs[std::size_t(j)];
-                const detail::PixelSeeds& seed = *seeds[std::size_t(j)];
-                const Draw d = draw(x + j, y, k, nx, ny, rng, seed);
-                if (!d.direction) continue;
-                ++out.inside[std::size_t(j)];
-                directions[m] = *d.direction;
                 // The sample's shadow rays: the pixel's `rays` spread evenly over its samples
                 // (at least one each), their uniforms stratified over the pixel's rays.
                 const int r0 = k * rays / count, r1 = (k + 1) * rays / count;
-                shadow[m] = {.rays = r1 - r0};
-                for (int r = r0; r < r1; ++r) {
-                    const std::array<double, 3> u = detail::shadow_uniforms(r, rays, seed);
-                    if (r == r0)
-                        shadow[m].u_led = u[0], shadow[m].u1 = u[1], shadow[m].u2 = u[2];
-                    else
-                        shadow[m].further[std::size_t(r - r0 - 1)] = u;
+                std::array<std::array<double, 3>, detail::kMaxShadowRaysPerSample> u;
+                Vec3 direction;
+                int hero = 0;
+                if (cached) {
+                    const std::int32_t slot = cached->slot[pixel_index(x + j, y)];
+                    if (slot < 0) continue;
+                    const std::size_t i = std::size_t(slot) * std::size_t(count) + std::size_t(k);
+                    if (cached->hero[i] == CameraSamples::kOutside) continue;
+                    direction = cached->direction[i];
+                    hero = cached->hero[i];
+                    for (int r = r0; r < r1; ++r)
+                        u[std::size_t(r - r0)] =
+                            cached->uniforms[std::size_t(slot) * std::size_t(rays) + std::size_t(r)];
+                } else {
+                    if (!rngs[std::size_t(j)]) continue;
+                    const auto d = fast_draw(x + j, y, k, nx, ny, *rngs[std::size_t(j)],
+                                             *seeds[std::size_t(j)]);
+                    if (!d) continue;
+                    direction = d->first;
+                    hero = d->second;
+                    for (int r = r0; r < r1; ++r)
+                        u[std::size_t(r - r0)] =
+                            detail::shadow_uniforms(r, rays, *seeds[std::size_t(j)]);
                 }
-                streams[m] = &rng;
+                ++out.inside[std::size_t(j)];
+                directions[m] = direction;
+                shadow[m] = {.u_led = u[0][0], .u1 = u[0][1], .u2 = u[0][2], .rays = r1 - r0};
+                for (int r = r0 + 1; r < r1; ++r)
+                    shadow[m].further[std::size_t(r - r0 - 1)] = u[std::size_t(r - r0)];
+                streams[m] = &*shade_rngs[std::size_t(j)];
                 owner[m] = j;
                 if constexpr (N == detail::kSpectralLanes) {
-                    const HeroSet& h = hero_sets[std::size_t(
-                        std::clamp(int(d.u_lambda * kHeroSets), 0, kHeroSets - 1))];
+                    const HeroSet& h = hero_sets[std::size_t(hero)];
                     sets[m] = &h, lanes[m] = &h.lanes, lambda[m] = &h.cache_lambdas;
                 } else {
                     lanes[m] = &rgb, lambda[m] = nullptr;
@@ -842,6 +955,11 @@ Image Renderer::render(const RenderSettings& settings) const {
                                     std::to_string(settings.edge_samples_per_pixel) +
                                     " is invalid; allowed: integer >= 0 (0: none extra)");
     }
+    if (!(settings.camera_cache_mb >= 0.0)) {
+        throw std::invalid_argument("RenderSettings: camera_cache_mb = " +
+                                    std::to_string(settings.camera_cache_mb) +
+                                    " is invalid; allowed: >= 0 MiB (0: none kept)");
+    }
     if (settings.integrator == Integrator::fast && !m_impl->fast.has_cache()) {
         throw std::logic_error("Renderer::render: Integrator::fast needs set_light_cache first");
     }
@@ -883,6 +1001,9 @@ Image Renderer::render(const RenderSettings& settings) const {
     const auto [nx_mirror, ny_mirror] = detail::strata_grid(std::max(n_mirror, 1));
     const auto [nx_edge, ny_edge] = detail::strata_grid(std::max(n_edge, 1));
     const int edge_batch = batch_at(n_edge), mirror_batch = batch_at(n_mirror);
+    // The camera samples at samples_per_pixel, kept from frame to frame where they fit.
+    const std::shared_ptr<const Impl::CameraSamples> cached =
+        fast && settings.camera_cache_mb > 0.0 ? m.main_samples(settings) : nullptr;
     // The shadow filter's inputs: each pixel's direct light with and without the shadows.
     const bool filter = fast && settings.shadow_filter_px > 0.0;
     // Per shadow group g (render/shadow_filter.hpp): 9 floats a group and pixel, 216 bytes a
@@ -1002,7 +1123,8 @@ Image Renderer::render(const RenderSettings& settings) const {
                                           std::span(inside.data(), std::size_t(pixels)),
                                           level == 2 && n_led > 0
                                               ? std::span(led.data(), std::size_t(pixels))
-                                              : std::span<Impl::LedSums>{}});
+                                              : std::span<Impl::LedSums>{}},
+                                         level == 0 ? cached.get() : nullptr);
                 } else {
                     sum2[0] = detail::Rgb::Zero();
                     sums[0] = m.sample_pixel(x, y, nx, ny, settings, scale,
@@ -1034,6 +1156,15 @@ Image Renderer::render(const RenderSettings& settings) const {
 
 std::optional<Eigen::Vector2d> Renderer::project(const Vec3& p_mm) const {
     return m_impl->camera.project(p_mm);
+}
+
+std::size_t Renderer::camera_samples_bytes() const {
+    const std::lock_guard lock(m_impl->camera_samples_mutex);
+    const auto& c = m_impl->camera_samples;
+    if (!c) return 0;
+    return c->slot.size() * sizeof(std::int32_t) + c->direction.size() * sizeof(Vec3) +
+           c->hero.size() * sizeof(std::uint16_t) +
+           c->uniforms.size() * sizeof(std::array<double, 3>);
 }
 
 void Renderer::count_rays(bool on) {

@@ -54,6 +54,10 @@ public:
     /// image circle. Exposed for tests and label overlays.
     std::optional<Eigen::Vector2d> project(const Vec3& p_mm) const;
 
+    /// The memory the fast integrator's kept camera samples take (RenderSettings::
+    /// camera_cache_mb), bytes; 0 while none are kept.
+    std::size_t camera_samples_bytes() const;
+
     /// Benchmarks: count the rays the next renders trace (EmbreeScene::count_rays).
     void count_rays(bool on);
     std::uint64_t rays_counted() const;

@@ -266,6 +266,10 @@ int main(int argc, char** argv) {
                            "fast integrator: trace the LED rays (--reflected-led-spp) also in "
                            "the pixels that provably mirror no LED (the same image; to measure "
                            "what skipping them saves)");
+    bench_render->add_flag("!--no-camera-cache", render_bench.keep_camera_samples,
+                           "fast integrator: draw the camera samples anew for every render "
+                           "instead of keeping them from the first (the same image; to measure "
+                           "what keeping them saves)");
     bench_render->add_flag("!--no-batch-pixels", render_bench.batch_pixels,
                            "fast integrator: trace each pixel's samples alone, never with its "
                            "neighbours' in one packet (the same image; to measure what the "

@@ -551,6 +551,79 @@ TEST_CASE("fast integrator: neighbouring pixels traced together give each pixel 
     }
 }
 
+TEST_CASE("fast integrator: the camera samples kept from render to render give every frame the "
+          "bytes it gets with them drawn anew, through changes of frame, seed, count and shadow "
+          "rays, in RGB and spectral mode, and none kept beyond the budget",
+          "[render][fast]") {
+    const SensorFrame rest = dome_with_box_markers();
+    const SensorFrame pressed = pressed_flat(rest);
+    const OpticsParams spectral = spectral_optics();
+    struct Step {
+        const SensorFrame* frame;
+        int spp;
+        std::uint64_t seed;
+        int shadow_rays;
+    };
+    // Each step changes one thing the kept samples depend on, or the frame alone.
+    const std::array<Step, 6> steps{{{&rest, 2, 11, 0},
+                                     {&pressed, 2, 11, 0},
+                                     {&pressed, 2, 12, 0},
+                                     {&pressed, 3, 12, 0},
+                                     {&pressed, 3, 12, 7},
+                                     {&rest, 2, 11, 0}}};
+    for (const OpticsParams& optics : {OpticsParams{}, spectral}) {
+        // 23 px wide: batches of 16 / n pixels end part-way along each row.
+        Renderer kept(CameraParams{23, 17, 84.0}, optics), anew(CameraParams{23, 17, 84.0}, optics);
+        small_cache_on(kept, rest, rest);
+        small_cache_on(anew, rest, rest);
+        CHECK(kept.camera_samples_bytes() == 0);
+        std::vector<float> previous;
+        for (const Step& step : steps) {
+            kept.set_frame(*step.frame);
+            anew.set_frame(*step.frame);
+            RenderSettings settings = fast_with_variance(step.spp, step.seed);
+            settings.shadow_rays_per_pixel = step.shadow_rays;
+            // With the rims, the mirrored pixels and the filter: the kept samples serve the
+            // pixels at samples_per_pixel alone.
+            settings.edge_samples_per_pixel = 5;
+            settings.reflection_samples_per_pixel = 8;
+            settings.shadow_filter_px = 1.0;
+            const Image with = kept.render(settings);
+            // The kept samples: every pixel's samples and shadow rays (17 x 23 pixels, most
+            // in the field).
+            const std::size_t bytes = kept.camera_samples_bytes();
+            CHECK(bytes > 17 * 23 * 4 + 200 * std::size_t(step.spp) * (sizeof(Vec3) + 2));
+            // Drawn anew, by a renderer that keeps none: the same bytes.
+            settings.camera_cache_mb = 0.0;
+            const Image without = anew.render(settings);
+            CHECK(anew.camera_samples_bytes() == 0);
+            INFO("spectral " << bool(optics.spectra) << ", " << step.spp << " spp, seed "
+                             << step.seed << ", " << step.shadow_rays << " shadow rays");
+            double lit = 0.0;
+            for (const float v : with.rgb)
+                lit += v;
+            CHECK(lit > 0.0);
+            CHECK(with.rgb == without.rgb);
+            CHECK(with.variance == without.variance);
+            CHECK(with.rgb != previous); // each step changes the image: the check can fail
+            previous = with.rgb;
+        }
+        // A budget below what they take: none kept, the same bytes.
+        Renderer small(CameraParams{23, 17, 84.0}, optics);
+        small_cache_on(small, rest, rest);
+        RenderSettings settings = fast_with_variance(2, 11);
+        settings.camera_cache_mb = 1e-3; // 1 kB
+        CHECK(small.render(settings).rgb == anew.render(settings).rgb);
+        CHECK(small.camera_samples_bytes() == 0);
+    }
+    Renderer renderer(CameraParams{8, 8, 84.0}, OpticsParams{});
+    small_cache_on(renderer, rest, rest);
+    RenderSettings settings = fast_with_variance(2, 11);
+    settings.camera_cache_mb = -1.0;
+    CHECK_THROWS_WITH(renderer.render(settings),
+                      Catch::Contains("camera_cache_mb = -1") && Catch::Contains("allowed: >= 0"));
+}
+
 TEST_CASE("fast integrator: the pixels that mirror an LED take reflection_samples_per_pixel, "
           "each as a render at that count would have it, among them every pixel that sees an "
           "LED in the inner surface, and the other pixels keep their bytes",
