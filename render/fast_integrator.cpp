@@ -811,6 +811,15 @@ void FastIntegrator::build_shadow_culling(const SensorFrame& frame) {
     // corners to the LED's corners leave the sphere, plus a margin; then the markers whose
     // balls meet it and the folds whose cones meet its cone.
     const auto markers = std::uint32_t(m_marker_balls.size());
+    // The markers' balls as structure of arrays: the test of a ball against them all
+    // vectorises (9246 balls against 164 markers at 1.5 N + 0.6 N took about 1.3 ms of the
+    // frame update one by one).
+    std::array<std::vector<double>, 4> balls;
+    for (int a = 0; a < 4; ++a) {
+        balls[std::size_t(a)].resize(markers);
+        for (std::uint32_t m = 0; m < markers; ++m)
+            balls[std::size_t(a)][m] = m_marker_balls[m][a];
+    }
     // Each fold cone's half-angle b (its chord w seen as 2 asin(w / 2)) plus the margin, as
     // cos b and sin b: a ball whose directions spread by a about its centre's meets the cone
     // where the angle between the axes is at most a + b, i.e. cos(apart) >= cos(a + b) =
@@ -823,9 +832,15 @@ void FastIntegrator::build_shadow_culling(const SensorFrame& frame) {
         const double b = 2.0 * std::asin(std::min(1.0, 0.5 * m_fold_cones[i].w())) + 1e-6;
         cone_angles[i] = {b, std::cos(b), std::sin(b)};
     }
-    std::vector<std::vector<std::uint32_t>> lists(nf * leds);
+    // Per triangle, its LEDs' lists one after the other (one allocation a triangle, where a
+    // vector per triangle and LED took tens of thousands), and each list's length.
+    std::vector<std::vector<std::uint32_t>> lists(nf);
+    std::vector<std::uint32_t> lengths(nf * leds, 0);
     tbb::parallel_for(std::size_t(0), nf, [&](std::size_t f) {
         const std::uint32_t* t = c.coating_triangles.data() + 3 * f;
+        thread_local std::vector<std::uint32_t> meets, list;
+        meets.resize(markers);
+        list.clear();
         for (std::size_t k = 0; k < leds; ++k) {
             std::array<Vec3, 15> points;
             int count = 0;
@@ -856,11 +871,20 @@ void FastIntegrator::build_shadow_culling(const SensorFrame& frame) {
                 r = std::max(r, (points[std::size_t(i)] - centre).norm());
             r += kCullMargin_mm;
             m_cull_ball[f * leds + k] = Eigen::Vector4d(centre.x(), centre.y(), centre.z(), r);
-            auto& list = lists[f * leds + k];
-            for (std::uint32_t m = 0; m < markers; ++m) {
-                const double reach = m_marker_balls[m].w() + r + 1e-9; // round-off: never narrower
-                if ((m_marker_balls[m].head<3>() - centre).squaredNorm() <= reach * reach)
-                    list.push_back(m);
+            const std::size_t before = list.size();
+            {
+                const double *bx = balls[0].data(), *by = balls[1].data(),
+                             *bz = balls[2].data(), *br = balls[3].data();
+                const double cx = centre.x(), cy = centre.y(), cz = centre.z(), grow = r + 1e-9;
+                const std::uint32_t n = markers; // a local bound: the loop vectorises
+                std::uint32_t* out = meets.data();
+                for (std::uint32_t m = 0; m < n; ++m) {
+                    const double reach = br[m] + grow; // round-off: never narrower
+                    const double dx = bx[m] - cx, dy = by[m] - cy, dz = bz[m] - cz;
+                    out[m] = dx * dx + dy * dy + dz * dz <= reach * reach;
+                }
+                for (std::uint32_t m = 0; m < n; ++m)
+                    if (out[m]) list.push_back(m);
             }
             // The ball's directions lie within a = asin(r / |centre|) of the centre's (all
             // directions where the ball holds the origin).
@@ -878,12 +902,15 @@ void FastIntegrator::build_shadow_culling(const SensorFrame& frame) {
                         cos_a * b.cos_b - sin_a * b.sin_b - 1e-12)
                     list.push_back(markers + std::uint32_t(i));
             }
+            lengths[f * leds + k] = std::uint32_t(list.size() - before);
         }
+        lists[f].assign(list.begin(), list.end());
     });
-    for (std::size_t i = 0; i < lists.size(); ++i) {
-        m_cull_first[i + 1] = m_cull_first[i] + std::uint32_t(lists[i].size());
-        m_cull_markers.insert(m_cull_markers.end(), lists[i].begin(), lists[i].end());
-    }
+    for (std::size_t i = 0; i < lengths.size(); ++i)
+        m_cull_first[i + 1] = m_cull_first[i] + lengths[i];
+    m_cull_markers.reserve(m_cull_first.back());
+    for (const std::vector<std::uint32_t>& list : lists)
+        m_cull_markers.insert(m_cull_markers.end(), list.begin(), list.end());
 }
 
 template <int N>

@@ -54,6 +54,8 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -311,81 +313,113 @@ struct Renderer::Impl {
             hero_sets.empty() ? 0 : std::clamp(int(d.u_lambda * kHeroSets), 0, kHeroSets - 1);
         return std::make_pair(*d.direction, hero);
     }
-    /// The fast integrator's camera samples at samples_per_pixel (the image's bulk; the rims
-    /// and the mirrored pixels take other counts), as fast_draw and shadow_uniforms give them:
-    /// they depend only on the seed, the count and the shadow rays, not on the frame, and a
-    /// dataset renders all its frames with its spec's seed (RenderSettings::camera_cache_mb).
-    struct CameraSamples {
-        static constexpr std::uint16_t kOutside = 0xFFFF; ///< hero: the sample is outside
+    /// One pixel's camera samples at one count, as fast_draw and shadow_uniforms give them,
+    /// in one block of doubles: `count` directions (x, y, z), `count` hero-wavelength sets
+    /// (kOutside: the sample is outside the field; the LED rays' are 0), `rays` uniforms
+    /// (u_led, u1, u2).
+    struct PixelDraws {
+        static constexpr double kOutside = -1.0;
+        const double* data;
+        int count;
+        Vec3 direction(int k) const { return Vec3(data[3 * k], data[3 * k + 1], data[3 * k + 2]); }
+        double hero(int k) const { return data[3 * count + k]; }
+        std::array<double, 3> uniforms(int r) const {
+            const double* u = data + 4 * count + 3 * r;
+            return {u[0], u[1], u[2]};
+        }
+        static std::size_t size(int count, int rays) { return std::size_t(4 * count + 3 * rays); }
+    };
+    /// The pixels' camera samples of one of a render's counts (KeptLevel), kept from render
+    /// to render (RenderSettings::camera_cache_mb): they depend only on the seed, the count
+    /// and the shadow rays, not on the frame, and a dataset renders all its frames with its
+    /// spec's seed. A pixel's are kept the first time it takes that count (each pixel is
+    /// rendered by one thread, so no two fill one entry).
+    struct KeptSamples {
         std::uint64_t seed = 0;
         int count = 0, rays = 0;
-        std::vector<std::int32_t> slot; ///< per pixel: its samples' place; -1: outside the field
-        std::vector<Vec3> direction;     ///< `count` a slot
-        std::vector<std::uint16_t> hero; ///< `count` a slot: the hero set, or kOutside
-        std::vector<std::array<double, 3>> uniforms; ///< `rays` a slot: shadow_uniforms
+        std::vector<std::unique_ptr<double[]>> pixel; ///< per image pixel (PixelDraws), or none yet
     };
-    mutable std::mutex camera_samples_mutex;
-    mutable std::shared_ptr<const CameraSamples> camera_samples;
-    /// The kept camera samples for these settings, drawn now where the seed, the count or
-    /// the shadow rays changed; none where they would take more than camera_cache_mb (then
-    /// each frame draws them anew, the same samples).
-    std::shared_ptr<const CameraSamples> main_samples(const RenderSettings& settings) const {
-        const int count = settings.samples_per_pixel, rays = shadow_rays(settings, count);
-        const std::lock_guard lock(camera_samples_mutex);
-        const auto& kept = camera_samples;
-        if (kept && kept->seed == settings.seed && kept->count == count && kept->rays == rays)
-            return kept;
-        camera_samples.reset(); // the old samples' memory freed before the new is taken
-        const int width = camera.width_px(), height = camera.height_px();
-        auto c = std::make_shared<CameraSamples>();
-        c->seed = settings.seed, c->count = count, c->rays = rays;
-        c->slot.assign(std::size_t(width) * std::size_t(height), -1);
-        std::size_t slots = 0;
-        for (int y = 0; y < height; ++y)
-            for (int x = 0; x < width; ++x)
-                if (camera.field_coverage(x, y) > 0.0)
-                    c->slot[pixel_index(x, y)] = std::int32_t(slots++);
-        const double bytes =
-            double(c->slot.size()) * sizeof(std::int32_t) +
-            double(slots) * (double(count) * (sizeof(Vec3) + sizeof(std::uint16_t)) +
-                             double(rays) * sizeof(std::array<double, 3>));
-        if (!(bytes <= settings.camera_cache_mb * 1024.0 * 1024.0)) return nullptr;
-        c->direction.resize(slots * std::size_t(count));
-        c->hero.resize(slots * std::size_t(count));
-        c->uniforms.resize(slots * std::size_t(rays));
+    /// The counts a fast render draws at: samples_per_pixel, the rims', the mirrored pixels'
+    /// and the LED rays'.
+    enum KeptLevel { kMainLevel, kRimLevel, kMirrorLevel, kLedLevel, kKeptLevels };
+    mutable std::mutex kept_mutex;
+    mutable std::array<KeptSamples, kKeptLevels> kept;
+    mutable std::atomic<std::size_t> kept_bytes{0};
+    /// Before a render: each level's store for its stream and count (emptied where they
+    /// changed; `count` 0: the level is not drawn).
+    void keep_for(KeptLevel level, std::uint64_t seed, int count, int rays,
+                  std::size_t budget_bytes) const {
+        KeptSamples& k = kept[level];
+        std::size_t pixels =
+            budget_bytes > 0 && count > 0 ? std::size_t(camera.width_px()) * camera.height_px() : 0;
+        if (k.seed == seed && k.count == count && k.rays == rays && k.pixel.size() == pixels)
+            return;
+        for (const auto& d : k.pixel)
+            if (d) kept_bytes -= PixelDraws::size(k.count, k.rays) * sizeof(double);
+        kept_bytes -= k.pixel.size() * sizeof(std::unique_ptr<double[]>);
+        k.pixel.clear();
+        k.pixel.shrink_to_fit();
+        k.seed = seed, k.count = count, k.rays = rays;
+        // The budget holds the pixels' index too (8 bytes a pixel and count).
+        const std::size_t index_bytes = pixels * sizeof(std::unique_ptr<double[]>);
+        if (kept_bytes + index_bytes > budget_bytes) pixels = 0;
+        kept_bytes += pixels * sizeof(std::unique_ptr<double[]>);
+        k.pixel.resize(pixels);
+    }
+    /// Pixel (x, y)'s samples at a level: the kept ones, else drawn now into `scratch` and
+    /// kept where they fit the budget (`budget_bytes`, 0: none kept); none for a pixel wholly
+    /// outside the field. The LED rays (kLedLevel) draw from their own stream
+    /// (kReflectedLedSeed) with the pixel's own seeds, and keep their directions alone.
+    std::optional<PixelDraws> pixel_draws(KeptLevel level, int x, int y, std::uint64_t seed,
+                                          int count, int rays, std::size_t budget_bytes,
+                                          std::vector<double>& scratch) const {
+        KeptSamples& k = kept[level]; // keep_for: for this seed, count and rays
+        const std::size_t index = pixel_index(x, y);
+        const bool keep = !k.pixel.empty(); // within the budget
+        if (keep && k.pixel[index]) return PixelDraws{k.pixel[index].get(), count};
+        if (!(camera.field_coverage(x, y) > 0.0)) return std::nullopt;
         const auto [nx, ny] = detail::strata_grid(count);
-        tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const auto& rows) {
-            for (int y = rows.begin(); y != rows.end(); ++y)
-                for (int x = 0; x < width; ++x) {
-                    const std::int32_t slot = c->slot[pixel_index(x, y)];
-                    if (slot < 0) continue;
-                    detail::PixelRng rng(settings.seed, pixel_index(x, y));
-                    const detail::PixelSeeds seeds = pixel_seeds(settings.seed, x, y);
-                    for (int k = 0; k < count; ++k) {
-                        const std::size_t i = std::size_t(slot) * std::size_t(count) + k;
-                        const auto d = fast_draw(x, y, k, nx, ny, rng, seeds);
-                        c->direction[i] = d ? d->first : Vec3::Zero();
-                        c->hero[i] = d ? std::uint16_t(d->second) : CameraSamples::kOutside;
-                    }
-                    for (int r = 0; r < rays; ++r)
-                        c->uniforms[std::size_t(slot) * std::size_t(rays) + std::size_t(r)] =
-                            detail::shadow_uniforms(r, rays, seeds);
-                }
-        });
-        camera_samples = c;
-        return c;
+        detail::PixelRng rng(seed, index);
+        const detail::PixelSeeds seeds =
+            level == kLedLevel ? detail::PixelSeeds(seed, index) : pixel_seeds(seed, x, y);
+        const std::size_t size = PixelDraws::size(count, rays);
+        scratch.resize(size);
+        for (int s = 0; s < count; ++s) {
+            const auto d = fast_draw(x, y, s, nx, ny, rng, seeds);
+            const Vec3 w = d ? d->first : Vec3::Zero();
+            for (int a = 0; a < 3; ++a)
+                scratch[std::size_t(3 * s + a)] = w[a];
+            scratch[std::size_t(3 * count + s)] = d ? double(d->second) : PixelDraws::kOutside;
+        }
+        for (int r = 0; r < rays; ++r) {
+            const std::array<double, 3> u = detail::shadow_uniforms(r, rays, seeds);
+            for (int a = 0; a < 3; ++a)
+                scratch[std::size_t(4 * count + 3 * r + a)] = u[std::size_t(a)];
+        }
+        if (keep) {
+            const std::size_t bytes = size * sizeof(double);
+            if (kept_bytes.fetch_add(bytes) + bytes <= budget_bytes) {
+                k.pixel[index] = std::make_unique_for_overwrite<double[]>(size);
+                std::copy(scratch.begin(), scratch.end(), k.pixel[index].get());
+                return PixelDraws{k.pixel[index].get(), count};
+            }
+            kept_bytes -= bytes; // over the budget: drawn anew each render
+        }
+        return PixelDraws{scratch.data(), count};
     }
     /// The stream of the rays for the LEDs seen by reflection: the pixel's own seed and index,
     /// the seed changed by this, so that they are independent of the pixel's samples.
     static constexpr std::uint64_t kReflectedLedSeed = 0x4C45445245464C31ull;
     void sample_pixels_fast(int x, int y, int pixels, int nx, int ny,
                             const RenderSettings& settings, double scale, const PixelSums& out,
-                            const CameraSamples* cached) const {
+                            KeptLevel level, std::size_t budget_bytes) const {
         if (hero_sets.empty())
-            batches<detail::kRgbLanes>(x, y, pixels, nx, ny, settings, scale, out, cached);
+            batches<detail::kRgbLanes>(x, y, pixels, nx, ny, settings, scale, out, level,
+                                       budget_bytes);
         else
-            batches<detail::kSpectralLanes>(x, y, pixels, nx, ny, settings, scale, out, cached);
-        if (!out.led.empty()) reflected_leds(x, y, pixels, settings, out.led);
+            batches<detail::kSpectralLanes>(x, y, pixels, nx, ny, settings, scale, out, level,
+                                            budget_bytes);
+        if (!out.led.empty()) reflected_leds(x, y, pixels, settings, out.led, budget_bytes);
     }
     /// RenderSettings::cull_reflected_leds: the pixel's mirrored footprint on the LEDs' plane
     /// may bulge past its corners' quadrilateral (the inner surface is curved): the LEDs are
@@ -464,12 +498,11 @@ struct Renderer::Impl {
     /// its own stream (kReflectedLedSeed), in packets of 16; none in a pixel that provably
     /// mirrors no LED (leds_out_of_reach: its rays would all miss, so its sums are the same).
     void reflected_leds(int x, int y, int pixels, const RenderSettings& settings,
-                        std::span<LedSums> out) const {
+                        std::span<LedSums> out, std::size_t budget_bytes) const {
         const int count = settings.reflected_led_samples_per_pixel;
         std::array<std::uint8_t, kMaxBatchPixels> skip{};
         if (settings.cull_reflected_leds)
             leds_out_of_reach(x, y, pixels, std::span(skip.data(), std::size_t(pixels)));
-        const auto [nx, ny] = detail::strata_grid(count);
         std::array<Vec3, 16> directions;
         std::array<int, 16> owner;
         std::array<double, 16> fresnel;
@@ -484,20 +517,18 @@ struct Renderer::Impl {
             }
             m = 0;
         };
+        thread_local std::vector<double> scratch;
         for (int j = 0; j < pixels; ++j) {
-            const std::uint64_t index =
-                std::uint64_t(y) * std::uint64_t(camera.width_px()) + std::uint64_t(x + j);
-            const std::uint64_t seed = settings.seed ^ kReflectedLedSeed;
-            detail::PixelRng rng(seed, index);
-            const detail::PixelSeeds seeds(seed, index);
             LedSums& sums = out[std::size_t(j)];
             sums = {};
             if (skip[std::size_t(j)]) continue;
+            const auto draws = pixel_draws(kLedLevel, x + j, y, settings.seed ^ kReflectedLedSeed,
+                                           count, 0, budget_bytes, scratch);
+            if (!draws) continue;
             for (int k = 0; k < count; ++k) {
-                const Draw d = draw(x + j, y, k, nx, ny, rng, seeds);
-                if (!d.direction) continue;
+                if (draws->hero(k) == PixelDraws::kOutside) continue;
                 ++sums.inside;
-                directions[m] = *d.direction;
+                directions[m] = draws->direction(k);
                 owner[m++] = j;
                 if (m == directions.size()) flush();
             }
@@ -508,7 +539,8 @@ struct Renderer::Impl {
     static constexpr int kMaxBatchPixels = 16;
     template <int N>
     void batches(int x, int y, int pixels, int nx, int ny, const RenderSettings& settings,
-                 double scale, const PixelSums& out, const CameraSamples* cached) const {
+                 double scale, const PixelSums& out, KeptLevel level,
+                 std::size_t budget_bytes) const {
         const int count = nx * ny;
         const bool split = !out.direct.empty();
         const int rays = shadow_rays(settings, count);
@@ -519,19 +551,16 @@ struct Renderer::Impl {
             else
                 return detail::LaneOptics<N>{};
         }();
-        // The camera draws' streams and seeds (none where the samples are cached), and the
-        // shading's streams (kShadeSeed: apart from the draws, so that a cached sample is
-        // the one drawn anew).
-        std::array<std::optional<detail::PixelRng>, kMaxBatchPixels> rngs, shade_rngs;
-        std::array<std::optional<detail::PixelSeeds>, kMaxBatchPixels> seeds;
+        // Each pixel's camera samples (kept, or drawn now into a scratch of its own), and its
+        // shading's stream (kShadeSeed: apart from the draws', so that kept samples are the
+        // ones drawn anew).
+        thread_local std::array<std::vector<double>, kMaxBatchPixels> scratch;
+        std::array<std::optional<PixelDraws>, kMaxBatchPixels> draws;
+        std::array<std::optional<detail::PixelRng>, kMaxBatchPixels> shade_rngs;
         for (int j = 0; j < pixels; ++j) {
-            const std::uint64_t index = pixel_index(x + j, y);
-            // A pixel wholly outside the field draws nothing (as CameraSamples keeps none).
-            if (!cached && camera.field_coverage(x + j, y) > 0.0) {
-                rngs[std::size_t(j)].emplace(settings.seed, index);
-                seeds[std::size_t(j)].emplace(pixel_seeds(settings.seed, x + j, y));
-            }
-            shade_rngs[std::size_t(j)].emplace(settings.seed ^ kShadeSeed, index);
+            draws[std::size_t(j)] = pixel_draws(level, x + j, y, settings.seed, count, rays,
+                                                budget_bytes, scratch[std::size_t(j)]);
+            shade_rngs[std::size_t(j)].emplace(settings.seed ^ kShadeSeed, pixel_index(x + j, y));
             out.sums[std::size_t(j)] = detail::Rgb::Zero();
             out.inside[std::size_t(j)] = 0;
             if (!out.sum2.empty()) out.sum2[std::size_t(j)] = detail::Rgb::Zero();
@@ -560,35 +589,15 @@ struct Renderer::Impl {
                 // The sample's shadow rays: the pixel's `rays` spread evenly over its samples
                 // (at least one each), their uniforms stratified over the pixel's rays.
                 const int r0 = k * rays / count, r1 = (k + 1) * rays / count;
-                std::array<std::array<double, 3>, detail::kMaxShadowRaysPerSample> u;
-                Vec3 direction;
-                int hero = 0;
-                if (cached) {
-                    const std::int32_t slot = cached->slot[pixel_index(x + j, y)];
-                    if (slot < 0) continue;
-                    const std::size_t i = std::size_t(slot) * std::size_t(count) + std::size_t(k);
-                    if (cached->hero[i] == CameraSamples::kOutside) continue;
-                    direction = cached->direction[i];
-                    hero = cached->hero[i];
-                    for (int r = r0; r < r1; ++r)
-                        u[std::size_t(r - r0)] =
-                            cached->uniforms[std::size_t(slot) * std::size_t(rays) + std::size_t(r)];
-                } else {
-                    if (!rngs[std::size_t(j)]) continue;
-                    const auto d = fast_draw(x + j, y, k, nx, ny, *rngs[std::size_t(j)],
-                                             *seeds[std::size_t(j)]);
-                    if (!d) continue;
-                    direction = d->first;
-                    hero = d->second;
-                    for (int r = r0; r < r1; ++r)
-                        u[std::size_t(r - r0)] =
-                            detail::shadow_uniforms(r, rays, *seeds[std::size_t(j)]);
-                }
+                const std::optional<PixelDraws>& d = draws[std::size_t(j)];
+                if (!d || d->hero(k) == PixelDraws::kOutside) continue;
+                const int hero = int(d->hero(k));
                 ++out.inside[std::size_t(j)];
-                directions[m] = direction;
-                shadow[m] = {.u_led = u[0][0], .u1 = u[0][1], .u2 = u[0][2], .rays = r1 - r0};
+                directions[m] = d->direction(k);
+                const std::array<double, 3> u = d->uniforms(r0);
+                shadow[m] = {.u_led = u[0], .u1 = u[1], .u2 = u[2], .rays = r1 - r0};
                 for (int r = r0 + 1; r < r1; ++r)
-                    shadow[m].further[std::size_t(r - r0 - 1)] = u[std::size_t(r - r0)];
+                    shadow[m].further[std::size_t(r - r0 - 1)] = d->uniforms(r);
                 streams[m] = &*shade_rngs[std::size_t(j)];
                 owner[m] = j;
                 if constexpr (N == detail::kSpectralLanes) {
@@ -1001,9 +1010,23 @@ Image Renderer::render(const RenderSettings& settings) const {
     const auto [nx_mirror, ny_mirror] = detail::strata_grid(std::max(n_mirror, 1));
     const auto [nx_edge, ny_edge] = detail::strata_grid(std::max(n_edge, 1));
     const int edge_batch = batch_at(n_edge), mirror_batch = batch_at(n_mirror);
-    // The camera samples at samples_per_pixel, kept from frame to frame where they fit.
-    const std::shared_ptr<const Impl::CameraSamples> cached =
-        fast && settings.camera_cache_mb > 0.0 ? m.main_samples(settings) : nullptr;
+    // The camera samples of each count, kept from frame to frame where they fit
+    // (RenderSettings::camera_cache_mb). The kept samples are shared by the renders of this
+    // renderer, so those run one at a time.
+    const std::size_t budget =
+        fast ? std::size_t(std::min(settings.camera_cache_mb, 1e12) * 1024.0 * 1024.0) : 0;
+    std::unique_lock kept_lock(m.kept_mutex, std::defer_lock);
+    if (fast) {
+        kept_lock.lock();
+        m.keep_for(Impl::kMainLevel, settings.seed, n, Impl::shadow_rays(settings, n), budget);
+        const int rim = rims ? n_edge : 0, mirror = mirrors ? n_mirror : 0;
+        m.keep_for(Impl::kRimLevel, settings.seed, rim, rim ? Impl::shadow_rays(settings, rim) : 0,
+                   budget);
+        m.keep_for(Impl::kMirrorLevel, settings.seed, mirror,
+                   mirror ? Impl::shadow_rays(settings, mirror) : 0, budget);
+        m.keep_for(Impl::kLedLevel, settings.seed ^ Impl::kReflectedLedSeed,
+                   mirrors ? n_led : 0, 0, budget);
+    }
     // The shadow filter's inputs: each pixel's direct light with and without the shadows.
     const bool filter = fast && settings.shadow_filter_px > 0.0;
     // Per shadow group g (render/shadow_filter.hpp): 9 floats a group and pixel, 216 bytes a
@@ -1124,7 +1147,10 @@ Image Renderer::render(const RenderSettings& settings) const {
                                           level == 2 && n_led > 0
                                               ? std::span(led.data(), std::size_t(pixels))
                                               : std::span<Impl::LedSums>{}},
-                                         level == 0 ? cached.get() : nullptr);
+                                         level == 2   ? Impl::kMirrorLevel
+                                         : level == 1 ? Impl::kRimLevel
+                                                      : Impl::kMainLevel,
+                                         budget);
                 } else {
                     sum2[0] = detail::Rgb::Zero();
                     sums[0] = m.sample_pixel(x, y, nx, ny, settings, scale,
@@ -1159,12 +1185,8 @@ std::optional<Eigen::Vector2d> Renderer::project(const Vec3& p_mm) const {
 }
 
 std::size_t Renderer::camera_samples_bytes() const {
-    const std::lock_guard lock(m_impl->camera_samples_mutex);
-    const auto& c = m_impl->camera_samples;
-    if (!c) return 0;
-    return c->slot.size() * sizeof(std::int32_t) + c->direction.size() * sizeof(Vec3) +
-           c->hero.size() * sizeof(std::uint16_t) +
-           c->uniforms.size() * sizeof(std::array<double, 3>);
+    const std::lock_guard lock(m_impl->kept_mutex);
+    return m_impl->kept_bytes;
 }
 
 void Renderer::count_rays(bool on) {

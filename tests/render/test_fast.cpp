@@ -583,16 +583,17 @@ TEST_CASE("fast integrator: the camera samples kept from render to render give e
             anew.set_frame(*step.frame);
             RenderSettings settings = fast_with_variance(step.spp, step.seed);
             settings.shadow_rays_per_pixel = step.shadow_rays;
-            // With the rims, the mirrored pixels and the filter: the kept samples serve the
-            // pixels at samples_per_pixel alone.
+            // With the rims, the mirrored pixels, the LED rays and the filter: each count's
+            // samples kept apart.
             settings.edge_samples_per_pixel = 5;
             settings.reflection_samples_per_pixel = 8;
+            settings.reflected_led_samples_per_pixel = 16;
             settings.shadow_filter_px = 1.0;
             const Image with = kept.render(settings);
-            // The kept samples: every pixel's samples and shadow rays (17 x 23 pixels, most
-            // in the field).
+            // The kept samples: at least each pixel's samples and shadow rays at the main
+            // count (17 x 23 pixels, most in the field: 4 doubles a sample, 3 a ray).
             const std::size_t bytes = kept.camera_samples_bytes();
-            CHECK(bytes > 17 * 23 * 4 + 200 * std::size_t(step.spp) * (sizeof(Vec3) + 2));
+            CHECK(bytes > 200 * (4 * std::size_t(step.spp) + 3) * sizeof(double));
             // Drawn anew, by a renderer that keeps none: the same bytes.
             settings.camera_cache_mb = 0.0;
             const Image without = anew.render(settings);
