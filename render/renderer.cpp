@@ -300,7 +300,7 @@ struct Renderer::Impl {
     /// The shading's stream of a fast-integrator pixel (the shade's own draws, where a shadow
     /// ray has no stratified uniforms): the pixel's seed changed by this, apart from the
     /// camera draws' stream, so that the camera samples can be kept between frames
-    /// (CameraSamples) and be the same as drawn anew.
+    /// (pixel_draws) and be the same as drawn anew.
     static constexpr std::uint64_t kShadeSeed = 0x5348414445535431ull;
     /// Sample k of a fast-integrator pixel: its camera direction (draw) and hero-wavelength
     /// set (0 in RGB mode); none outside the field.
@@ -315,7 +315,7 @@ struct Renderer::Impl {
     }
     /// One pixel's camera samples at one count, as fast_draw and shadow_uniforms give them,
     /// in one block of doubles: `count` directions (x, y, z), `count` hero-wavelength sets
-    /// (kOutside: the sample is outside the field; the LED rays' are 0), `rays` uniforms
+    /// (kOutside: the sample is outside the field; unused for the LED rays), `rays` uniforms
     /// (u_led, u1, u2).
     struct PixelDraws {
         static constexpr double kOutside = -1.0;
