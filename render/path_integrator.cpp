@@ -212,10 +212,10 @@ std::vector<Vec3> sphere_reflections(const Vec3& a, const Vec3& l, double R) {
     return points;
 }
 
-/// The mirror points of the sphere model through which p (in the layers) reaches l by leaving
-/// the layers below p and reflecting off the sphere: sphere_reflections from the point below p,
-/// keeping those above the rim plane (the dome is a hemisphere) that p reaches by a refraction
-/// without total internal reflection.
+/// The reflected chain's starts of the sphere model: the directions from p (in the layers)
+/// that reach l by leaving the layers below p and reflecting off the sphere, one per mirror
+/// point (sphere_reflections from the point below p) above the rim plane (the dome is a
+/// hemisphere) that p reaches by a refraction without total internal reflection.
 std::vector<Vec3> sphere_mirrors(const Vec3& p, const Vec3& l, double R, double eta) {
     std::vector<Vec3> kept;
     for (const Vec3& mirror : sphere_reflections(R * p.normalized(), l, R)) {
@@ -231,7 +231,7 @@ std::vector<Vec3> sphere_mirrors(const Vec3& p, const Vec3& l, double R, double 
         Vec3 out;
         if (!refract(w, x.normalized(), eta, out)) continue;
         // The refracted ray heads for the mirror point.
-        if ((mirror - x).normalized().dot(out) > 1.0 - 1e-6) kept.push_back(mirror);
+        if ((mirror - x).normalized().dot(out) > 1.0 - 1e-6) kept.push_back(w);
     }
     return kept;
 }
@@ -382,14 +382,14 @@ std::optional<InterfaceConnection> PathIntegrator::connect(const EmbreeScene& sc
     if (chain == Chain::refracted) {
         w = sphere_refraction(p, l, radius_mm, m_eta);
     } else {
-        // Leave the layers at the point below p, bounce off one of the sphere's mirror points.
+        // Leave the layers at the point below p, bounce off one of the sphere's mirror points
+        // (sphere_mirrors: the directions towards them).
         std::vector<Vec3> computed;
         if (!known) computed = sphere_mirrors(p, l, radius_mm, m_eta);
-        const std::vector<Vec3>& mirrors = known ? *known : computed;
-        if (mirrors.empty()) return std::nullopt;
-        candidates = int(mirrors.size());
-        const Vec3& mirror = mirrors[std::min(std::size_t(u * candidates), mirrors.size() - 1)];
-        w = sphere_refraction(p, mirror, radius_mm, m_eta);
+        const std::vector<Vec3>& starts = known ? *known : computed;
+        if (starts.empty()) return std::nullopt;
+        candidates = int(starts.size());
+        w = starts[std::min(std::size_t(u * candidates), starts.size() - 1)];
     }
     return solve_connection(scene, p, l, chain, w, candidates);
 }
@@ -602,8 +602,8 @@ Vec3 PathIntegrator::led_flux_point(const EmbreeScene& scene, const Vec3& p, con
             add(solve_connection(scene, p, l, Chain::refracted_reflected, w, 1),
                 Chain::refracted_reflected);
     } else {
-        // The sphere model's mirror points once (sphere_candidates and each connect would
-        // otherwise scan the circle again).
+        // The sphere model's starts once (sphere_candidates and each connect would otherwise
+        // scan the circle again).
         const std::vector<Vec3> mirrors = sphere_mirrors(p, l, *radius, m_eta);
         const int candidates = int(mirrors.size());
         for (int i = 0; i < candidates; ++i)

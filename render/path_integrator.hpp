@@ -152,7 +152,8 @@ public:
                                                const Vec3& led_point_mm, Chain chain,
                                                double u = 0.5) const;
     /// The same with the sphere model's radius below p already known (radius_below), and
-    /// optionally its mirror points for p and l (a reflected chain; computed when null).
+    /// optionally its reflected chain's starts for p and l (the directions from p towards its
+    /// mirror points; computed when null).
     std::optional<InterfaceConnection> connect(const EmbreeScene& scene, const Vec3& p_mm,
                                                const Vec3& led_point_mm, Chain chain, double u,
                                                double radius_mm,
@@ -213,7 +214,7 @@ private:
     /// Calls visit(connection, cos_p) for each Chain that connects p to l with nothing in the
     /// way in the cavity.
     /// `chains`: a mask of the Chain values to try.
-    /// `mirrors`: the sphere model's mirror points for p and l, when already known.
+    /// `mirrors`: the sphere model's reflected-chain starts for p and l, when already known.
     template <class Visit>
     void for_each_connection(const EmbreeScene& scene, const Vec3& p, const Vec3& n, const Vec3& l,
                              double u_choice, double radius_mm, Visit&& visit, int chains = 3,
