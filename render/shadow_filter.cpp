@@ -34,6 +34,23 @@ void bands(int width, int height, int radius, const std::vector<float>& w, std::
            const std::vector<float>& rim_w) {
     constexpr int per = 3 * G, values = 2 * per; // C_g's (g, c), then S_g's
     const auto at = [width](int x, int y) { return std::size_t(y) * std::size_t(width) + x; };
+    // The first and last pixel of row y where a or b holds a value other than zero (first >
+    // last: none).
+    const auto lit_span = [&](std::span<const float> a, std::span<const float> b, int y) {
+        const auto any = [&](int x) {
+            const float* pa = a.data() + per * at(x, y);
+            const float* pb = b.data() + per * at(x, y);
+            for (int v = 0; v < per; ++v)
+                if (pa[v] != 0.0f || pb[v] != 0.0f) return true;
+            return false;
+        };
+        int first = 0, last = width - 1;
+        while (first < width && !any(first))
+            ++first;
+        while (last >= first && !any(last))
+            --last;
+        return std::pair<int, int>{first, last};
+    };
     const int count = (height + kBandRows - 1) / kBandRows;
     tbb::parallel_for(tbb::blocked_range<int>(0, count), [&](const auto& range) {
         // Kept by each thread from image to image: no allocation (and no page faults) per band.
@@ -43,7 +60,15 @@ void bands(int width, int height, int radius, const std::vector<float>& w, std::
             const int ya = std::max(0, y0 - radius), yb = std::min(height, y1 + radius);
             rows.resize(std::size_t(yb - ya) * std::size_t(width) * values);
             for (int y = ya; y < yb; ++y) {
-                for (int x = 0; x < width; ++x) {
+                // Only where a pixel within reach has light: outside the image circle the
+                // rows hold zeros (about a fifth of a fisheye image).
+                const auto [first, last] = lit_span(chosen, shadowed, y);
+                const int from = std::max(0, first - radius), to = std::min(width, last + radius + 1);
+                float* row = rows.data() + std::size_t(y - ya) * width * values;
+                std::fill(row, row + std::size_t(std::max(from, 0)) * values, 0.0f);
+                std::fill(row + std::size_t(std::max(to, from)) * values,
+                          row + std::size_t(width) * values, 0.0f);
+                for (int x = from; x < to; ++x) {
                     float sum[values] = {};
                     const int lo = std::max(0, x - radius), hi = std::min(width - 1, x + radius);
                     for (int qx = lo; qx <= hi; ++qx) {
@@ -62,7 +87,9 @@ void bands(int width, int height, int radius, const std::vector<float>& w, std::
             }
             for (int y = y0; y < y1; ++y) {
                 const int lo = std::max(0, y - radius), hi = std::min(height - 1, y + radius);
-                for (int x = 0; x < width; ++x) {
+                // A pixel whose own direct light is zero, lit and shadowed, keeps its value.
+                const auto [first, last] = lit_span(lit, shadowed, y);
+                for (int x = first; x <= last; ++x) {
                     float sum[values] = {};
                     for (int qy = lo; qy <= hi; ++qy) {
                         const float wd = w[std::size_t(std::abs(qy - y))];
