@@ -47,19 +47,18 @@ double SphereRefraction::mismatch(double t, double* slope, double* to_exit) {
     // A unit direction of zero length (x on p or on l) counts as zero, as Eigen's
     // normalized() leaves it (and has no slope).
     const double towards_l = m_ly * c - m_lx * s; // (l - x) . tau
+    // The reciprocals once (two divisions where each term took its own).
+    const double inv_x = to_x > 0.0 ? 1.0 / to_x : 0.0, inv_l = to_l > 0.0 ? 1.0 / to_l : 0.0;
     if (slope) {
         // d psi / dt = 2 d, dc = -s d psi, ds = c d psi; d|x - p| = a R s d psi / |x - p|,
         // d|l - x| = -R (l - x) . tau d psi / |l - x|.
         const double g = 2.0 * d;
-        const double inside =
-            to_x > 0.0 ? m_eta * m_a * g * (c - m_a * m_R * s * s / (to_x * to_x)) / to_x : 0.0;
+        const double inside = m_eta * m_a * g * (c - m_a * m_R * s * s * inv_x * inv_x) * inv_x;
         const double outside =
-            to_l > 0.0
-                ? g * ((-m_ly * s - m_lx * c) + m_R * towards_l * towards_l / (to_l * to_l)) / to_l
-                : 0.0;
+            g * ((-m_ly * s - m_lx * c) + m_R * towards_l * towards_l * inv_l * inv_l) * inv_l;
         *slope = inside - outside;
     }
-    return (to_x > 0.0 ? m_eta * m_a * s / to_x : 0.0) - (to_l > 0.0 ? towards_l / to_l : 0.0);
+    return m_eta * m_a * s * inv_x - towards_l * inv_l;
 }
 
 double SphereRefraction::regula_falsi(double tolerance) {
@@ -105,9 +104,10 @@ std::optional<SphereRefraction::Vec3> SphereRefraction::newton(const Vec3& guess
     double t = t_of(x.dot(m_e1), x.dot(m_e2));
     // The root lies before l's own direction (solve()'s whole bracket) and on the cap of
     // the sphere p sees (psi up to acos(R / a)): beyond it the mismatch has other roots, of
-    // paths that would cross the cavity to reach the sphere from inside.
-    const double t_hi =
-        std::min(t_of(m_lx, m_ly), t_of(m_R, std::sqrt(std::max(0.0, m_a * m_a - m_R2))));
+    // paths that would cross the cavity to reach the sphere from inside. t_of(R, h) with
+    // h = sqrt(a^2 - R^2) is h / (a + R), and t_of(lx, ly) takes |l| = sqrt(l2).
+    const double t_hi = std::min(m_ly / (std::sqrt(m_l2) + m_lx),
+                                 std::sqrt(std::max(0.0, c)) / (m_a + m_R));
     for (int i = 0; i < kNewtonSteps; ++i) {
         double slope = 0.0, to_exit = 0.0;
         const double f = mismatch(t, &slope, &to_exit);
