@@ -282,13 +282,15 @@ struct RenderSettings {
     /// At 224 px it skips about a third of those pixels (docs/VALIDATION.md, session 27);
     /// false: trace them all (for tests and `bench render --no-led-cull`).
     bool cull_reflected_leds = true;
-    /// Fast integrator: the most memory (MiB) the camera samples at samples_per_pixel may
-    /// keep from one render to the next. They (each sample's direction, hero-wavelength set
-    /// and shadow-ray uniforms) depend only on the seed, the count and the shadow rays, not on
+    /// Fast integrator: the most memory (MiB) the camera samples may keep from one render to
+    /// the next. A pixel's samples at each of its counts (samples_per_pixel, the rims', the
+    /// mirrored pixels', the LED rays': each sample's direction and hero-wavelength set, each
+    /// shadow ray's uniforms) depend only on the seed, the counts and the shadow rays, not on
     /// the frame, and a dataset renders every frame with its spec's seed, so they are drawn
-    /// once and read back after (about 100 bytes a pixel in the field at 2 spp: 4 MB at 224 px,
-    /// 63 MB at 896 px). Where they would take more, or at 0, each render draws them anew: the
-    /// same samples, the same bytes (docs/VALIDATION.md, session 33).
+    /// the first time and read back after: 8 bytes a number and 8 bytes a pixel per count for
+    /// the index (8.6 MiB at 224 px with the shipped specs, 72 MiB at 896 px). Beyond the
+    /// budget, or at 0, renders draw them anew: the same samples, the same bytes
+    /// (docs/VALIDATION.md, session 33).
     double camera_cache_mb = 128.0;
 };
 /// RenderSettings::reflection_samples_per_pixel: how far from an LED's rectangle on the LEDs'
