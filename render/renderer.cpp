@@ -367,7 +367,8 @@ struct Renderer::Impl {
         k.pixel.resize(pixels);
     }
     /// Pixel (x, y)'s samples at a level: the kept ones, else drawn now into `scratch` and
-    /// kept where they fit the budget (`budget_bytes`, 0: none kept); none for a pixel wholly
+    /// kept where they fit the budget (`budget_bytes`; 0: the store is not this render's, or
+    /// keeps nothing, and is not touched); none for a pixel wholly
     /// outside the field. The LED rays (kLedLevel) draw from their own stream
     /// (kReflectedLedSeed) with the pixel's own seeds, and keep their directions alone.
     std::optional<PixelDraws> pixel_draws(KeptLevel level, int x, int y, std::uint64_t seed,
@@ -375,7 +376,7 @@ struct Renderer::Impl {
                                           std::vector<double>& scratch) const {
         KeptSamples& k = kept[level]; // keep_for: for this seed, count and rays
         const std::size_t index = pixel_index(x, y);
-        const bool keep = !k.pixel.empty(); // within the budget
+        const bool keep = budget_bytes > 0 && !k.pixel.empty(); // the store, within the budget
         if (keep && k.pixel[index]) return PixelDraws{k.pixel[index].get(), count};
         if (!(camera.field_coverage(x, y) > 0.0)) return std::nullopt;
         const auto [nx, ny] = detail::strata_grid(count);
@@ -1011,13 +1012,14 @@ Image Renderer::render(const RenderSettings& settings) const {
     const auto [nx_edge, ny_edge] = detail::strata_grid(std::max(n_edge, 1));
     const int edge_batch = batch_at(n_edge), mirror_batch = batch_at(n_mirror);
     // The camera samples of each count, kept from frame to frame where they fit
-    // (RenderSettings::camera_cache_mb). The kept samples are shared by the renders of this
-    // renderer, so those run one at a time.
-    const std::size_t budget =
-        fast ? std::size_t(std::min(settings.camera_cache_mb, 1e12) * 1024.0 * 1024.0) : 0;
+    // (RenderSettings::camera_cache_mb). One render at a time uses the store: a render that
+    // finds it in use (another thread's render of this renderer) draws its samples anew, the
+    // same bytes, and never waits (a wait inside a caller's TBB task could deadlock).
     std::unique_lock kept_lock(m.kept_mutex, std::defer_lock);
-    if (fast) {
-        kept_lock.lock();
+    const bool store = fast && kept_lock.try_lock();
+    const std::size_t budget =
+        store ? std::size_t(std::min(settings.camera_cache_mb, 1e12) * 1024.0 * 1024.0) : 0;
+    if (store) { // at a budget of 0 this frees what is kept
         m.keep_for(Impl::kMainLevel, settings.seed, n, Impl::shadow_rays(settings, n), budget);
         const int rim = rims ? n_edge : 0, mirror = mirrors ? n_mirror : 0;
         m.keep_for(Impl::kRimLevel, settings.seed, rim, rim ? Impl::shadow_rays(settings, rim) : 0,

@@ -289,8 +289,9 @@ struct RenderSettings {
     /// the frame, and a dataset renders every frame with its spec's seed, so they are drawn
     /// the first time and read back after: 8 bytes a number and 8 bytes a pixel per count for
     /// the index (8.6 MiB at 224 px with the shipped specs, 72 MiB at 896 px). Beyond the
-    /// budget, or at 0, renders draw them anew: the same samples, the same bytes
-    /// (docs/VALIDATION.md, session 33).
+    /// budget, or at 0, renders draw them anew: the same samples, the same bytes; so does a
+    /// render that finds another thread's render of the same renderer using them (it does
+    /// not wait) (docs/VALIDATION.md, session 33).
     double camera_cache_mb = 128.0;
 };
 /// RenderSettings::reflection_samples_per_pixel: how far from an LED's rectangle on the LEDs'

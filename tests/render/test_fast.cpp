@@ -18,6 +18,7 @@
 #include <cmath>
 #include <filesystem>
 #include <numbers>
+#include <thread>
 
 using namespace chromasim::render;
 using namespace chromasim::render::detail;
@@ -553,7 +554,7 @@ TEST_CASE("fast integrator: neighbouring pixels traced together give each pixel 
 
 TEST_CASE("fast integrator: the camera samples kept from render to render give every frame the "
           "bytes it gets with them drawn anew, through changes of frame, seed, count and shadow "
-          "rays, in RGB and spectral mode, and none kept beyond the budget",
+          "rays, in RGB and spectral mode, none kept beyond the budget, and two renders at once",
           "[render][fast]") {
     const SensorFrame rest = dome_with_box_markers();
     const SensorFrame pressed = pressed_flat(rest);
@@ -616,6 +617,21 @@ TEST_CASE("fast integrator: the camera samples kept from render to render give e
         settings.camera_cache_mb = 1e-3; // 1 kB
         CHECK(small.render(settings).rgb == anew.render(settings).rgb);
         CHECK(small.camera_samples_bytes() == 0);
+    }
+    // Two threads rendering with one renderer at once: one keeps the samples, the other draws
+    // them anew without waiting for the store; both give the bytes of a render alone.
+    {
+        Renderer shared(CameraParams{23, 17, 84.0}, OpticsParams{});
+        small_cache_on(shared, rest, pressed);
+        RenderSettings settings = fast_with_variance(2, 11);
+        settings.reflected_led_samples_per_pixel = 16;
+        const Image alone = shared.render(settings);
+        std::array<Image, 2> together;
+        std::thread other([&] { together[1] = shared.render(settings); });
+        together[0] = shared.render(settings);
+        other.join();
+        CHECK(together[0].rgb == alone.rgb);
+        CHECK(together[1].rgb == alone.rgb);
     }
     Renderer renderer(CameraParams{8, 8, 84.0}, OpticsParams{});
     small_cache_on(renderer, rest, rest);
