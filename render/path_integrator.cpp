@@ -158,9 +158,6 @@ std::optional<PlanePoint> to_led_plane(const EmbreeScene::Triangle* tris, Chain 
 std::pair<Vec3, Vec3> on_circle(const Vec3& e1, const Vec3& e2, double R, double c, double s) {
     return {R * (c * e1 + s * e2), -s * e1 + c * e2};
 }
-std::pair<Vec3, Vec3> on_circle(const Vec3& e1, const Vec3& e2, double R, double psi) {
-    return on_circle(e1, e2, R, std::cos(psi), std::sin(psi));
-}
 
 /// Samples of the circle when looking for the sphere model's mirror points.
 constexpr int kMirrorScan = 64;
@@ -174,22 +171,34 @@ std::vector<Vec3> sphere_reflections(const Vec3& a, const Vec3& l, double R) {
     Vec3 e2 = l - l.dot(e1) * e1;
     if (!(e2.norm() > 1e-9)) return {};
     e2.normalize();
+    // In the plane's coordinates a = (R, 0), l = (lx, ly), x = R (c, s) and tau = (-s, c), so
+    // (x - a) . tau = R s and (l - x) . tau = ly c - lx s: a few flops and two square roots
+    // where the vectors took two normalisations (a direction of zero length counts as zero,
+    // as normalized() leaves it).
+    const double lx = l.dot(e1), ly = l.dot(e2);
     auto mismatch_at = [&](double c, double s) {
-        const auto [x, tau] = on_circle(e1, e2, R, c, s);
-        return (x - a).normalized().dot(tau) - (l - x).normalized().dot(tau);
+        const double to_a = std::sqrt((c - 1.0) * (c - 1.0) + s * s); // |x - a| / R
+        const double dx = lx - R * c, dy = ly - R * s;
+        const double to_l = std::sqrt(dx * dx + dy * dy);
+        return (to_a > 0.0 ? s / to_a : 0.0) - (to_l > 0.0 ? (ly * c - lx * s) / to_l : 0.0);
     };
-    auto mismatch = [&](double psi) { return mismatch_at(std::cos(psi), std::sin(psi)); };
     constexpr double kEdge = 1e-3; // x = a is no reflection
     const double step = (2.0 * std::numbers::pi - 2.0 * kEdge) / kMirrorScan;
     const double cos_step = std::cos(step), sin_step = std::sin(step);
+    // Within an arc from (c0, s0), the point turned by 2 atan(u), u in [0, tan(step / 2)]:
+    // no trigonometry per evaluation.
+    const double u_end = std::tan(0.5 * step);
+    const auto turned = [](double c0, double s0, double u) {
+        const double d = 1.0 / (1.0 + u * u), cu = (1.0 - u * u) * d, su = 2.0 * u * d;
+        return std::pair<double, double>{c0 * cu - s0 * su, s0 * cu + c0 * su};
+    };
     std::vector<Vec3> points;
     double c = std::cos(kEdge), s = std::sin(kEdge); // the scan turns (c, s) by step
     // The mismatch at the arc's start is evaluated only when an arc needs it: about half the
     // circle lies below the rim plane, where no arc is looked at.
-    double prev_psi = kEdge, prev_c = c, prev_s = s, prev_z = c * e1.z() + s * e2.z();
+    double prev_c = c, prev_s = s, prev_z = c * e1.z() + s * e2.z();
     std::optional<double> prev;
     for (int i = 1; i <= kMirrorScan; ++i) {
-        const double psi = kEdge + step * i;
         const double c_next = c * cos_step - s * sin_step;
         s = s * cos_step + c * sin_step;
         c = c_next;
@@ -197,19 +206,35 @@ std::vector<Vec3> sphere_reflections(const Vec3& a, const Vec3& l, double R) {
         // Mirror points below the rim plane are no use (the dome is a hemisphere): skip arcs
         // whose ends both lie there (an arc of 2 pi / kMirrorScan rises at most 0.02 mm).
         if (z <= 0.0 && prev_z <= 0.0) {
-            prev_psi = psi, prev_c = c, prev_s = s, prev_z = z, prev.reset();
+            prev_c = c, prev_s = s, prev_z = z, prev.reset();
             continue;
         }
         if (!prev) prev = mismatch_at(prev_c, prev_s);
         const double f = mismatch_at(c, s);
         if ((f > 0.0) != (*prev > 0.0)) {
-            const auto [mid, f_mid] = illinois(mismatch, prev_psi, psi, *prev, f, 1e-13);
+            const auto on_arc = [&](double u) {
+                const auto [cu, su] = turned(prev_c, prev_s, u);
+                return mismatch_at(cu, su);
+            };
+            const auto [mid, f_mid] = illinois(on_arc, 0.0, u_end, *prev, f, 1e-13);
             // A sign change across the pole of (x - a)^ is a jump, not a root.
-            if (std::abs(f_mid) < 1e-6) points.push_back(on_circle(e1, e2, R, mid).first);
+            if (std::abs(f_mid) < 1e-6) {
+                const auto [cm, sm] = turned(prev_c, prev_s, mid);
+                points.push_back(on_circle(e1, e2, R, cm, sm).first);
+            }
         }
-        prev_psi = psi, prev_c = c, prev_s = s, prev_z = z, prev = f;
+        prev_c = c, prev_s = s, prev_z = z, prev = f;
     }
     return points;
+}
+
+/// sphere_refraction(p, l, R, eta) to 1e-13: by Newton from the straight line to l where it
+/// gets there (the one root of the bracket, in fewer evaluations than the whole bracket's
+/// regula falsi), else over the whole bracket.
+Vec3 sphere_start(const Vec3& p, const Vec3& l, double R, double eta) {
+    SphereRefraction solver(p, l, R, eta);
+    if (const auto w = solver.newton((l - p).normalized(), 1e-13)) return *w;
+    return solver.solve(1e-13);
 }
 
 /// The reflected chain's starts of the sphere model: the directions from p (in the layers)
@@ -220,7 +245,7 @@ std::vector<Vec3> sphere_mirrors(const Vec3& p, const Vec3& l, double R, double 
     std::vector<Vec3> kept;
     for (const Vec3& mirror : sphere_reflections(R * p.normalized(), l, R)) {
         if (!(mirror.z() > 0.0)) continue;
-        const Vec3 w = sphere_refraction(p, mirror, R, eta);
+        const Vec3 w = sphere_start(p, mirror, R, eta);
         // Where w meets the sphere (from outside it, p being in the shell), and the refraction.
         const double b = p.dot(w), c = p.squaredNorm() - R * R;
         const double disc = b * b - c;
@@ -380,7 +405,7 @@ std::optional<InterfaceConnection> PathIntegrator::connect(const EmbreeScene& sc
     Vec3 w;
     int candidates = 1;
     if (chain == Chain::refracted) {
-        w = sphere_refraction(p, l, radius_mm, m_eta);
+        w = sphere_start(p, l, radius_mm, m_eta);
     } else {
         // Leave the layers at the point below p, bounce off one of the sphere's mirror points
         // (sphere_mirrors: the directions towards them).
