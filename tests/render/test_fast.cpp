@@ -88,12 +88,17 @@ RenderSettings fast_with_variance(int spp, std::uint64_t seed) {
     return settings;
 }
 
-/// The renderer's small light cache (8 paths, 4 LED points per vertex) built on `rest`, then
-/// `frame` loaded.
-void small_cache_on(Renderer& renderer, const SensorFrame& rest, const SensorFrame& frame) {
+/// The tests' small light cache: 8 paths, 4 LED points per vertex.
+LightCacheSettings small_cache() {
     LightCacheSettings cache;
     cache.paths_per_vertex = 8;
     cache.direct_samples = 4;
+    return cache;
+}
+
+/// The renderer's light cache (by default the small one) built on `rest`, then `frame` loaded.
+void small_cache_on(Renderer& renderer, const SensorFrame& rest, const SensorFrame& frame,
+                    const LightCacheSettings& cache = small_cache()) {
     renderer.set_light_cache(rest, cache);
     renderer.set_frame(frame);
 }
@@ -155,9 +160,7 @@ TEST_CASE("fast integrator: the same image with 1 and 2 threads, a light cache o
     settings.samples_per_pixel = 2;
     CHECK_THROWS_WITH(renderer.render(settings),
                       Catch::Contains("Integrator::fast needs set_light_cache"));
-    LightCacheSettings cache;
-    cache.paths_per_vertex = 8;
-    cache.direct_samples = 4;
+    const LightCacheSettings cache = small_cache();
     Image one, two;
     {
         tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 1);
@@ -1050,12 +1053,9 @@ TEST_CASE("fast integrator: the frame's share of the LEDs' light, taken apart ne
     Image images[2];
     for (const bool share : {false, true}) {
         Renderer renderer(CameraParams{96, 96, 84.0}, OpticsParams{});
-        LightCacheSettings cache;
-        cache.paths_per_vertex = 8;
-        cache.direct_samples = 4;
+        LightCacheSettings cache = small_cache();
         cache.frame_share = share;
-        renderer.set_light_cache(rest, cache);
-        renderer.set_frame(pressed);
+        small_cache_on(renderer, rest, pressed, cache);
         images[share] = renderer.render(fast_with_variance(8, 5));
     }
     // The field's outer ring (polar angles above 78 degrees), and the rest.
@@ -1111,12 +1111,9 @@ TEST_CASE("fast integrator: shadow rays culled where they provably meet nothing 
         std::uint64_t rays[2] = {0, 0};
         for (const bool cull : {false, true}) {
             Renderer renderer(CameraParams{32, 32, 84.0}, OpticsParams{});
-            LightCacheSettings cache;
-            cache.paths_per_vertex = 8;
-            cache.direct_samples = 4;
+            LightCacheSettings cache = small_cache();
             cache.cull_shadows = cull;
-            renderer.set_light_cache(rest, cache);
-            renderer.set_frame(frame);
+            small_cache_on(renderer, rest, frame, cache);
             renderer.count_rays(true);
             images[cull] = renderer.render(settings).rgb;
             rays[cull] = renderer.rays_counted();
