@@ -1033,6 +1033,7 @@ LanesN<N> FastIntegrator::shade(const EmbreeScene& scene, const Vec3& p, const L
     for (int k = 0; k < leds; ++k)
         total += at.direct[std::size_t(k)];
     if (!(total > 0.0)) return indirect;
+    if (shadow.rays == 0) return LanesN<N>::Constant(total * kInvPi) + indirect;
     const int rays = std::clamp(shadow.rays, 1, kMaxShadowRaysPerSample);
     const LanesN<N> lit = LanesN<N>::Constant(total * kInvPi / rays);
     // The direct light's parts, when asked for: one a ray, each with the unshadowed light its
@@ -1218,11 +1219,13 @@ LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, c
                 L = f * shade(scene, p, at, cached(m_cache->indirect), lanes, rng, shadow, direct,
                               LanesN<N>(weight * f));
             }
-            // The outer markers' scattering: one shadow ray each, from the stream ({}).
+            // The outer markers' scattering: one shadow ray each, from the stream, or none
+            // where the sample takes none.
+            const ShadowDraw scatter{.rays = shadow.rays == 0 ? 0 : 1};
             for (int k = 0; k < pending; ++k) {
                 const LanesN<N> factor = scatters[std::size_t(k)].weight * lanes.led;
-                L += factor * shade(scene, scatters[std::size_t(k)].p, at, above, lanes, rng, {},
-                                    direct, LanesN<N>(weight * factor));
+                L += factor * shade(scene, scatters[std::size_t(k)].p, at, above, lanes, rng,
+                                    scatter, direct, LanesN<N>(weight * factor));
             }
             return L;
         }
@@ -1438,11 +1441,14 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
         const LanesN<N> led_radiance = l.led / m_path.led_area_mm2();
         DirectLight<N>* const split = direct.empty() ? nullptr : &direct[i];
         if (split) split->parts = 0;
-        // The layers' radiance; `weight`: the share of it the sample takes.
+        // The layers' radiance; `weight`: the share of it the sample takes. Through the
+        // camera ray's reflection (`reflected`), below kUnshadowedReflection, no shadow rays.
         const auto layers = [&](const Vec3& o, const Vec3& d, double tnear, const RayHit& hit,
-                                double weight) {
-            return inside(scene, o, d, tnear, l, lambdas[i], *rng[i], shadow[i], &hit, split,
-                          weight);
+                                double weight, bool reflected = false) {
+            const bool unshadowed = reflected && m_settings.unshadowed_reflections &&
+                                    weight < kUnshadowedReflection;
+            return inside(scene, o, d, tnear, l, lambdas[i], *rng[i],
+                          unshadowed ? ShadowDraw{.rays = 0} : shadow[i], &hit, split, weight);
         };
         LanesN<N> L = LanesN<N>::Zero();
         const Level& a = near[i];
@@ -1458,10 +1464,10 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
                 if (b.then == Then::led) {
                     if (reflected_leds) L += a.F * led_radiance;
                 } else if (b.then == Then::straight)
-                    L += a.F * layers(a.p, a.reflected, kHitGap_mm, back[i], a.F);
+                    L += a.F * layers(a.p, a.reflected, kHitGap_mm, back[i], a.F, true);
                 else if (b.then == Then::split && b.refract)
                     L += a.F * ((1.0 - b.F) * layers(b.p, b.refracted, kHitGap_mm, far_wall[i],
-                                                     a.F * (1.0 - b.F)));
+                                                     a.F * (1.0 - b.F), true));
             }
         }
         out[i] = L;

@@ -131,12 +131,19 @@ inline constexpr double kCacheBsdfPerNee = 4.0;
 /// The most shadow rays one camera sample traces from its coating hit (ShadowDraw::rays).
 inline constexpr int kMaxShadowRaysPerSample = 4;
 
+/// LightCacheSettings::unshadowed_reflections: the largest share of a camera sample (F, or
+/// F (1 - F') through the far wall) whose reflection off the inner surface is shaded without
+/// shadow rays; a larger one (grazing incidence, a surface tilted by a press) traces them.
+inline constexpr double kUnshadowedReflection = 0.1;
+
 /// A camera sample's uniforms for its coating hit's shadow rays, `rays` of them (1 to
 /// kMaxShadowRaysPerSample, RenderSettings::shadow_rays_per_pixel; their mean estimates the
 /// shadows): per ray, u_led picks the LED (with probability G_k / sum G), (u1, u2) the point
 /// on it (PathIntegrator::led_point); the first ray's in (u_led, u1, u2), the others' in
 /// `further`. The renderer stratifies them jointly over a pixel's shadow rays
-/// (shadow_uniforms); u_led < 0: that ray's three drawn from the pixel's stream.
+/// (shadow_uniforms); u_led < 0: that ray's three drawn from the pixel's stream. rays 0: none,
+/// the LEDs' direct light taken unshadowed and not apart (no DirectPart): the camera ray's
+/// reflection off the inner surface, LightCacheSettings::unshadowed_reflections.
 struct ShadowDraw {
     double u_led = -1.0, u1 = 0.0, u2 = 0.0;
     int rays = 1;

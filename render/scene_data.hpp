@@ -165,6 +165,16 @@ struct LightCacheSettings {
     /// the same mean without the noise it made in the field's outer ring (session 31). Off
     /// only to measure it (bench render --no-frame-share).
     bool frame_share = true;
+    /// Not part of the stored cache: the camera ray's reflection off the inner surface (the
+    /// Fresnel share F of the sample, 2.8 % at normal incidence) is shaded with the LEDs'
+    /// direct light unshadowed, no shadow ray of its own, wherever its share is below
+    /// kUnshadowedReflection (10 %). From a camera at the dome's centre the reflection runs
+    /// back across the cavity to the far wall near the rim plane, where no marker lies: at
+    /// 1.5 N + 0.6 N its shadow rays were about a tenth of a render's and changed the
+    /// converged image by 0.002 % of white RMS, 0.043 % at most (docs/VALIDATION.md, session
+    /// 34). Off: each such reflection traces its shadow ray (bench render
+    /// --reflection-shadow-rays).
+    bool unshadowed_reflections = true;
 };
 
 /// The fast integrator's per-sensor light cache on the coating vertices (plain data, structure

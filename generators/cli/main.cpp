@@ -257,6 +257,12 @@ int main(int argc, char** argv) {
     bench_render->add_flag("!--no-shadow-cull", render_bench.light_cache.cull_shadows,
                            "fast integrator: trace every shadow ray, also those that provably "
                            "meet no marker (the same image; to measure what the culling saves)");
+    bench_render->add_flag("!--reflection-shadow-rays",
+                           render_bench.light_cache.unshadowed_reflections,
+                           "fast integrator: let the camera ray's reflection off the inner "
+                           "surface trace its shadow rays, instead of taking the LEDs' light "
+                           "there unshadowed where it is below a tenth of the sample (to "
+                           "measure what leaving them out changes and saves)");
     bench_render->add_flag("!--no-frame-share", render_bench.light_cache.frame_share,
                            "fast integrator: let each shadow ray near the rim test the frame's "
                            "plane, instead of taking the share it blocks off the LEDs' light "

@@ -1424,3 +1424,96 @@ TEST_CASE("fast integrator: more shadow rays a pixel (shadow_rays_per_pixel): up
                       Catch::Contains("shadow_rays_per_pixel = -1 is invalid") &&
                           Catch::Contains("allowed: integer >= 0"));
 }
+
+TEST_CASE("fast integrator: the camera ray's reflection off the inner surface, below a tenth of "
+          "the sample, is shaded unshadowed: the refracted ray's parts the same, the sample's "
+          "radiance up by at most the reflection's share of its LED light",
+          "[render][fast]") {
+    const SensorFrame rest = dome_with_box_markers();
+    // Pressed by a plane tilted 35 degrees (both surfaces cut off beyond it, as pressed_flat
+    // does level): the camera rays' reflections off the cut go across the cavity to the lit
+    // far wall and its markers, where off a level cut they would leave by the rim.
+    SensorFrame pressed = rest;
+    const Eigen::Vector3f normal(std::sin(35.0f * float(std::numbers::pi) / 180.0f), 0.0f,
+                                 std::cos(35.0f * float(std::numbers::pi) / 180.0f));
+    for (auto [mesh, reach] : {std::pair{&pressed.inner_surface, 8.5f},
+                               std::pair{&pressed.coating, 10.7f}})
+        for (Eigen::Index v = 0; v < mesh->V.rows(); ++v) {
+            const Eigen::Vector3f x = mesh->V.row(v).transpose();
+            mesh->V.row(v) = (x - std::max(0.0f, normal.dot(x) - reach) * normal).transpose();
+        }
+    EmbreeScene scene;
+    scene.set_frame(pressed);
+    const ShadingModel shading{OpticsParams{}};
+    const PathIntegrator path{shading};
+    // The same light cache, with and without the reflections' shadow rays.
+    std::array<FastIntegrator, 2> fast{FastIntegrator{shading, path},
+                                       FastIntegrator{shading, path}};
+    for (const bool unshadowed : {false, true}) {
+        LightCacheSettings cache = small_cache();
+        cache.unshadowed_reflections = unshadowed;
+        fast[unshadowed].build_cache(rest, cache, nullptr, 1.0);
+        fast[unshadowed].set_frame(pressed, scene);
+    }
+    const LaneOptics<kRgbLanes> lanes = shading.rgb_lanes();
+    constexpr std::size_t n = 16;
+    const std::vector<const LaneOptics<kRgbLanes>*> lane_sets(n, &lanes);
+    const std::vector<const CacheLambdas<kRgbLanes>*> lambdas(n, nullptr);
+    int fewer = 0, brighter = 0, samples = 0;
+    for (int batch = 0; batch < 8; ++batch) {
+        std::vector<Vec3> directions;
+        std::vector<ShadowDraw> draws;
+        for (std::size_t i = 0; i < n; ++i) {
+            const double polar = 2.0 + 5.0 * double(batch) + 0.3 * double(i);
+            directions.push_back(unit_from_angles(polar, 22.5 * double(i)));
+            draws.push_back({(double(i) + 0.5) / double(n), 0.3, 0.7});
+        }
+        std::array<std::vector<RgbLanes>, 2> radiance{std::vector<RgbLanes>(n),
+                                                      std::vector<RgbLanes>(n)};
+        std::array<std::vector<DirectLight<kRgbLanes>>, 2> direct{
+            std::vector<DirectLight<kRgbLanes>>(n), std::vector<DirectLight<kRgbLanes>>(n)};
+        for (const bool unshadowed : {false, true}) {
+            std::vector<PixelRng> rngs;
+            for (std::size_t i = 0; i < n; ++i)
+                rngs.emplace_back(7, std::uint64_t(batch) * n + i);
+            std::vector<PixelRng*> streams;
+            for (PixelRng& r : rngs)
+                streams.push_back(&r);
+            fast[unshadowed].radiance16<kRgbLanes>(scene, Vec3::Zero(), directions, lane_sets,
+                                                   lambdas, draws, streams, radiance[unshadowed],
+                                                   direct[unshadowed]);
+        }
+        for (std::size_t i = 0; i < n; ++i, ++samples) {
+            const DirectLight<kRgbLanes>&traced = direct[0][i], &open = direct[1][i];
+            INFO("batch " << batch << ", sample " << i << ": " << traced.parts << " and "
+                          << open.parts << " parts");
+            // The refracted ray's parts come first and are the same; the reflection's are gone.
+            REQUIRE(open.parts <= traced.parts);
+            for (int q = 0; q < open.parts; ++q) {
+                CHECK((open.part[std::size_t(q)].lit == traced.part[std::size_t(q)].lit).all());
+                CHECK((open.part[std::size_t(q)].shadowed ==
+                       traced.part[std::size_t(q)].shadowed)
+                          .all());
+            }
+            // What the reflection's parts carried: at most a tenth of the sample's LED light
+            // each, shadowed; unshadowed now, so the radiance is up by at most their
+            // unshadowed light.
+            RgbLanes gone_lit = RgbLanes::Zero(), gone_shadowed = RgbLanes::Zero();
+            for (int q = open.parts; q < traced.parts; ++q) {
+                gone_lit += traced.part[std::size_t(q)].lit;
+                gone_shadowed += traced.part[std::size_t(q)].shadowed;
+            }
+            const RgbLanes up = radiance[1][i] - radiance[0][i];
+            const double tol = 1e-12 * (1.0 + radiance[0][i].abs().maxCoeff());
+            CHECK((up >= -tol).all());
+            CHECK(((up - (gone_lit - gone_shadowed)).abs() <= tol).all());
+            fewer += open.parts < traced.parts;
+            brighter += (up > tol).any();
+        }
+    }
+    INFO(fewer << " of " << samples << " samples shaded their reflection without shadow rays, "
+               << brighter << " of them brighter for it");
+    // The fan reaches reflections that are lit, and some that a marker shadows.
+    CHECK(fewer > 8);
+    CHECK(brighter > 0);
+}
