@@ -169,10 +169,12 @@ struct LightCacheSettings {
     /// Fresnel share F of the sample, 2.8 % at normal incidence) is shaded with the LEDs'
     /// direct light unshadowed, no shadow ray of its own, wherever its share is below
     /// kUnshadowedReflection (10 %). From a camera at the dome's centre the reflection runs
-    /// back across the cavity to the far wall near the rim plane, where no marker lies: at
-    /// 1.5 N + 0.6 N its shadow rays were about a tenth of a render's and changed the
-    /// converged image by 0.002 % of white RMS, 0.043 % at most (docs/VALIDATION.md, session
-    /// 34). Off: each such reflection traces its shadow ray (bench render
+    /// back across the cavity to the far wall near the rim plane, where no marker lies. Its
+    /// shadow rays were none of a render's at rest, 5.7 % at 1.5 N + 0.6 N and 14.8 % at
+    /// 5 N + 2 N (a press tilts the inner surface towards the lit side walls); leaving them
+    /// out moved the converged image by 0.002 % of white RMS at the first (0.043 % at most)
+    /// and 0.028 % at the second (0.44 % in one pixel) (docs/VALIDATION.md, session 34).
+    /// Off: each such reflection traces its shadow rays (bench render
     /// --reflection-shadow-rays).
     bool unshadowed_reflections = true;
 };
