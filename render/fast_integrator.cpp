@@ -52,6 +52,10 @@ constexpr double kFoldHeight_mm = 1e-5;
 /// LightCacheSettings::frame_share: the LED points a side (their cells' centres) over which
 /// the frame's share of an LED's light is taken at a coating vertex or edge midpoint.
 constexpr int kFrameShareGrid = 8;
+/// A shade's draws: none (ShadowDraw::rays 0), and one shadow ray from the stream (both
+/// referred to, not copied, per sample).
+constexpr ShadowDraw kNoShadowRays{.rays = 0};
+constexpr ShadowDraw kStreamShadowRay{};
 /// radiance16 sends a level's rays to Embree as one packet from this many on, else one by one.
 constexpr std::size_t kMinPacket = 4;
 
@@ -1221,7 +1225,7 @@ LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, c
             }
             // The outer markers' scattering: one shadow ray each, from the stream, or none
             // where the sample takes none.
-            const ShadowDraw scatter{.rays = shadow.rays == 0 ? 0 : 1};
+            const ShadowDraw& scatter = shadow.rays == 0 ? kNoShadowRays : kStreamShadowRay;
             for (int k = 0; k < pending; ++k) {
                 const LanesN<N> factor = scatters[std::size_t(k)].weight * lanes.led;
                 L += factor * shade(scene, scatters[std::size_t(k)].p, at, above, lanes, rng,
@@ -1448,7 +1452,7 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
             const bool unshadowed = reflected && m_settings.unshadowed_reflections &&
                                     weight < kUnshadowedReflection;
             return inside(scene, o, d, tnear, l, lambdas[i], *rng[i],
-                          unshadowed ? ShadowDraw{.rays = 0} : shadow[i], &hit, split, weight);
+                          unshadowed ? kNoShadowRays : shadow[i], &hit, split, weight);
         };
         LanesN<N> L = LanesN<N>::Zero();
         const Level& a = near[i];
