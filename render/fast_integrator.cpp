@@ -1377,6 +1377,71 @@ void FastIntegrator::reflected_leds16(const EmbreeScene& scene, const Vec3& orig
                 : 0.0;
 }
 
+void FastIntegrator::marker_ids16(const EmbreeScene& scene, const Vec3& origin,
+                                  std::span<const Vec3> directions, int triangles_per_marker,
+                                  std::span<std::pair<std::int32_t, std::int32_t>> ids) const {
+    const std::size_t n = directions.size();
+    if (n > 16 || ids.size() != n || triangles_per_marker < 1)
+        throw std::invalid_argument(
+            "FastIntegrator::marker_ids16: " + std::to_string(n) + " directions, " +
+            std::to_string(ids.size()) + " results and " + std::to_string(triangles_per_marker) +
+            " triangles a marker; allowed: at most 16, one result per direction, at least 1");
+    // radiance16's first two packets, as it traces them.
+    const bool cavity_only = scene.in_cavity(origin);
+    std::array<RayHit, 16> first, into;
+    trace_some(
+        scene, n, 0.0, [](std::size_t) { return true; },
+        [&](std::size_t i) {
+            return std::pair{origin, directions[i]};
+        },
+        first, cavity_only);
+    std::array<Level, 16> near{};
+    for (std::size_t i = 0; i < n; ++i)
+        near[i] = classify(origin, directions[i], 0.0, first[i], false);
+    const auto refracts = [&near](std::size_t i) {
+        return near[i].then == Then::split && near[i].refract;
+    };
+    trace_some(
+        scene, n, kHitGap_mm, refracts,
+        [&](std::size_t i) {
+            return std::pair{near[i].p, near[i].refracted};
+        },
+        into, false);
+    constexpr double inf = std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < n; ++i) {
+        std::int32_t layer[2] = {-1, -1};
+        const Level& a = near[i];
+        const bool straight = a.then == Then::straight;
+        if (straight || refracts(i)) {
+            // inside()'s walk: the markers' faces up to the coating or the inner surface.
+            const Vec3& o = straight ? origin : a.p;
+            const Vec3& d = straight ? directions[i] : a.refracted;
+            double tnear = straight ? 0.0 : kHitGap_mm;
+            const RayHit& hit0 = straight ? first[i] : into[i];
+            const auto marker = [](const RayHit& hit) {
+                return hit.kind == SurfaceKind::inner_marker ||
+                       hit.kind == SurfaceKind::outer_marker;
+            };
+            const auto take = [&](const RayHit& hit) {
+                tnear = hit.t_mm + kHitGap_mm;
+                if (!(hit.normal.squaredNorm() > 0.5)) return; // a zero-area triangle
+                std::int32_t& id = layer[hit.kind == SurfaceKind::outer_marker ? 1 : 0];
+                if (id < 0) id = std::int32_t(hit.prim_id / std::uint32_t(triangles_per_marker));
+            };
+            if (marker(hit0)) {
+                take(hit0);
+                RayHits hits(scene, o, d, tnear, inf);
+                for (int k = 1; k < kMaxHits; ++k) {
+                    const RayHit hit = hits.next(tnear);
+                    if (!marker(hit)) break;
+                    take(hit);
+                }
+            }
+        }
+        ids[i] = {layer[0], layer[1]};
+    }
+}
+
 template <int N>
 void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
                                 std::span<const Vec3> directions,

@@ -262,6 +262,18 @@ public:
     void reflected_leds16(const EmbreeScene& scene, const Vec3& origin_mm,
                           std::span<const Vec3> directions, std::span<double> fresnel) const;
 
+    /// The markers that up to 16 camera rays from `origin_mm` show, as radiance16 traces
+    /// them: ids[i] is, per layer (inner, outer), the marker (triangle / triangles_per_marker)
+    /// whose surface ray i meets first on its way to the coating after refracting into the
+    /// layers at the inner surface (its interpolated normal, as the samples refract), or -1.
+    /// A ray that meets an LED, the frame, nothing, or the inner surface without refracting
+    /// into it shows none. The same two packets as radiance16 (to the inner surface, then on
+    /// into the layers), then the marker walk of the rays whose first hit there is a marker.
+    /// Needs a loaded frame, not a light cache.
+    void marker_ids16(const EmbreeScene& scene, const Vec3& origin_mm,
+                      std::span<const Vec3> directions, int triangles_per_marker,
+                      std::span<std::pair<std::int32_t, std::int32_t>> ids) const;
+
     /// The shadow ray's direction from `p_mm`, the point of coating triangle `prim` at
     /// barycentric coordinates (u, v), towards `led_point_mm` on LED k, as the samples take it
     /// (for tests and diagnostics). Pre-condition: set_frame with an inner surface.

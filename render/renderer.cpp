@@ -679,13 +679,16 @@ struct Renderer::Impl {
     ///   there (half the largest distance to its 4 neighbours' crossings), and their 8
     ///   neighbours.
     /// - Rims (RenderSettings::edge_samples_per_pixel): the pixels whose 4 corners' markers
-    ///   (marker_ids_at: the first of each layer before the coating) are not all the same: a
-    ///   marker's rim crosses the pixel. (Up to 0.22.0: the pixels whose centre's markers
-    ///   differed from one of its 8 neighbours', a band about twice as wide, whose extra
-    ///   pixels hold no rim and gained little from their samples; docs/VALIDATION.md, session
-    ///   31.) A rim that enters and leaves the pixel between the same two corners is missed:
-    ///   a sliver of at most w^2 / (8 r) of it for a marker of radius r px (0.04 px^2 for the
-    ///   markers' 3.5 px at 224 px), sampled at the pixel's own count.
+    ///   (marker_ids_row: the first of each layer before the coating, along the camera ray
+    ///   refracted at the inner surface as the samples are; up to 0.25.0 along the straight
+    ///   ray, which misplaced the rims by about a pixel where a press tilts the surface) are
+    ///   not all the same: a marker's rim crosses the pixel. (Up to 0.22.0: the pixels whose
+    ///   centre's markers differed from one of its 8 neighbours', a band about twice as wide,
+    ///   whose extra pixels hold no rim and gained little from their samples;
+    ///   docs/VALIDATION.md, session 31.) A rim that enters and leaves the pixel between the
+    ///   same two corners is missed: a sliver of at most w^2 / (8 r) of it for a marker of
+    ///   radius r px (0.04 px^2 for the markers' 3.5 px at 224 px), sampled at the pixel's
+    ///   own count.
     std::vector<std::uint8_t> pixel_levels(bool mirrors, bool rims) const {
         const int w = camera.width_px(), h = camera.height_px();
         const std::size_t pixels = std::size_t(w) * std::size_t(h);
@@ -773,23 +776,15 @@ struct Renderer::Impl {
         return out;
     }
 
-    /// marker_ids_at for the image points (i, y), i = 0 .. out.size() - 1; outside the field
-    /// none (-1, -1). From a camera in the cavity 16 rays at a time, as Embree packets: to
-    /// the inner surface (its own BVH), then on from just past each crossing; a ray whose next
-    /// surface is the coating has no marker (marker_ids_at would find the same), the others
-    /// take marker_ids_at's walk.
+    /// The markers the camera rays through the image points (i, y), i = 0 .. out.size() - 1,
+    /// show, as the fast integrator's samples see them (FastIntegrator::marker_ids16: refracted
+    /// into the layers at the inner surface); outside the field none (-1, -1). 16 rays at a
+    /// time, as Embree packets.
     void marker_ids_row(double y, std::span<std::pair<std::int32_t, std::int32_t>> out) const {
         const int n = int(out.size());
-        if (!scene.in_cavity(camera.origin_mm())) {
-            for (int x = 0; x < n; ++x)
-                out[std::size_t(x)] = marker_ids_at(Eigen::Vector2d(x, y));
-            return;
-        }
-        const double inf = std::numeric_limits<double>::infinity();
-        std::array<Vec3, 16> origins, directions, past;
-        std::array<detail::RayHit, 16> first, next;
+        std::array<Vec3, 16> directions;
+        std::array<std::pair<std::int32_t, std::int32_t>, 16> ids;
         std::array<int, 16> xs;
-        origins.fill(camera.origin_mm());
         for (int x0 = 0; x0 < n; x0 += 16) {
             std::size_t m = 0;
             for (int x = x0; x < std::min(n, x0 + 16); ++x) {
@@ -798,31 +793,30 @@ struct Renderer::Impl {
                     directions[m] = *d, xs[m++] = x;
             }
             if (m == 0) continue;
-            const auto o = std::span(origins.data(), m), d = std::span(directions.data(), m);
-            scene.closest_interface_hits16(o, d, 0.0, inf, std::span(first.data(), m));
-            // On from just past each ray's crossing (a ray that missed the inner surface
-            // starts where it did; it takes the walk anyway).
+            fast.marker_ids16(scene, camera.origin_mm(), std::span(directions.data(), m),
+                              triangles_per_marker, std::span(ids.data(), m));
             for (std::size_t i = 0; i < m; ++i)
-                past[i] =
-                    camera.origin_mm() +
-                    (first[i].hit() ? first[i].t_mm + detail::kHitGap_mm : 0.0) * directions[i];
-            scene.closest_hits16(std::span(past.data(), m), d, 0.0, inf,
-                                 std::span(next.data(), m));
-            for (std::size_t i = 0; i < m; ++i) {
-                const bool coating = first[i].hit() && next[i].hit() &&
-                                     next[i].kind == detail::SurfaceKind::coating;
-                if (!coating) out[std::size_t(xs[i])] = marker_ids_at(Eigen::Vector2d(xs[i], y));
-            }
+                out[std::size_t(xs[i])] = ids[i];
         }
     }
 
     /// The marker of each layer (index within the layer, or -1) that the ray through the
-    /// pixel's centre meets first before the coating.
-    std::pair<std::int32_t, std::int32_t> marker_ids(int x, int y) const {
-        return marker_ids_at(Eigen::Vector2d(x + 0.5, y + 0.5));
+    /// pixel's centre meets first before the coating: refracted into the layers at the inner
+    /// surface as the path and fast integrators' rays are (`refracted`;
+    /// FastIntegrator::marker_ids16), else straight through it as the direct integrator sees.
+    std::pair<std::int32_t, std::int32_t> marker_ids(int x, int y, bool refracted) const {
+        const Eigen::Vector2d at(x + 0.5, y + 0.5);
+        if (!refracted || triangles_per_marker < 1) return marker_ids_at(at);
+        const auto direction = camera.direction(at);
+        if (!direction) return {-1, -1};
+        std::pair<std::int32_t, std::int32_t> ids;
+        fast.marker_ids16(scene, camera.origin_mm(), std::span(&*direction, 1),
+                          triangles_per_marker, std::span(&ids, 1));
+        return ids;
     }
-    /// The same for the ray through image point `at` (px; pixel (x, y) spans [x, x + 1) x
-    /// [y, y + 1)); outside the field none.
+    /// The markers of each layer that the straight ray through image point `at` meets first
+    /// before the coating (px; pixel (x, y) spans [x, x + 1) x [y, y + 1)), as the direct
+    /// integrator sees through the inner surface; outside the field none.
     std::pair<std::int32_t, std::int32_t> marker_ids_at(const Eigen::Vector2d& at) const {
         std::int32_t ids[2] = {-1, -1};
         const auto direction = camera.direction(at);
@@ -1112,7 +1106,8 @@ Image Renderer::render(const RenderSettings& settings) const {
                 image.variance[3 * p + std::size_t(c)] = float(var[c]);
         }
         if (settings.marker_ids) {
-            const auto [inner, outer] = m.marker_ids(x, y);
+            const auto [inner, outer] =
+                m.marker_ids(x, y, settings.integrator != Integrator::direct);
             image.inner_marker_id[p] = inner;
             image.outer_marker_id[p] = outer;
         }

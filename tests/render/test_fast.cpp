@@ -72,6 +72,23 @@ SensorFrame dome_with_box_markers() {
     return rest;
 }
 
+/// `rest` pressed by a plane tilted `degrees` about the y axis, both surfaces cut off beyond
+/// it (as pressed_flat does level): the inner surface's cut is a flat facet the camera rays
+/// meet far from normal incidence, so they bend there and their reflections cross the cavity
+/// to the lit far wall.
+SensorFrame pressed_tilted(const SensorFrame& rest, float degrees) {
+    SensorFrame pressed = rest;
+    const float tilt = degrees * float(std::numbers::pi) / 180.0f;
+    const Eigen::Vector3f normal(std::sin(tilt), 0.0f, std::cos(tilt));
+    for (auto [mesh, reach] :
+         {std::pair{&pressed.inner_surface, 8.5f}, std::pair{&pressed.coating, 10.7f}})
+        for (Eigen::Index v = 0; v < mesh->V.rows(); ++v) {
+            const Eigen::Vector3f x = mesh->V.row(v).transpose();
+            mesh->V.row(v) = (x - std::max(0.0f, normal.dot(x) - reach) * normal).transpose();
+        }
+    return pressed;
+}
+
 /// The default optics with the spectra of assets/spectra (spectral mode).
 OpticsParams spectral_optics() {
     OpticsParams spectral;
@@ -1430,18 +1447,9 @@ TEST_CASE("fast integrator: the camera ray's reflection off the inner surface, b
           "radiance up by at most the reflection's share of its LED light",
           "[render][fast]") {
     const SensorFrame rest = dome_with_box_markers();
-    // Pressed by a plane tilted 35 degrees (both surfaces cut off beyond it, as pressed_flat
-    // does level): the camera rays' reflections off the cut go across the cavity to the lit
-    // far wall and its markers, where off a level cut they would leave by the rim.
-    SensorFrame pressed = rest;
-    const Eigen::Vector3f normal(std::sin(35.0f * float(std::numbers::pi) / 180.0f), 0.0f,
-                                 std::cos(35.0f * float(std::numbers::pi) / 180.0f));
-    for (auto [mesh, reach] : {std::pair{&pressed.inner_surface, 8.5f},
-                               std::pair{&pressed.coating, 10.7f}})
-        for (Eigen::Index v = 0; v < mesh->V.rows(); ++v) {
-            const Eigen::Vector3f x = mesh->V.row(v).transpose();
-            mesh->V.row(v) = (x - std::max(0.0f, normal.dot(x) - reach) * normal).transpose();
-        }
+    // The camera rays' reflections off the tilted cut go across the cavity to the lit far wall
+    // and its markers, where off a level cut they would leave by the rim.
+    const SensorFrame pressed = pressed_tilted(rest, 35.0f);
     EmbreeScene scene;
     scene.set_frame(pressed);
     const ShadingModel shading{OpticsParams{}};
@@ -1516,4 +1524,78 @@ TEST_CASE("fast integrator: the camera ray's reflection off the inner surface, b
     // The fan reaches reflections that are lit, and some that a marker shadows.
     CHECK(fewer > 8);
     CHECK(brighter > 0);
+}
+
+TEST_CASE("fast integrator: the marker id channels and the rims' pixels follow the camera ray "
+          "refracted at the inner surface, as the samples see the markers, where the direct "
+          "integrator's ids go straight through it",
+          "[render][fast]") {
+    // A press tilted 35 degrees: the camera rays meet its flat cut well off normal incidence
+    // and bend by several degrees on their way to the markers.
+    const SensorFrame rest = dome_with_box_markers();
+    const SensorFrame pressed = pressed_tilted(rest, 35.0f);
+    const CameraParams camera{96, 96, 84.0};
+    Renderer renderer(camera, OpticsParams{});
+    small_cache_on(renderer, rest, pressed);
+    RenderSettings settings{1, 5};
+    settings.marker_ids = true;
+    settings.integrator = Integrator::fast;
+    const Image fast = renderer.render(settings);
+    settings.integrator = Integrator::direct;
+    const Image direct = renderer.render(settings);
+    // The ids by hand: Snell's law at the inner surface's interpolated normal written out, then
+    // closest_hit after closest_hit to the coating, the first marker face of each layer.
+    EmbreeScene scene;
+    scene.set_frame(pressed);
+    const FisheyeCamera lens(camera);
+    const double eta = 1.0 / OpticsParams{}.refractive_index;
+    const double inf = std::numeric_limits<double>::infinity();
+    const auto walk = [&](const Vec3& from, const Vec3& d, double tnear, unsigned kinds) {
+        std::pair<std::int32_t, std::int32_t> ids{-1, -1};
+        for (int i = 0; i < 32; ++i) {
+            const RayHit hit = scene.closest_hit(from, d, tnear, inf, kinds);
+            if (hit.kind != SurfaceKind::inner_marker && hit.kind != SurfaceKind::outer_marker)
+                break;
+            tnear = hit.t_mm + kHitGap_mm;
+            std::int32_t& id = hit.kind == SurfaceKind::inner_marker ? ids.first : ids.second;
+            if (id < 0) id = std::int32_t(hit.prim_id / 12);
+        }
+        return ids;
+    };
+    const unsigned no_interface = kAllKinds & ~kind_bit(SurfaceKind::inner_surface);
+    int refracted_differs = 0, straight_differs = 0, with_marker = 0, bent = 0, wrong = 0;
+    for (int y = 0; y < camera.height_px; ++y)
+        for (int x = 0; x < camera.width_px; ++x) {
+            const std::size_t p = std::size_t(y) * std::size_t(camera.width_px) + std::size_t(x);
+            const auto d = lens.direction(Eigen::Vector2d(x + 0.5, y + 0.5));
+            std::pair<std::int32_t, std::int32_t> seen{-1, -1}, straight{-1, -1};
+            if (d) {
+                straight = walk(lens.origin_mm(), *d, 0.0, no_interface);
+                const RayHit in = scene.closest_hit(lens.origin_mm(), *d, 0.0, inf);
+                if (in.kind == SurfaceKind::inner_surface && in.normal.dot(*d) < 0.0) {
+                    const Vec3 n = in.shading_normal.dot(*d) < 0.0 ? in.shading_normal
+                                                                   : Vec3(-in.shading_normal);
+                    const double cos_i = -n.dot(*d);
+                    const double k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
+                    const Vec3 r = (eta * *d + (eta * cos_i - std::sqrt(k)) * n).normalized();
+                    bent += std::acos(std::clamp(r.dot(*d), -1.0, 1.0)) >
+                            2.0 * std::numbers::pi / 180.0;
+                    seen = walk(lens.origin_mm() + in.t_mm * *d, r, kHitGap_mm, kAllKinds);
+                }
+            }
+            with_marker += seen.first >= 0 || seen.second >= 0;
+            wrong +=
+                fast.inner_marker_id[p] != seen.first || fast.outer_marker_id[p] != seen.second;
+            refracted_differs += seen != straight;
+            straight_differs += direct.inner_marker_id[p] != straight.first ||
+                                direct.outer_marker_id[p] != straight.second;
+        }
+    INFO(with_marker << " pixels show a marker, " << bent << " rays bend by more than 2 degrees, "
+                     << refracted_differs << " pixels' ids change with the bend");
+    CHECK(wrong == 0);
+    CHECK(straight_differs == 0);
+    // The bend matters here: without it the ids (and the rims) would be off.
+    CHECK(bent > 500);
+    CHECK(refracted_differs > 50);
+    CHECK(with_marker > 500);
 }
