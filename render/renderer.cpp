@@ -132,6 +132,42 @@ struct Renderer::Impl {
     /// light cache built after set_frame.
     SensorFrame frame;
     detail::EmbreeScene scene;
+    /// The camera rays through the image grid's points (x, y), x in 0 .. w, y in 0 .. h: the
+    /// pixels' corners, and through the pixels' centres (x + 0.5, y + 0.5), row by row, a NaN
+    /// x outside the field. Worked out once (the camera never changes), the first time a fast
+    /// render chooses its pixels' counts, which reads them every frame
+    /// (grid_direction); serially, so that no TBB task waits inside call_once.
+    struct GridDirections {
+        std::vector<Vec3> corners, centres;
+    };
+    mutable std::once_flag grid_once;
+    mutable GridDirections grid;
+    const GridDirections& grid_directions() const {
+        std::call_once(grid_once, [this] {
+            const int w = camera.width_px(), h = camera.height_px();
+            const Vec3 none = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+            const auto fill = [&](std::vector<Vec3>& out, int nx, int ny, double offset) {
+                out.resize(std::size_t(nx) * std::size_t(ny));
+                for (int y = 0; y < ny; ++y)
+                    for (int x = 0; x < nx; ++x) {
+                        const auto d = camera.direction(Eigen::Vector2d(x + offset, y + offset));
+                        out[std::size_t(y) * std::size_t(nx) + std::size_t(x)] = d ? *d : none;
+                    }
+            };
+            fill(grid.corners, w + 1, h + 1, 0.0);
+            fill(grid.centres, w, h, 0.5);
+        });
+        return grid;
+    }
+    /// grid_directions' ray through corner (x, y) (centre: of pixel (x, y)); none outside the
+    /// field. Pre-condition: grid_directions() called.
+    std::optional<Vec3> grid_direction(int x, int y, bool centre) const {
+        const std::size_t nx = std::size_t(camera.width_px()) + (centre ? 0 : 1);
+        const Vec3& d =
+            (centre ? grid.centres : grid.corners)[std::size_t(y) * nx + std::size_t(x)];
+        if (std::isnan(d.x())) return std::nullopt;
+        return d;
+    }
     double scale; ///< image value per unit radiance (analytic: the direct model's apex)
     /// The path integrator's scale once set_exposure_reference measured its apex.
     std::optional<double> path_scale;
@@ -435,6 +471,7 @@ struct Renderer::Impl {
     /// (PathIntegrator::quad_near_led). A corner outside the field, a miss, a reflection that
     /// never reaches the plane or a folded quadrilateral: no proof, the pixel is traced.
     void leds_out_of_reach(int x, int y, int pixels, std::span<std::uint8_t> out) const {
+        grid_directions();
         const double inf = std::numeric_limits<double>::infinity();
         const bool cavity = scene.in_cavity(camera.origin_mm());
         std::array<Vec3, 16> origins, directions;
@@ -447,8 +484,7 @@ struct Renderer::Impl {
             for (int j = 0; j < n; ++j) {
                 valid[std::size_t(j)] = true;
                 for (int c = 0; c < 4; ++c) {
-                    const auto d =
-                        camera.direction(Eigen::Vector2d(x + j0 + j + (c & 1), y + (c >> 1)));
+                    const auto d = grid_direction(x + j0 + j + (c & 1), y + (c >> 1), false);
                     valid[std::size_t(j)] = valid[std::size_t(j)] && d.has_value();
                     directions[std::size_t(4 * j + c)] = d ? *d : Vec3::UnitZ();
                 }
@@ -691,6 +727,7 @@ struct Renderer::Impl {
     ///   own count.
     std::vector<std::uint8_t> pixel_levels(bool mirrors, bool rims) const {
         const int w = camera.width_px(), h = camera.height_px();
+        grid_directions();
         const std::size_t pixels = std::size_t(w) * std::size_t(h);
         const auto at = [w](int x, int y) { return std::size_t(y) * std::size_t(w) + x; };
         const bool cavity = scene.in_cavity(camera.origin_mm());
@@ -707,7 +744,7 @@ struct Renderer::Impl {
                 for (int x0 = 0; x0 < w; x0 += 16) {
                     std::size_t m = 0;
                     for (int x = x0; x < std::min(w, x0 + 16); ++x)
-                        if (const auto d = camera.direction(Eigen::Vector2d(x + 0.5, y + 0.5)))
+                        if (const auto d = grid_direction(x, y, true))
                             directions[m] = *d, xs[m++] = x;
                     if (m == 0) continue;
                     const auto o = std::span(origins.data(), m),
@@ -734,9 +771,8 @@ struct Renderer::Impl {
             rims ? corners_per_row * (std::size_t(h) + 1) : 0);
         if (rims)
             tbb::parallel_for(0, h + 1, [&](int y) {
-                marker_ids_row(double(y), std::span(corner_ids.data() + std::size_t(y) *
-                                                                            corners_per_row,
-                                                    corners_per_row));
+                marker_ids_row(y, std::span(corner_ids.data() + std::size_t(y) * corners_per_row,
+                                            corners_per_row));
             });
         // The pixels that mirror an LED themselves, then with their 8 neighbours.
         std::vector<std::uint8_t> mirrored(mirrors ? pixels : 0, 0);
@@ -776,12 +812,13 @@ struct Renderer::Impl {
         return out;
     }
 
-    /// The markers the camera rays through the image points (i, y), i = 0 .. out.size() - 1,
+    /// The markers the camera rays through the pixels' corners (i, y), i = 0 .. out.size() - 1,
     /// show, as the fast integrator's samples see them (FastIntegrator::marker_ids16: refracted
     /// into the layers at the inner surface); outside the field none (-1, -1). 16 rays at a
     /// time, as Embree packets.
-    void marker_ids_row(double y, std::span<std::pair<std::int32_t, std::int32_t>> out) const {
+    void marker_ids_row(int y, std::span<std::pair<std::int32_t, std::int32_t>> out) const {
         const int n = int(out.size());
+        grid_directions();
         std::array<Vec3, 16> directions;
         std::array<std::pair<std::int32_t, std::int32_t>, 16> ids;
         std::array<int, 16> xs;
@@ -789,8 +826,7 @@ struct Renderer::Impl {
             std::size_t m = 0;
             for (int x = x0; x < std::min(n, x0 + 16); ++x) {
                 out[std::size_t(x)] = {-1, -1};
-                if (const auto d = camera.direction(Eigen::Vector2d(x, y)))
-                    directions[m] = *d, xs[m++] = x;
+                if (const auto d = grid_direction(x, y, false)) directions[m] = *d, xs[m++] = x;
             }
             if (m == 0) continue;
             fast.marker_ids16(scene, camera.origin_mm(), std::span(directions.data(), m),
