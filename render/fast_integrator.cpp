@@ -1274,7 +1274,7 @@ namespace {
 /// surface alone.
 template <class Wants, class Ray>
 void trace_some(const EmbreeScene& scene, std::size_t n, double tnear, Wants&& wants, Ray&& ray,
-                std::array<RayHit, 16>& got, bool interface) {
+                std::span<RayHit> got, bool interface) {
     constexpr double inf = std::numeric_limits<double>::infinity();
     std::array<Vec3, 16> origins, rays;
     std::array<RayHit, 16> hits;
@@ -1332,6 +1332,20 @@ FastIntegrator::Level FastIntegrator::classify(const Vec3& o, const Vec3& d, dou
     return level;
 }
 
+void FastIntegrator::camera_levels(const EmbreeScene& scene, const Vec3& origin,
+                                   std::span<const Vec3> directions, bool cavity_only, bool reflect,
+                                   std::span<RayHit> first, std::span<Level> near) const {
+    const std::size_t n = directions.size();
+    trace_some(
+        scene, n, 0.0, [](std::size_t) { return true; },
+        [&](std::size_t i) {
+            return std::pair{origin, directions[i]};
+        },
+        first, cavity_only);
+    for (std::size_t i = 0; i < n; ++i)
+        near[i] = classify(origin, directions[i], 0.0, first[i], reflect);
+}
+
 void FastIntegrator::reflected_leds16(const EmbreeScene& scene, const Vec3& origin,
                                       std::span<const Vec3> directions,
                                       std::span<double> fresnel) const {
@@ -1343,15 +1357,8 @@ void FastIntegrator::reflected_leds16(const EmbreeScene& scene, const Vec3& orig
     // radiance16's first two packets, as it traces them.
     const bool cavity_only = scene.in_cavity(origin);
     std::array<RayHit, 16> first, back;
-    trace_some(
-        scene, n, 0.0, [](std::size_t) { return true; },
-        [&](std::size_t i) {
-            return std::pair{origin, directions[i]};
-        },
-        first, cavity_only);
     std::array<Level, 16> near{};
-    for (std::size_t i = 0; i < n; ++i)
-        near[i] = classify(origin, directions[i], 0.0, first[i], true);
+    camera_levels(scene, origin, directions, cavity_only, true, first, near);
     // Only the reflections that cross an LED at all are traced on (classify then finds the
     // same LED, or the inner surface or the frame before it).
     constexpr double inf = std::numeric_limits<double>::infinity();
@@ -1389,15 +1396,8 @@ void FastIntegrator::marker_ids16(const EmbreeScene& scene, const Vec3& origin,
     // radiance16's first two packets, as it traces them.
     const bool cavity_only = scene.in_cavity(origin);
     std::array<RayHit, 16> first, into;
-    trace_some(
-        scene, n, 0.0, [](std::size_t) { return true; },
-        [&](std::size_t i) {
-            return std::pair{origin, directions[i]};
-        },
-        first, cavity_only);
     std::array<Level, 16> near{};
-    for (std::size_t i = 0; i < n; ++i)
-        near[i] = classify(origin, directions[i], 0.0, first[i], false);
+    camera_levels(scene, origin, directions, cavity_only, false, first, near);
     const auto refracts = [&near](std::size_t i) {
         return near[i].then == Then::split && near[i].refract;
     };
@@ -1468,15 +1468,8 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
         trace_some(scene, n, tnear, wants, ray, got, in_cavity && cavity_only);
     };
     std::array<RayHit, 16> first, into, back, far_wall;
-    trace(
-        0.0, [](std::size_t) { return true; },
-        [&](std::size_t i) {
-            return std::pair{origin, directions[i]};
-        },
-        first, true);
     std::array<Level, 16> near{}, far{};
-    for (std::size_t i = 0; i < n; ++i)
-        near[i] = classify(origin, directions[i], 0.0, first[i], true);
+    camera_levels(scene, origin, directions, cavity_only, true, first, near);
     const auto splits = [&](const std::array<Level, 16>& at, bool reflected) {
         return [&at, reflected](std::size_t i) {
             return at[i].then == Then::split && (reflected ? at[i].reflect : at[i].refract);

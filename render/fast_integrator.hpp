@@ -317,6 +317,12 @@ private:
     /// whether a split follows the reflection too (the camera's rays; not their reflections).
     Level classify(const Vec3& o, const Vec3& d, double tnear, const RayHit& hit,
                    bool reflect) const;
+    /// The first step of radiance16, reflected_leds16 and marker_ids16: the camera rays from
+    /// `origin` along `directions` (up to 16) as one packet, against the inner surface alone
+    /// where `cavity_only`, into first[i], and their levels (classify, `reflect`) into near[i].
+    void camera_levels(const EmbreeScene& scene, const Vec3& origin,
+                       std::span<const Vec3> directions, bool cavity_only, bool reflect,
+                       std::span<RayHit> first, std::span<Level> near) const;
     template <int N> struct Lookup;
     /// The point LEDs' connections at each vertex of `rest`'s coating (a hair off it, as
     /// set_frame takes them) on `bare` (its coating and inner surface), [vertex * leds + k];
