@@ -336,6 +336,8 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
         render::RenderSettings rs =
             settings(o.reference_spp, o.reference_seed, o.reference_integrator);
         rs.variance = true;
+        rs.fast_wavelengths = 16; // the fast reference's lanes: those of the references before
+                                  // 0.27.0, and the least noise
         ref = reference_renderer.render(rs);
         reference_source = "the spectral render at " + std::to_string(o.reference_spp) + " spp (" +
                            o.reference_integrator + " integrator)";
@@ -384,7 +386,7 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
             struct Knobs {
                 double filter = 0.0;
                 std::optional<double> rim_filter;
-                int mirror = 0, edge = 0, led = 0, shadow_rays = 0, spp = 1;
+                int mirror = 0, edge = 0, led = 0, shadow_rays = 0, wavelengths = 0, spp = 1;
             };
             const bool fast = integrator == "fast";
             const auto knob = [fast]<class T>(const std::vector<T>& values) {
@@ -394,6 +396,10 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
             std::vector<std::optional<double>> rim_filters{std::nullopt};
             if (fast && !o.shadow_filter_rim_px.empty())
                 rim_filters.assign(o.shadow_filter_rim_px.begin(), o.shadow_filter_rim_px.end());
+            // The fast integrator's wavelengths a sample (spectral mode; 0: the integrator's
+            // fixed count).
+            const std::vector<int> wavelengths =
+                fast && mode == "spectral" ? o.fast_wavelengths : std::vector<int>{0};
             std::vector<Knobs> grid;
             for (const double filter : knob(o.shadow_filter_px))
                 for (const std::optional<double>& rim_filter : rim_filters)
@@ -401,9 +407,10 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
                         for (const int edge : knob(o.edge_spp))
                             for (const int led : knob(o.reflected_led_spp))
                                 for (const int shadow_rays : knob(o.shadow_rays_per_pixel))
-                                    for (const int spp : o.samples_per_pixel)
-                                        grid.push_back({filter, rim_filter, mirror, edge, led,
-                                                        shadow_rays, spp});
+                                    for (const int lanes : wavelengths)
+                                        for (const int spp : o.samples_per_pixel)
+                                            grid.push_back({filter, rim_filter, mirror, edge, led,
+                                                            shadow_rays, lanes, spp});
             for (std::size_t i = 0; i < grid.size(); ++i) {
                 const Knobs& k = grid[i];
                 render::RenderSettings rs = settings(k.spp, kTimedSeed, integrator);
@@ -413,6 +420,7 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
                 rs.edge_samples_per_pixel = k.edge;
                 rs.reflected_led_samples_per_pixel = k.led;
                 rs.shadow_rays_per_pixel = k.shadow_rays;
+                if (k.wavelengths > 0) rs.fast_wavelengths = k.wavelengths;
                 render::Image img;
                 const double t = time_median(o.repeats, [&] { img = renderer.render(rs); });
                 if (!o.images_out.empty()) {
@@ -425,6 +433,7 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
                     if (k.rim_filter) file << "_rimfilter" << *k.rim_filter;
                     file << "_mirror" << k.mirror << "_rim" << k.edge << "_led" << k.led;
                     if (k.shadow_rays > 0) file << "_shadow" << k.shadow_rays;
+                    if (k.wavelengths > 0) file << "_lambda" << k.wavelengths;
                     file << ".exr";
                     write_exr(o.images_out / file.str(), renderer.render(extra));
                 }
@@ -449,6 +458,7 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
                 if (k.edge > k.spp) name << ", " << k.edge << " on the markers' rims";
                 if (k.led > 0)
                     name << ", the LEDs by reflection apart from " << k.led << " rays a pixel";
+                if (k.wavelengths > 0) name << ", " << k.wavelengths << " wavelengths a sample";
                 out << "| " << name.str() << " | " << mode << " | " << k.spp << " | "
                     << std::setprecision(1) << 1e3 * t << " | " << std::setprecision(3)
                     << 100 * error.rms / kWhite << " | "

@@ -86,6 +86,10 @@ struct RenderBenchOptions {
     /// shadow_rays_per_pixel; 0: one a sample), each at every spp, filter, reflection, rim
     /// and LED-ray count. The reference has one a sample.
     std::vector<int> shadow_rays_per_pixel{0};
+    /// Fast integrator, spectral mode: the hero wavelengths a sample carries to time
+    /// (RenderSettings::fast_wavelengths, 8 or 16), each at every other setting. The
+    /// reference has 16.
+    std::vector<int> fast_wavelengths{8};
     /// Write each timed setting's image to this folder as an EXR named after the setting, to
     /// see where its error lies: one more render after the timed ones (the same seed, so the
     /// same R, G, B), with its variance and marker id channels. The folder is made before the

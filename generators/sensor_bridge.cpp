@@ -165,6 +165,7 @@ render::RenderSettings render_settings(const Spec& spec) {
     s.edge_samples_per_pixel = spec.render.fast.edge_samples_per_pixel;
     s.reflected_led_samples_per_pixel = spec.render.fast.reflected_led_samples_per_pixel;
     s.shadow_rays_per_pixel = spec.render.fast.shadow_rays_per_pixel;
+    s.fast_wavelengths = std::stoi(spec.render.fast.wavelengths_per_sample); // "8" | "16"
     return s;
 }
 

@@ -223,15 +223,17 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
     const std::vector<Vec3> normals = coating_normals(rest.coating);
 
     // Lanes per unit LED emission: the indirect term scales with each sample's LED lanes.
-    LaneOptics<kSpectralLanes> spectral_optics{};
+    // The cache's fixed wavelengths are its own lanes, whatever a sample's hero lanes are.
+    using CacheLanes = LanesN<kCacheLambdas>;
+    LaneOptics<kCacheLambdas> spectral_optics{};
     LaneOptics<kRgbLanes> rgb_optics = m_shading.rgb_lanes();
     rgb_optics.led = RgbLanes::Ones();
     if (spectra) {
-        Lanes lambda;
+        CacheLanes lambda;
         for (int j = 0; j < kCacheLambdas; ++j)
             lambda[j] = kCacheLambdaMin_nm + kCacheLambdaStep_nm * j;
-        spectral_optics = spectral_lanes(*spectra, lambda, led_scale);
-        spectral_optics.led = Lanes::Ones();
+        spectral_optics = spectral_lanes<kCacheLambdas>(*spectra, lambda, led_scale);
+        spectral_optics.led = CacheLanes::Ones();
     }
     // The outer markers' inner face above each vertex they cover (its distance along the
     // normal, 0 where none covers it).
@@ -277,7 +279,7 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
         // (the fixed ratio kCacheBsdfPerNee).
         auto mean_indirect = [&](const Vec3& at, float* out) {
             if (spectra) {
-                Lanes sum = Lanes::Zero();
+                CacheLanes sum = CacheLanes::Zero();
                 for (int i = 0; i < settings.paths_per_vertex; ++i)
                     sum +=
                         m_path.indirect(full, at, n, spectral_optics, rng, 1.0 / kCacheBsdfPerNee);
@@ -1548,6 +1550,12 @@ template void FastIntegrator::radiance16(const EmbreeScene&, const Vec3&, std::s
                                          std::span<const ShadowDraw>, std::span<PixelRng* const>,
                                          std::span<LanesN<kSpectralLanes>>,
                                          std::span<DirectLight<kSpectralLanes>>, bool) const;
+template void FastIntegrator::radiance16(const EmbreeScene&, const Vec3&, std::span<const Vec3>,
+                                         std::span<const LaneOptics<kFastSpectralLanes>* const>,
+                                         std::span<const CacheLambdas<kFastSpectralLanes>* const>,
+                                         std::span<const ShadowDraw>, std::span<PixelRng* const>,
+                                         std::span<LanesN<kFastSpectralLanes>>,
+                                         std::span<DirectLight<kFastSpectralLanes>>, bool) const;
 
 template LanesN<kRgbLanes> FastIntegrator::radiance(const EmbreeScene&, const Vec3&, const Vec3&,
                                                     const LaneOptics<kRgbLanes>&,

@@ -188,9 +188,9 @@ struct Renderer::Impl {
     }
 
     /// The spectral mode's hero-wavelength sets, tabulated once per sensor: set i holds the
-    /// 16 wavelengths WavelengthSampler draws from u = (i + 1/2) / kHeroSets, the spectra at
-    /// them (lanes) and the weights that turn the lanes' radiance into white-balanced camera
-    /// RGB, self-normalised so that each set renders the LED's white exactly
+    /// N (16, or the fast integrator's 8) wavelengths WavelengthSampler draws from u = (i + 1/2) /
+    /// kHeroSets, the spectra at them (lanes) and the weights that turn the lanes' radiance into
+    /// white-balanced camera RGB, self-normalised so that each set renders the LED's white exactly
     /// (camera_rgb_weights). A sample picks set floor(u
     /// kHeroSets): the wavelengths then come from a 1024-point midpoint rule in the sampling
     /// distribution's CDF, and a sample costs one table read instead of 16 CDF inversions and
@@ -198,27 +198,42 @@ struct Renderer::Impl {
     /// the trapezoid integral, in blue; self-normalised, within 7.6e-4 on the marker filters
     /// and exact on the white: tests/render/test_spectrum.cpp.)
     static constexpr int kHeroSets = 1024;
-    struct HeroSet {
-        detail::Lanes lambda_nm;
-        detail::LaneOptics<detail::kSpectralLanes> lanes;
-        Eigen::Matrix<double, 3, detail::kSpectralLanes> to_rgb;
+    template <int N> struct HeroSetN {
+        detail::LanesN<N> lambda_nm;
+        detail::LaneOptics<N> lanes;
+        Eigen::Matrix<double, 3, N> to_rgb;
         /// lambda_nm on the fast integrator's light-cache grid.
-        detail::CacheLambdas<detail::kSpectralLanes> cache_lambdas{detail::Lanes::Zero()};
+        detail::CacheLambdas<N> cache_lambdas{detail::LanesN<N>::Zero()};
     };
+    using HeroSet = HeroSetN<detail::kSpectralLanes>;
+    /// The sets of the direct and path integrators, and of the fast one at 16 wavelengths
+    /// (RenderSettings::fast_wavelengths).
     std::vector<HeroSet> hero_sets;
+    /// The fast integrator's at kFastSpectralLanes (RenderSettings::fast_wavelengths): the
+    /// same table's draws (set i from u = (i + 1/2) / kHeroSets) at half the wavelengths.
+    std::vector<HeroSetN<detail::kFastSpectralLanes>> fast_hero_sets;
+    template <int N> const std::vector<HeroSetN<N>>& hero_table() const {
+        if constexpr (N == detail::kSpectralLanes)
+            return hero_sets;
+        else
+            return fast_hero_sets;
+    }
 
-    void tabulate_hero_sets(const SensorSpectra& spectra) {
-        hero_sets.resize(kHeroSets);
+    template <int N>
+    void tabulate(const SensorSpectra& spectra, std::vector<HeroSetN<N>>& sets) const {
+        sets.resize(kHeroSets);
         for (int i = 0; i < kHeroSets; ++i) {
-            HeroSet& h = hero_sets[std::size_t(i)];
-            detail::Lanes pdf_per_nm;
-            wavelengths->sample<detail::kSpectralLanes>((i + 0.5) / kHeroSets, h.lambda_nm,
-                                                        pdf_per_nm);
-            h.lanes = detail::spectral_lanes(spectra, h.lambda_nm, led_scale);
-            h.cache_lambdas = detail::CacheLambdas<detail::kSpectralLanes>(h.lambda_nm);
-            h.to_rgb =
-                camera_rgb_weights<detail::kSpectralLanes>(spectra.camera, h.lambda_nm, pdf_per_nm);
+            HeroSetN<N>& h = sets[std::size_t(i)];
+            detail::LanesN<N> pdf_per_nm;
+            wavelengths->sample<N>((i + 0.5) / kHeroSets, h.lambda_nm, pdf_per_nm);
+            h.lanes = detail::spectral_lanes<N>(spectra, h.lambda_nm, led_scale);
+            h.cache_lambdas = detail::CacheLambdas<N>(h.lambda_nm);
+            h.to_rgb = camera_rgb_weights<N>(spectra.camera, h.lambda_nm, pdf_per_nm);
         }
+    }
+    void tabulate_hero_sets(const SensorSpectra& spectra) {
+        tabulate(spectra, hero_sets);
+        tabulate(spectra, fast_hero_sets);
     }
 
     /// The sum over the pixel's samples (unscaled camera RGB; samples outside the image
@@ -453,6 +468,9 @@ struct Renderer::Impl {
         if (hero_sets.empty())
             batches<detail::kRgbLanes>(x, y, pixels, nx, ny, settings, scale, out, level,
                                        budget_bytes);
+        else if (settings.fast_wavelengths == detail::kFastSpectralLanes)
+            batches<detail::kFastSpectralLanes>(x, y, pixels, nx, ny, settings, scale, out, level,
+                                                budget_bytes);
         else
             batches<detail::kSpectralLanes>(x, y, pixels, nx, ny, settings, scale, out, level,
                                             budget_bytes);
@@ -609,7 +627,7 @@ struct Renderer::Impl {
         std::array<Vec3, 16> directions;
         std::array<const detail::LaneOptics<N>*, 16> lanes;
         std::array<const detail::CacheLambdas<N>*, 16> lambda;
-        std::array<const HeroSet*, 16> sets;
+        std::array<const HeroSetN<N>*, 16> sets;
         std::array<detail::ShadowDraw, 16> shadow;
         std::array<detail::PixelRng*, 16> streams;
         std::array<int, 16> owner; // the sample's pixel, 0 .. pixels - 1
@@ -637,8 +655,8 @@ struct Renderer::Impl {
                     shadow[m].further[std::size_t(r - r0 - 1)] = d->uniforms(r);
                 streams[m] = &*shade_rngs[std::size_t(j)];
                 owner[m] = j;
-                if constexpr (N == detail::kSpectralLanes) {
-                    const HeroSet& h = hero_sets[std::size_t(hero)];
+                if constexpr (N != detail::kRgbLanes) {
+                    const HeroSetN<N>& h = hero_table<N>()[std::size_t(hero)];
                     sets[m] = &h, lanes[m] = &h.lanes, lambda[m] = &h.cache_lambdas;
                 } else {
                     lanes[m] = &rgb, lambda[m] = nullptr;
@@ -656,7 +674,7 @@ struct Renderer::Impl {
                                out.led.empty());
             for (std::size_t i = 0; i < m; ++i) {
                 const auto rgb_of = [&](const detail::LanesN<N>& lanes_value) {
-                    if constexpr (N == detail::kSpectralLanes)
+                    if constexpr (N != detail::kRgbLanes)
                         return detail::Rgb(sets[i]->to_rgb * lanes_value.matrix());
                     else
                         return detail::Rgb(lanes_value.template head<3>());
@@ -994,6 +1012,13 @@ Image Renderer::render(const RenderSettings& settings) const {
         throw std::invalid_argument("RenderSettings: edge_samples_per_pixel = " +
                                     std::to_string(settings.edge_samples_per_pixel) +
                                     " is invalid; allowed: integer >= 0 (0: none extra)");
+    }
+    if (settings.fast_wavelengths != detail::kFastSpectralLanes &&
+        settings.fast_wavelengths != detail::kSpectralLanes) {
+        throw std::invalid_argument(
+            "RenderSettings: fast_wavelengths = " + std::to_string(settings.fast_wavelengths) +
+            " is invalid; allowed: " + std::to_string(detail::kFastSpectralLanes) + " or " +
+            std::to_string(detail::kSpectralLanes));
     }
     if (!(settings.camera_cache_mb >= 0.0)) {
         throw std::invalid_argument("RenderSettings: camera_cache_mb = " +

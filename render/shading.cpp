@@ -75,15 +75,6 @@ std::vector<Vec3> led_ring(const OpticsParams& optics) {
 /// The unit normal turned to face against `direction` (towards where the ray came from).
 } // namespace
 
-LaneOptics<kSpectralLanes> spectral_lanes(const SensorSpectra& spectra, const Lanes& lambda_nm,
-                                          double led_scale) {
-    return {spectra.coating_albedo.at_each(lambda_nm),
-            spectra.inner_marker_absorption_per_mm.at_each(lambda_nm),
-            spectra.outer_marker_absorption_per_mm.at_each(lambda_nm),
-            spectra.outer_marker_albedo.at_each(lambda_nm),
-            led_scale * spectra.camera.led_emission().at_each(lambda_nm)};
-}
-
 ShadingModel::ShadingModel(const OpticsParams& optics)
     : m_optics(validated(optics)), m_led_positions_mm(led_ring(optics)) {}
 
@@ -243,7 +234,7 @@ Rgb ShadingModel::radiance(const EmbreeScene& scene, const Vec3& origin_mm,
     return radiance(scene, origin_mm, direction, rgb_lanes()).head<3>();
 }
 
-// The two lane widths the renderer uses.
+// The lane widths the renderer uses: RGB, 16 wavelengths ...
 template LanesN<kRgbLanes> ShadingModel::radiance(const EmbreeScene&, const Vec3&, const Vec3&,
                                                   const LaneOptics<kRgbLanes>&) const;
 template LanesN<kSpectralLanes> ShadingModel::radiance(const EmbreeScene&, const Vec3&, const Vec3&,
@@ -255,6 +246,13 @@ template LanesN<kSpectralLanes> ShadingModel::transmittance(const EmbreeScene&, 
                                                             const Vec3&,
                                                             const LaneOptics<kSpectralLanes>&,
                                                             double, bool) const;
+
+// ... and the fast integrator's spectral lanes.
+template LanesN<kFastSpectralLanes>
+ShadingModel::transmittance(const EmbreeScene&, const Vec3&, const Vec3&,
+                            const LaneOptics<kFastSpectralLanes>&, double, bool) const;
+template LanesN<kFastSpectralLanes>
+ShadingModel::marker_absorption(const LaneOptics<kFastSpectralLanes>&, bool, double) const;
 
 template LanesN<kRgbLanes> ShadingModel::marker_absorption(const LaneOptics<kRgbLanes>&, bool,
                                                            double) const;

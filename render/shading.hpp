@@ -29,9 +29,14 @@ inline constexpr double kHitGap_mm = 1e-3;
 /// (kRgbLanes), or kSpectralLanes wavelengths in spectral mode (render/spectrum.hpp). The
 /// direct-light model's rays do not depend on the wavelength, so more lanes cost arithmetic,
 /// not rays: 16 stratified wavelengths per sample take the spectral noise down to about the
-/// RGB mode's (docs/VALIDATION.md, "Samples per pixel").
+/// RGB mode's (docs/VALIDATION.md, "Samples per pixel"). The fast integrator carries
+/// RenderSettings::fast_wavelengths of them, kFastSpectralLanes by default: half the
+/// arithmetic for a little more colour noise (docs/VALIDATION.md, session 36).
 inline constexpr int kRgbLanes = 4;
 inline constexpr int kSpectralLanes = 16;
+inline constexpr int kFastSpectralLanes = 8;
+static_assert(kFastSpectralLanes != kRgbLanes && kFastSpectralLanes != kSpectralLanes,
+              "the renderer tells the lane widths apart by their count");
 template <int N> using LanesN = Eigen::Array<double, N, 1>;
 using Lanes = LanesN<kSpectralLanes>;
 using RgbLanes = LanesN<kRgbLanes>;
@@ -44,8 +49,15 @@ template <int N> struct LaneOptics {
 
 /// The lanes of a hero sample (wavelengths `lambda_nm`): the spectra at those wavelengths, the
 /// LED's emission times `led_scale`.
-LaneOptics<kSpectralLanes> spectral_lanes(const SensorSpectra& spectra, const Lanes& lambda_nm,
-                                          double led_scale);
+template <int N>
+LaneOptics<N> spectral_lanes(const SensorSpectra& spectra, const LanesN<N>& lambda_nm,
+                             double led_scale) {
+    return {spectra.coating_albedo.at_each(lambda_nm),
+            spectra.inner_marker_absorption_per_mm.at_each(lambda_nm),
+            spectra.outer_marker_absorption_per_mm.at_each(lambda_nm),
+            spectra.outer_marker_albedo.at_each(lambda_nm),
+            led_scale * spectra.camera.led_emission().at_each(lambda_nm)};
+}
 
 /// Where a ray entered the marker volumes it is inside (inner, outer; mm along the ray): the
 /// marker meshes are closed, their triangles facing out of the volume, so each hit is an entry

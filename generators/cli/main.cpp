@@ -315,6 +315,12 @@ int main(int argc, char** argv) {
                      "reference has one a sample")
         ->check(CLI::Range(0, 4096));
     bench_render
+        ->add_option("--fast-wavelengths", render_bench.fast_wavelengths,
+                     "fast integrator, spectral mode: the hero wavelengths a sample carries to "
+                     "time, 8 or 16, each at every other setting "
+                     "(render.fast.wavelengths_per_sample); the reference has 16")
+        ->check(CLI::IsMember({8, 16}));
+    bench_render
         ->add_option("--reference-in", render_bench.reference_in,
                      "read the reference from this EXR (written by --reference-out); two or "
                      "more: independent renders (--reference-seed), averaged, their spread "

@@ -14,6 +14,7 @@
 
 using namespace chromasim::generators;
 using Catch::Matchers::Contains;
+using Catch::Matchers::EndsWith;
 using Catch::Matchers::StartsWith;
 
 namespace {
@@ -476,13 +477,15 @@ TEST_CASE("the render.fast keys reach the renderer's settings", "[generators][sp
         CHECK(r.edge_samples_per_pixel == 6);
         CHECK(r.reflected_led_samples_per_pixel == 32);
         CHECK(r.shadow_rays_per_pixel == 0);
+        CHECK(r.fast_wavelengths == 8);
     }
     SECTION("every key is passed on") {
         const chromasim::render::RenderSettings r = render_settings(
             parse_spec("render:\n  integrator: fast\n  samples_per_pixel: 3\n  fast:\n"
                        "    shadow_filter_px: 1.5\n    shadow_filter_rim_px: 0.25\n"
                        "    reflection_samples_per_pixel: 6\n    edge_samples_per_pixel: 10\n"
-                       "    reflected_led_samples_per_pixel: 16\n    shadow_rays_per_pixel: 6\n",
+                       "    reflected_led_samples_per_pixel: 16\n    shadow_rays_per_pixel: 6\n"
+                       "    wavelengths_per_sample: 16\n",
                        "ok.yaml"));
         CHECK(r.samples_per_pixel == 3);
         CHECK(r.shadow_filter_px == 1.5);
@@ -491,11 +494,15 @@ TEST_CASE("the render.fast keys reach the renderer's settings", "[generators][sp
         CHECK(r.edge_samples_per_pixel == 10);
         CHECK(r.reflected_led_samples_per_pixel == 16);
         CHECK(r.shadow_rays_per_pixel == 6);
+        CHECK(r.fast_wavelengths == 16);
     }
     SECTION("out of range values are rejected with what is allowed") {
         CHECK(error_of("render:\n  fast:\n    shadow_rays_per_pixel: -2\n") ==
               "bad.yaml:3:28: render.fast.shadow_rays_per_pixel: value '-2' is out of range; "
               "allowed: integer in [0, 4096]");
+        CHECK_THAT(error_of("render:\n  fast:\n    wavelengths_per_sample: 12\n"),
+                   StartsWith("bad.yaml:3:29: render.fast.wavelengths_per_sample: value '12'") &&
+                       EndsWith("allowed: one of 8, 16"));
     }
 }
 

@@ -1599,3 +1599,65 @@ TEST_CASE("fast integrator: the marker id channels and the rims' pixels follow t
     CHECK(refracted_differs > 50);
     CHECK(with_marker > 500);
 }
+
+TEST_CASE("fast integrator: 8 hero wavelengths a sample (fast_wavelengths) estimate the same "
+          "colours as 16, with a little more noise, and other counts are refused",
+          "[render][fast]") {
+    const SensorFrame rest = dome_with_box_markers();
+    const SensorFrame pressed = pressed_flat(rest);
+    Renderer renderer(CameraParams{48, 48, 84.0}, spectral_optics());
+    small_cache_on(renderer, rest, pressed);
+    // 8 wavelengths with seeds 21 and 22, 16 with seed 22 (the same camera samples as the
+    // second 8, other wavelengths).
+    RenderSettings settings = fast_with_variance(16, 21);
+    const Image eight = renderer.render(settings);
+    settings.seed = 22;
+    const Image eight_again = renderer.render(settings);
+    settings.fast_wavelengths = 16;
+    const Image sixteen = renderer.render(settings);
+    REQUIRE(eight.rgb.size() == sixteen.rgb.size());
+    CHECK(eight_again.rgb != sixteen.rgb); // the setting is the render's
+    // Per channel: the image's mean (the wavelengths' colours: a wrong table or white balance
+    // moves it everywhere), and the pixels' differences against their variance channels (a
+    // chi-square per value, below 1 where the strata beat independent samples): 8 against 16
+    // as far apart as 8 against 8 with other samples.
+    std::array<double, 3> mean8{}, mean16{}, mean8b{};
+    double chi2 = 0.0, chi2_same = 0.0, var8 = 0.0, var16 = 0.0;
+    std::size_t counted = 0;
+    for (std::size_t i = 0; i < eight.rgb.size(); ++i) {
+        mean8[i % 3] += eight.rgb[i], mean16[i % 3] += sixteen.rgb[i];
+        mean8b[i % 3] += eight_again.rgb[i];
+        const double v8 = eight.variance[i], v8b = eight_again.variance[i],
+                     v16 = sixteen.variance[i];
+        if (v8 + v16 <= 0.0 || v8 + v8b <= 0.0) continue;
+        chi2 += std::pow(double(eight.rgb[i]) - sixteen.rgb[i], 2) / (v8 + v16);
+        chi2_same += std::pow(double(eight.rgb[i]) - eight_again.rgb[i], 2) / (v8 + v8b);
+        var8 += v8, var16 += v16;
+        ++counted;
+    }
+    REQUIRE(counted > 3000);
+    chi2 /= double(counted), chi2_same /= double(counted);
+    INFO("chi-square per value: 8 against 16 " << chi2 << ", 8 against 8 (another seed) "
+                                               << chi2_same << "; variance 8 / 16 "
+                                               << var8 / var16);
+    for (int c = 0; c < 3; ++c) {
+        INFO("channel " << c << ": mean " << mean8[std::size_t(c)] << " (8), "
+                        << mean8b[std::size_t(c)] << " (8, another seed), "
+                        << mean16[std::size_t(c)] << " (16)");
+        CHECK(mean8b[std::size_t(c)] == Approx(mean16[std::size_t(c)]).epsilon(0.001));
+        CHECK(mean8[std::size_t(c)] == Approx(mean16[std::size_t(c)]).epsilon(0.002));
+    }
+    // The two counts differ by no more than two draws of one count do.
+    CHECK(chi2 < 1.15 * chi2_same);
+    CHECK(chi2 > 0.85 * chi2_same);
+    CHECK(chi2 < 1.0);
+    // Fewer wavelengths, no more than a little more noise (here the camera samples' positions
+    // on the markers' sharp edges hold most of it).
+    CHECK(var8 < 1.2 * var16);
+    for (const int bad : {0, 4, 12, 32}) {
+        settings.fast_wavelengths = bad;
+        CHECK_THROWS_WITH(renderer.render(settings),
+                          Catch::Contains("fast_wavelengths = " + std::to_string(bad)) &&
+                              Catch::Contains("allowed: 8 or 16"));
+    }
+}
