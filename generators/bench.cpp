@@ -396,10 +396,10 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
             std::vector<std::optional<double>> rim_filters{std::nullopt};
             if (fast && !o.shadow_filter_rim_px.empty())
                 rim_filters.assign(o.shadow_filter_rim_px.begin(), o.shadow_filter_rim_px.end());
-            // The fast integrator's wavelengths a sample (spectral mode; 0: the integrator's
-            // fixed count).
+            // The fast integrator's wavelengths a sample (spectral mode; 0: by the spp; -1:
+            // not a knob of this integrator or mode).
             const std::vector<int> wavelengths =
-                fast && mode == "spectral" ? o.fast_wavelengths : std::vector<int>{0};
+                fast && mode == "spectral" ? o.fast_wavelengths : std::vector<int>{-1};
             std::vector<Knobs> grid;
             for (const double filter : knob(o.shadow_filter_px))
                 for (const std::optional<double>& rim_filter : rim_filters)
@@ -420,7 +420,7 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
                 rs.edge_samples_per_pixel = k.edge;
                 rs.reflected_led_samples_per_pixel = k.led;
                 rs.shadow_rays_per_pixel = k.shadow_rays;
-                if (k.wavelengths > 0) rs.fast_wavelengths = k.wavelengths;
+                if (k.wavelengths >= 0) rs.fast_wavelengths = k.wavelengths;
                 render::Image img;
                 const double t = time_median(o.repeats, [&] { img = renderer.render(rs); });
                 if (!o.images_out.empty()) {
@@ -433,7 +433,7 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
                     if (k.rim_filter) file << "_rimfilter" << *k.rim_filter;
                     file << "_mirror" << k.mirror << "_rim" << k.edge << "_led" << k.led;
                     if (k.shadow_rays > 0) file << "_shadow" << k.shadow_rays;
-                    if (k.wavelengths > 0) file << "_lambda" << k.wavelengths;
+                    if (k.wavelengths >= 0) file << "_lambda" << render::fast_wavelengths_of(rs);
                     file << ".exr";
                     write_exr(o.images_out / file.str(), renderer.render(extra));
                 }
@@ -458,7 +458,8 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
                 if (k.edge > k.spp) name << ", " << k.edge << " on the markers' rims";
                 if (k.led > 0)
                     name << ", the LEDs by reflection apart from " << k.led << " rays a pixel";
-                if (k.wavelengths > 0) name << ", " << k.wavelengths << " wavelengths a sample";
+                if (k.wavelengths >= 0)
+                    name << ", " << render::fast_wavelengths_of(rs) << " wavelengths a sample";
                 out << "| " << name.str() << " | " << mode << " | " << k.spp << " | "
                     << std::setprecision(1) << 1e3 * t << " | " << std::setprecision(3)
                     << 100 * error.rms / kWhite << " | "

@@ -87,9 +87,9 @@ struct RenderBenchOptions {
     /// and LED-ray count. The reference has one a sample.
     std::vector<int> shadow_rays_per_pixel{0};
     /// Fast integrator, spectral mode: the hero wavelengths a sample carries to time
-    /// (RenderSettings::fast_wavelengths, 8 or 16), each at every other setting. The
-    /// reference has 16.
-    std::vector<int> fast_wavelengths{8};
+    /// (RenderSettings::fast_wavelengths, 8 or 16; 0: 16 at 1 spp, else 8), each at every
+    /// other setting. The reference has 16.
+    std::vector<int> fast_wavelengths{0};
     /// Write each timed setting's image to this folder as an EXR named after the setting, to
     /// see where its error lies: one more render after the timed ones (the same seed, so the
     /// same R, G, B), with its variance and marker id channels. The folder is made before the

@@ -165,7 +165,8 @@ render::RenderSettings render_settings(const Spec& spec) {
     s.edge_samples_per_pixel = spec.render.fast.edge_samples_per_pixel;
     s.reflected_led_samples_per_pixel = spec.render.fast.reflected_led_samples_per_pixel;
     s.shadow_rays_per_pixel = spec.render.fast.shadow_rays_per_pixel;
-    s.fast_wavelengths = std::stoi(spec.render.fast.wavelengths_per_sample); // "8" | "16"
+    const std::string& lanes = spec.render.fast.wavelengths_per_sample; // auto | 8 | 16
+    s.fast_wavelengths = lanes == "auto" ? 0 : std::stoi(lanes);
     return s;
 }
 

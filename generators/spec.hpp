@@ -160,8 +160,8 @@ struct Spec {
             int reflected_led_samples_per_pixel = 32;
             /// render::RenderSettings::shadow_rays_per_pixel
             int shadow_rays_per_pixel = 0;
-            /// render::RenderSettings::fast_wavelengths: "8" | "16"
-            std::string wavelengths_per_sample = "8";
+            /// render::RenderSettings::fast_wavelengths: "auto" (0) | "8" | "16"
+            std::string wavelengths_per_sample = "auto";
         } fast;
         /// The camera sensor model (render/sensor_model.hpp); the PNG only, the EXR stays the
         /// noise-free render.

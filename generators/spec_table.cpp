@@ -745,17 +745,18 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
         "session 29).",
         CHROMASIM_FIELD(render.fast.shadow_rays_per_pixel)));
     out.push_back(choice(
-        "render.fast.wavelengths_per_sample", "8", {"8", "16"},
+        "render.fast.wavelengths_per_sample", "auto", {"auto", "8", "16"},
         "Fast integrator, spectral mode: the hero wavelengths each camera sample carries "
-        "(the direct and path integrators carry 16). The rays do not depend on the wavelength, "
-        "so this is arithmetic, not rays: 8 take about 5 % off a 224 px render. The light cache "
-        "is the same for both (16 fixed wavelengths of its own). At 224 px with the shipped "
-        "224 px specs' counts, RMS of white: 8 give 0.92 % at 1.5 N + 0.6 N in 63 ms, 0.88 % "
-        "at 2.5 N + 1.5 N in 66 ms, 0.90 % at 5 N + 2 N in 76 ms and 0.92 % at rest; 16 give "
-        "0.88, 0.83, 0.85 and 0.87 % in 67, 70 and 81 ms (render alone, the middle of three "
-        "alternated runs on a 2-core Xeon). At 896 px and 1 spp, where a pixel's few "
-        "samples average few wavelengths, 8 give 0.72 % in 0.57 s against 0.58 % in 0.59 s: "
-        "there 16 are the better trade (docs/VALIDATION.md, session 36).",
+        "(the direct and path integrators carry 16); auto: 16 at render.samples_per_pixel 1, "
+        "else 8. A pixel's samples split the wavelengths' strata between them, so 2 samples "
+        "of 8 are about as noisy in colour as one of 16. The rays do not depend on the "
+        "wavelength, so this is arithmetic, not rays: 8 take about 5 % off a 224 px render. "
+        "The light cache is the same for both (16 fixed wavelengths of its own). At 224 px "
+        "with the shipped 224 px specs' counts (2 spp), RMS of white: 8 give 0.90 % at 1.5 N "
+        "+ 0.6 N in 63 ms, 0.86 % at 2.5 N + 1.5 N in 66 ms, 0.88 % at 5 N + 2 N in 76 ms and "
+        "0.90 % at rest; 16 give 0.88, 0.83, 0.85 and 0.87 % in 67, 70 and 81 ms (render "
+        "alone on a 2-core Xeon). At 896 px and 1 spp, 8 give 0.71 % in 0.55 s against 0.58 % "
+        "in 0.57 s (docs/VALIDATION.md, session 36).",
         CHROMASIM_FIELD(render.fast.wavelengths_per_sample)));
     add_render_sensor(out);
     out.push_back(boolean("outputs.images", true,

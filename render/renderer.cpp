@@ -468,7 +468,7 @@ struct Renderer::Impl {
         if (hero_sets.empty())
             batches<detail::kRgbLanes>(x, y, pixels, nx, ny, settings, scale, out, level,
                                        budget_bytes);
-        else if (settings.fast_wavelengths == detail::kFastSpectralLanes)
+        else if (fast_wavelengths_of(settings) == detail::kFastSpectralLanes)
             batches<detail::kFastSpectralLanes>(x, y, pixels, nx, ny, settings, scale, out, level,
                                                 budget_bytes);
         else
@@ -656,7 +656,13 @@ struct Renderer::Impl {
                 streams[m] = &*shade_rngs[std::size_t(j)];
                 owner[m] = j;
                 if constexpr (N != detail::kRgbLanes) {
-                    const HeroSetN<N>& h = hero_table<N>()[std::size_t(hero)];
+                    // Set hero / N: the lanes of set i sit at (i + 1/2) / kHeroSets + l / N
+                    // in the sampling CDF, so sets i and i + kHeroSets / N hold the same
+                    // wavelengths, and a draw's stratum over [0, 1) is no stratum of them.
+                    // Scaled into [0, 1 / N), sample k's lanes lie in stratum k of each of
+                    // the N intervals: a pixel's count x N wavelengths are stratified
+                    // (docs/VALIDATION.md, session 36).
+                    const HeroSetN<N>& h = hero_table<N>()[std::size_t(hero / N)];
                     sets[m] = &h, lanes[m] = &h.lanes, lambda[m] = &h.cache_lambdas;
                 } else {
                     lanes[m] = &rgb, lambda[m] = nullptr;
@@ -1013,11 +1019,13 @@ Image Renderer::render(const RenderSettings& settings) const {
                                     std::to_string(settings.edge_samples_per_pixel) +
                                     " is invalid; allowed: integer >= 0 (0: none extra)");
     }
-    if (settings.fast_wavelengths != detail::kFastSpectralLanes &&
+    if (settings.fast_wavelengths != 0 && settings.fast_wavelengths != detail::kFastSpectralLanes &&
         settings.fast_wavelengths != detail::kSpectralLanes) {
         throw std::invalid_argument(
             "RenderSettings: fast_wavelengths = " + std::to_string(settings.fast_wavelengths) +
-            " is invalid; allowed: " + std::to_string(detail::kFastSpectralLanes) + " or " +
+            " is invalid; allowed: 0 (16 at 1 sample per pixel, else " +
+            std::to_string(detail::kFastSpectralLanes) + "), " +
+            std::to_string(detail::kFastSpectralLanes) + " or " +
             std::to_string(detail::kSpectralLanes));
     }
     if (!(settings.camera_cache_mb >= 0.0)) {

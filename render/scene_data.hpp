@@ -307,14 +307,23 @@ struct RenderSettings {
     /// not wait) (docs/VALIDATION.md, session 33).
     double camera_cache_mb = 128.0;
     /// Fast integrator, spectral mode: the hero wavelengths a camera sample carries, 8 or 16
-    /// (the direct and path integrators always carry 16). The rays do not depend on the
-    /// wavelength, so the lanes cost arithmetic, not rays: at 224 px with the shipped specs'
-    /// counts 8 take about 5 % off a render for 0.04 to 0.05 % of white more error (0.92
-    /// against 0.88 % at 1.5 N + 0.6 N); at 896 px and 1 spp, 0.72 against 0.58 % for 4 %
-    /// (docs/VALIDATION.md, session 36). The light cache is the same for both (its own 16
-    /// fixed wavelengths).
-    int fast_wavelengths = 8;
+    /// (the direct and path integrators always carry 16); 0: 16 at one sample per pixel, 8
+    /// from 2 on (fast_wavelengths_of). A pixel's samples split the wavelengths' strata, so
+    /// 2 samples of 8 are about as noisy in colour as one of 16; one sample of 8 is not. The
+    /// rays do not depend on the wavelength, so the lanes cost arithmetic, not rays: at
+    /// 224 px with the shipped specs' counts (2 spp) 8 take about 5 % off a render for 0.025
+    /// to 0.03 % of white more error (0.90 against 0.88 % at 1.5 N + 0.6 N); at 896 px and
+    /// 1 spp, 0.71 against 0.58 % for 2 % (docs/VALIDATION.md, session 36). The light cache
+    /// is the same for both (its own 16 fixed wavelengths).
+    int fast_wavelengths = 0;
 };
+/// The hero wavelengths a fast-integrator sample carries with these settings
+/// (RenderSettings::fast_wavelengths; 0: 16 at samples_per_pixel 1, else 8).
+inline int fast_wavelengths_of(const RenderSettings& settings) {
+    return settings.fast_wavelengths > 0     ? settings.fast_wavelengths
+           : settings.samples_per_pixel >= 2 ? 8
+                                             : 16;
+}
 /// RenderSettings::reflection_samples_per_pixel: how far from an LED's rectangle on the LEDs'
 /// plane a pixel centre's mirrored ray may cross and still count, mm.
 inline constexpr double kReflectionMargin_mm = 0.25;

@@ -317,9 +317,9 @@ int main(int argc, char** argv) {
     bench_render
         ->add_option("--fast-wavelengths", render_bench.fast_wavelengths,
                      "fast integrator, spectral mode: the hero wavelengths a sample carries to "
-                     "time, 8 or 16, each at every other setting "
-                     "(render.fast.wavelengths_per_sample); the reference has 16")
-        ->check(CLI::IsMember({8, 16}));
+                     "time, 8 or 16 (0: 16 at 1 spp, else 8, the default), each at every other "
+                     "setting (render.fast.wavelengths_per_sample); the reference has 16")
+        ->check(CLI::IsMember({0, 8, 16}));
     bench_render
         ->add_option("--reference-in", render_bench.reference_in,
                      "read the reference from this EXR (written by --reference-out); two or "

@@ -477,7 +477,8 @@ TEST_CASE("the render.fast keys reach the renderer's settings", "[generators][sp
         CHECK(r.edge_samples_per_pixel == 6);
         CHECK(r.reflected_led_samples_per_pixel == 32);
         CHECK(r.shadow_rays_per_pixel == 0);
-        CHECK(r.fast_wavelengths == 8);
+        CHECK(r.fast_wavelengths == 0); // auto: 16 at 1 spp, else 8
+        CHECK(chromasim::render::fast_wavelengths_of(r) == 8);
     }
     SECTION("every key is passed on") {
         const chromasim::render::RenderSettings r = render_settings(
@@ -502,7 +503,7 @@ TEST_CASE("the render.fast keys reach the renderer's settings", "[generators][sp
               "allowed: integer in [0, 4096]");
         CHECK_THAT(error_of("render:\n  fast:\n    wavelengths_per_sample: 12\n"),
                    StartsWith("bad.yaml:3:29: render.fast.wavelengths_per_sample: value '12'") &&
-                       EndsWith("allowed: one of 8, 16"));
+                       EndsWith("allowed: one of auto, 8, 16"));
     }
 }
 
