@@ -209,8 +209,9 @@ struct Renderer::Impl {
     /// The sets of the direct and path integrators, and of the fast one at 16 wavelengths
     /// (RenderSettings::fast_wavelengths).
     std::vector<HeroSet> hero_sets;
-    /// The fast integrator's at kFastSpectralLanes (RenderSettings::fast_wavelengths): the
-    /// same table's draws (set i from u = (i + 1/2) / kHeroSets) at half the wavelengths.
+    /// The fast integrator's at kFastSpectralLanes (RenderSettings::fast_wavelengths): set i
+    /// from u = (i + 1/2) / kHeroSets as above, the first kHeroSets / kFastSpectralLanes only
+    /// (it reads set i / N: the others repeat them with their lanes rotated).
     std::vector<HeroSetN<detail::kFastSpectralLanes>> fast_hero_sets;
     template <int N> const std::vector<HeroSetN<N>>& hero_table() const {
         if constexpr (N == detail::kSpectralLanes)
@@ -220,9 +221,9 @@ struct Renderer::Impl {
     }
 
     template <int N>
-    void tabulate(const SensorSpectra& spectra, std::vector<HeroSetN<N>>& sets) const {
-        sets.resize(kHeroSets);
-        for (int i = 0; i < kHeroSets; ++i) {
+    void tabulate(const SensorSpectra& spectra, std::vector<HeroSetN<N>>& sets, int count) const {
+        sets.resize(std::size_t(count));
+        for (int i = 0; i < count; ++i) {
             HeroSetN<N>& h = sets[std::size_t(i)];
             detail::LanesN<N> pdf_per_nm;
             wavelengths->sample<N>((i + 0.5) / kHeroSets, h.lambda_nm, pdf_per_nm);
@@ -232,8 +233,8 @@ struct Renderer::Impl {
         }
     }
     void tabulate_hero_sets(const SensorSpectra& spectra) {
-        tabulate(spectra, hero_sets);
-        tabulate(spectra, fast_hero_sets);
+        tabulate(spectra, hero_sets, kHeroSets);
+        tabulate(spectra, fast_hero_sets, kHeroSets / detail::kFastSpectralLanes);
     }
 
     /// The sum over the pixel's samples (unscaled camera RGB; samples outside the image
