@@ -72,7 +72,10 @@ struct FingerRun {
     mechanics::ObjectShape object;
     mechanics::FrameResult result;    ///< the last frame's
     const FingerLoad* load = nullptr; ///< the last frame's load (null before the first)
-    render::Image image;              ///< rendered from `result` (valid when `rendered`)
+    /// The last converged frame's result: the next frame starts from it, so a frame the solver
+    /// could not solve passes nothing on (null: none yet, the next frame starts from rest).
+    std::optional<mechanics::FrameResult> history;
+    render::Image image; ///< rendered from `result` (valid when `rendered`)
     bool rendered = false;
     render::SensorFrame sensor_frame;
 };
@@ -120,7 +123,8 @@ LabelRow run_finger(Stages& s, const FramePlan& frame, const FrameLabels& labels
         ++s.report.reused_solves;
     } else {
         run.result = s.model.solve(contact_load(load), s.request, run.object,
-                                   run.load ? &run.result : nullptr);
+                                   run.history ? &*run.history : nullptr);
+        if (run.result.contact.converged) run.history = run.result;
         ++s.report.solves;
     }
     run.load = &load;

@@ -1,5 +1,7 @@
 #include "generators/plan.hpp"
 
+#include "mechanics/contact.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -136,7 +138,7 @@ void load_ramp(const Spec& spec, TrialPlan& trial, double t0) {
         for (std::size_t i = 0; i < trial.fingers.size(); ++i) {
             const double q = load * share;
             f.fingers[i].tangential_force_N = q * direction(trial.fingers[i]);
-            slips = slips || q >= trial.fingers[i].mu * trial.grip_N; // contact.cpp's full slip
+            slips = slips || mechanics::gross_slip(trial.fingers[i].mu, trial.grip_N, q);
         }
         if (slips) {
             if (++slipping_frames > spec.protocol.slip_frames) return;

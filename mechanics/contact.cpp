@@ -16,6 +16,11 @@ double safety_margin(double mu, double normal_force_N, double tangential_force_N
     return std::clamp((strength - tangential_force_N) / strength, 0.0, 1.0);
 }
 
+bool gross_slip(double mu, double normal_force_N, double tangential_force_N) {
+    if (!(tangential_force_N > 0)) return false;
+    return tangential_force_N >= std::max(0.0, mu) * normal_force_N * (1.0 - kGrossSlipTolerance);
+}
+
 Eigen::VectorXd
 object_gap(const ObjectShape& object,
            const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& X,
@@ -81,20 +86,20 @@ struct LinearSolution {
     Eigen::Vector2d w{0, 0};
 };
 
-/// One (semi-smooth) Newton system. Unknowns: lambda and t on A, d, and w under force control
-/// (not while fully sliding). Forces on the body F_j = (t_j, -lambda_j); u_i = sum_j C_ij F_j;
-/// slip g_j = u_t,j - w - a_j. Rows: u_z,i + d = gap_i on A (contact closed); g_j = 0 for a
-/// stick node; for a slip node the Alart-Curnier law t = mu lambda tau / |tau|, tau = t - r g,
-/// linearized at the last iterate (friction_law: (I - kappa P) t + kappa r P g - mu n lambda =
+/// One (semi-smooth) Newton system. Unknowns: lambda and t on A, d, and w when `w_unknown` (force
+/// control with friction; otherwise w = `w_given`). Forces on the body F_j = (t_j, -lambda_j); u_i
+/// = sum_j C_ij F_j; slip g_j = u_t,j - w - a_j. Rows: u_z,i + d = gap_i on A (contact closed); g_j
+/// = 0 for a stick node; for a slip node the Alart-Curnier law t = mu lambda tau / |tau|, tau = t -
+/// r g, linearized at the last iterate (friction_law: (I - kappa P) t + kappa r P g - mu n lambda =
 /// 0, P = I - n n', or a fixed direction when everything slides); sum lambda = P; under force
 /// control
 /// sum t = Q. Goodman: the z rows ignore the tangential forces. Dense LU (not symmetric).
 bool solve_linear(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, const RowVectors2& anchor,
-                  const ActiveSets& sets, const ContactLoad& load, bool full_slip, bool coupled,
-                  LinearSolution& out) {
+                  const ActiveSets& sets, const ContactLoad& load, bool w_unknown,
+                  const Eigen::Vector2d& w_given, bool coupled, LinearSolution& out) {
     const std::vector<int>& A = sets.A;
     const Eigen::Index m = Eigen::Index(A.size());
-    const bool force = load.tangential == TangentialControl::force && !full_slip;
+    const bool force = w_unknown;
     const Eigen::Index nw = force ? 2 : 0, N = 3 * m + 1 + nw;
     const Eigen::Index col_d = 3 * m, col_w = 3 * m + 1;
     // Column of unknown: lambda_k -> k, t_k -> m + 2k + c.
@@ -111,7 +116,6 @@ bool solve_linear(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, const Ro
     }
     Eigen::MatrixXd M = Eigen::MatrixXd::Zero(N, N);
     Eigen::VectorXd b = Eigen::VectorXd::Zero(N);
-    const Eigen::Vector2d w_given = load.tangential_displacement_mm;
     Eigen::Index row = 0;
     for (Eigen::Index i = 0; i < m; ++i, ++row) { // contact closed
         M.row(row).head(3 * m) = G.row(3 * i + 2);
@@ -177,9 +181,149 @@ RowForces candidate_displacements(const Eigen::MatrixXd& C, const std::vector<in
 
 } // namespace
 
-ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_mm,
-                                   const ContactLoad& load, const ContactSolution* previous,
-                                   const ContactOptions& options, const RowForces* extra_mm) {
+namespace {
+
+/// What a step solves for, from its load.
+struct StepKind {
+    bool w_unknown = false;        ///< force control with friction: the object's travel is found
+    bool full_slip = false;        ///< force control at or beyond mu P: the contact slides
+    bool all_slip = false;         ///< no friction: every contact node slips from the start
+    Eigen::Vector2d pull{1, 0};    ///< unit direction of the pull
+    ContactLoad solved;            ///< the load the system balances (a full slip's pull is mu P)
+    Eigen::Vector2d w_given{0, 0}; ///< the travel when it is not found
+    int sticking = -1;             ///< full slip: the candidate that sticks at the onset (-1: none)
+};
+
+/// The node that sticks while the contact slides: the previous step's sticking node furthest
+/// inside its friction cone (the last of the stick zone to slip, Mindlin's centre), or -1 when
+/// the previous step had none (it slid already: the travel is kept).
+int last_sticking_node(const ContactSolution* previous, double mu) {
+    if (!previous) return -1;
+    int best = -1;
+    double best_ratio = std::numeric_limits<double>::infinity();
+    for (int j : previous->active) {
+        if (previous->state[std::size_t(j)] != NodeContact::stick) continue;
+        const double lambda = -previous->forces_N(j, 2);
+        if (!(lambda > 0)) continue;
+        const double ratio = previous->forces_N.row(j).head<2>().norm() / (mu * lambda);
+        if (ratio < best_ratio) {
+            best_ratio = ratio;
+            best = j;
+        }
+    }
+    return best;
+}
+
+/// `slides`: solve the step as a full slip even below mu P (its stick zone vanished).
+StepKind step_kind(const ContactLoad& load, double mu, const ContactSolution* previous,
+                   bool slides) {
+    StepKind k;
+    const bool force = load.tangential == TangentialControl::force;
+    const double Q = load.tangential_force_N.norm(), P = load.normal_force_N;
+    k.full_slip = force && (slides || gross_slip(mu, P, Q));
+    k.all_slip = mu == 0 || k.full_slip;
+    k.w_unknown = force && !k.full_slip && mu > 0;
+    if (Q > 0) k.pull = load.tangential_force_N / Q;
+    k.solved = load;
+    // At and beyond mu P the step is solved at the onset of sliding: every contact node carries
+    // mu lambda along the pull (the transmitted force is mu P) but the last node of the stick
+    // zone, whose stick condition fixes the travel, Mindlin's finite travel at Q = mu P. A
+    // quasi-static model has no slip rate: the travel stays there while the object slides.
+    if (k.full_slip && mu > 0) {
+        k.solved.tangential_force_N = mu * P * k.pull;
+        k.sticking = last_sticking_node(previous, mu);
+        k.w_unknown = k.sticking >= 0;
+    }
+    const Eigen::Vector2d w_prev =
+        previous ? previous->object_displacement_mm : Eigen::Vector2d::Zero();
+    k.w_given = force ? w_prev : load.tangential_displacement_mm;
+    return k;
+}
+
+/// Where each node sticks if it is in contact in this step: its old anchor if it was in
+/// contact, else where it is when it touches (set when the active set takes it in).
+RowVectors2 start_anchors(const ContactSolution* previous, int n, const Eigen::Vector2d& w_prev,
+                          const RowForces* extra_mm) {
+    RowVectors2 anchor = RowVectors2::Zero(n, 2);
+    if (previous)
+        for (int i = 0; i < n; ++i)
+            anchor.row(i) = previous->state[std::size_t(i)] != NodeContact::free
+                                ? Eigen::RowVector2d(previous->anchor_mm.row(i))
+                                : Eigen::RowVector2d(previous->displacement_mm.row(i).head<2>() -
+                                                     w_prev.transpose());
+    if (extra_mm) anchor -= extra_mm->leftCols<2>();
+    return anchor;
+}
+
+/// The first iterate's sets: the previous step's contact and slip sets (warm start), or the
+/// node closest to the object.
+ActiveSets start_sets(const ContactSolution* previous, const Eigen::VectorXd& gap,
+                      const Eigen::VectorXd& r_stiff, double mu, const StepKind& kind) {
+    const std::size_t n = std::size_t(gap.size());
+    // Fixed-direction row (no friction): t = mu lambda along the pull.
+    const FrictionLaw along_pull{Eigen::Vector2d::Zero(), Eigen::Matrix2d::Identity(),
+                                 Eigen::Matrix2d::Zero(), -mu * kind.pull};
+    ActiveSets sets{{}, std::vector<char>(n, 0), std::vector<FrictionLaw>(n, along_pull)};
+    if (previous && !previous->active.empty()) {
+        sets.A = previous->active;
+        for (int j : sets.A) {
+            const Eigen::Vector2d t = previous->forces_N.row(j).head<2>().transpose();
+            if (kind.all_slip || previous->state[std::size_t(j)] != NodeContact::slip ||
+                t.norm() == 0)
+                continue;
+            sets.slip[std::size_t(j)] = 1; // on the cone: linearized there, slip along t
+            sets.law[std::size_t(j)] = friction_law(t, -previous->forces_N(j, 2),
+                                                    Eigen::Vector2d::Zero(), mu, r_stiff(j), true);
+        }
+    } else {
+        Eigen::Index first = 0;
+        gap.minCoeff(&first);
+        sets.A = {int(first)};
+    }
+    if (kind.all_slip) std::fill(sets.slip.begin(), sets.slip.end(), 1);
+    if (kind.sticking >= 0) sets.slip[std::size_t(kind.sticking)] = 0;
+    // A travel to find needs a sticking node: after a slide, the most loaded node re-sticks.
+    const auto slips = [&](int j) { return sets.slip[std::size_t(j)] != 0; };
+    if (kind.w_unknown && std::all_of(sets.A.begin(), sets.A.end(), slips)) {
+        const auto load = [&](int j) { return previous ? -previous->forces_N(j, 2) : 0.0; };
+        sets.slip[std::size_t(*std::max_element(
+            sets.A.begin(), sets.A.end(), [&](int a, int b) { return load(a) < load(b); }))] = 0;
+    }
+    return sets;
+}
+
+/// The friction half of a semi-smooth Newton update, on the Alart-Curnier law: trial traction
+/// tau = t - r g (g the slip from the anchor); |tau| <= mu lambda: stick; else slip, linearized
+/// at tau. Returns the largest violation of the law and sets `changed` when a node changes
+/// state.
+double update_friction(const RowForces& u, const LinearSolution& lin, const RowVectors2& anchor,
+                       const Eigen::VectorXd& r_stiff, double mu, ActiveSets& sets, bool& changed) {
+    double law_error = 0;
+    for (int j : sets.A) {
+        const std::size_t jj = std::size_t(j);
+        const Eigen::Vector2d t = lin.t.row(j).transpose();
+        const Eigen::Vector2d g =
+            u.row(j).head<2>().transpose() - lin.w - anchor.row(j).transpose();
+        const Eigen::Vector2d tau = t - r_stiff(j) * g;
+        const double limit = mu * std::max(lin.lambda(j), 0.0);
+        // A node on the cone's surface (|tau| = mu lambda to rounding) keeps its state: both
+        // give the same forces, and flipping would never settle.
+        const bool slips = tau.norm() > limit * (sets.slip[jj] ? 1.0 - 1e-10 : 1.0 + 1e-10);
+        const Eigen::Vector2d projected = slips ? Eigen::Vector2d(limit * tau.normalized()) : tau;
+        law_error = std::max(law_error, (t - projected).norm());
+        changed = changed || slips != (sets.slip[jj] != 0);
+        sets.slip[jj] = slips;
+        if (slips)
+            sets.law[jj] = friction_law(t, std::max(lin.lambda(j), 0.0), g, mu, r_stiff(j), true);
+    }
+    return law_error;
+}
+
+/// One step for a given kind (solve_contact_step).
+ContactSolution solve_step(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_mm,
+                           const ContactLoad& load, const ContactSolution* previous,
+                           const ContactOptions& options, const RowForces* extra_mm,
+                           const StepKind& kind) {
     const int n = int(gap_mm.size());
     // Internally the displacement is the part the contact forces cause through C: the extra
     // displacement moves the gaps and anchors.
@@ -194,81 +338,39 @@ ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::Vector
     sol.anchor_mm = RowVectors2::Zero(n, 2);
     const Eigen::Vector2d w_prev =
         previous ? previous->object_displacement_mm : Eigen::Vector2d::Zero();
-    sol.object_displacement_mm = load.tangential == TangentialControl::displacement
-                                     ? load.tangential_displacement_mm
-                                     : w_prev;
+    const double mu = std::max(0.0, load.mu);
+    sol.object_displacement_mm = kind.w_given;
     const double P = load.normal_force_N;
     if (!(P > 0)) { // unloaded: nothing touches
         sol.converged = true;
         sol.gamma = safety_margin(load.mu, 0.0, 0.0);
         return sol;
     }
-    const double mu = std::max(0.0, load.mu);
-    const bool force = load.tangential == TangentialControl::force;
-    // Under force control a pull at or beyond the frictional strength mu P slides the object:
-    // every contact node slips along the pull (frictionless: no traction at all).
-    const bool full_slip =
-        force && load.tangential_force_N.norm() > 0 && load.tangential_force_N.norm() >= mu * P;
-    const Eigen::Vector2d pull = load.tangential_force_N.norm() > 0
-                                     ? Eigen::Vector2d(load.tangential_force_N.normalized())
-                                     : Eigen::Vector2d(1, 0);
-
-    // Where each node sticks if it is in contact in this step: its old anchor if it was in
-    // contact, else where it is when it touches (set when the active set takes it in).
-    RowVectors2 anchor = RowVectors2::Zero(n, 2);
-    if (previous)
-        for (int i = 0; i < n; ++i)
-            anchor.row(i) = previous->state[std::size_t(i)] != NodeContact::free
-                                ? Eigen::RowVector2d(previous->anchor_mm.row(i))
-                                : Eigen::RowVector2d(previous->displacement_mm.row(i).head<2>() -
-                                                     w_prev.transpose());
-    if (extra_mm) anchor -= extra_mm->leftCols<2>();
-
+    RowVectors2 anchor = start_anchors(previous, n, w_prev, extra_mm);
     std::vector<char> was_in_contact(nz, 0);
     if (previous)
         for (int j : previous->active)
             was_in_contact[std::size_t(j)] = 1;
-    const bool all_slip = full_slip || mu == 0;
     Eigen::VectorXd r_stiff(n); // each node's own tangential stiffness 1 / C_tt
     for (int j = 0; j < n; ++j)
         r_stiff(j) = 2.0 / (C(3 * j, 3 * j) + C(3 * j + 1, 3 * j + 1));
-    // Fixed-direction row (full slip, or no friction): t = mu lambda along the pull.
-    const FrictionLaw along_pull{Eigen::Vector2d::Zero(), Eigen::Matrix2d::Identity(),
-                                 Eigen::Matrix2d::Zero(), -mu * pull};
-    ActiveSets sets{{}, std::vector<char>(nz, 0), std::vector<FrictionLaw>(nz, along_pull)};
-    if (previous && !previous->active.empty()) {
-        sets.A = previous->active; // warm start: the previous contact and slip sets
-        for (int j : sets.A) {
-            const Eigen::Vector2d t = previous->forces_N.row(j).head<2>().transpose();
-            if (all_slip || previous->state[std::size_t(j)] != NodeContact::slip || t.norm() == 0)
-                continue;
-            sets.slip[std::size_t(j)] = 1; // on the cone: linearized there, slip along t
-            sets.law[std::size_t(j)] = friction_law(t, -previous->forces_N(j, 2),
-                                                    Eigen::Vector2d::Zero(), mu, r_stiff(j), true);
-        }
-    } else {
-        Eigen::Index first = 0;
-        gap.minCoeff(&first);
-        sets.A = {int(first)};
-    }
-    if (all_slip)
-        std::fill(sets.slip.begin(), sets.slip.end(), 1); // kappa 0: traction mu lambda along pull
+    ActiveSets sets = start_sets(previous, gap, r_stiff, mu, kind);
 
-    LinearSolution lin{Eigen::VectorXd::Zero(n), RowVectors2::Zero(n, 2)};
+    LinearSolution lin{Eigen::VectorXd::Zero(n), RowVectors2::Zero(n, 2), 0.0, kind.w_given};
     sol.status = "max_iterations";
     const double tol_mm = 1e-9 * std::max(1.0, std::min(gap.maxCoeff(), 1e2));
     for (int it = 0; it < options.max_iterations; ++it) {
         ++sol.iterations;
-        if (!solve_linear(C, gap, anchor, sets, load, full_slip, options.coupled, lin)) {
+        if (!solve_linear(C, gap, anchor, sets, kind.solved, kind.w_unknown, kind.w_given,
+                          options.coupled, lin)) {
             sol.status = "singular";
             break;
         }
         // Semi-smooth Newton: every set is updated from the same iterate. Normal: release the
         // nodes pulling on the object, add the nodes penetrating it (sticking where they were,
-        // unless everything slides). Friction, on the Alart-Curnier law: trial traction
-        // tau = t - r g (g the slip from the anchor); |tau| <= mu lambda: stick; else slip,
-        // linearized at tau. Converged when no set changes and t = proj(tau) at every node.
-        // Past 30 iterations only the worst node enters or leaves per iteration (anti-cycling).
+        // unless everything slides). Friction: update_friction. Converged when no set changes
+        // and t = proj(tau) at every node. Past 30 iterations only the worst node enters or
+        // leaves per iteration (anti-cycling).
         const RowForces u = candidate_displacements(C, sets.A, lin, false);
         const RowForces& uz = options.coupled ? u : candidate_displacements(C, sets.A, lin, true);
         const bool cautious = it >= 30;
@@ -281,7 +383,7 @@ ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::Vector
             in_A[std::size_t(j)] = 1;
         std::vector<std::pair<double, int>> release, add;
         for (int j : sets.A)
-            if (lin.lambda(j) < 0.0) release.emplace_back(lin.lambda(j), j);
+            if (lin.lambda(j) < 0.0 && j != kind.sticking) release.emplace_back(lin.lambda(j), j);
         for (int i = 0; i < n; ++i) {
             const double g = gap(i) - lin.d - uz(i, 2);
             if (!in_A[std::size_t(i)] && g < -(cautious ? cautious_tol_mm : tol_mm))
@@ -295,35 +397,15 @@ ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::Vector
         }
         if (release.size() == sets.A.size()) release.clear(); // keep the contact non-empty
         bool changed = !release.empty() || !add.empty();
-        double law_error = 0;
-        if (!all_slip) {
-            for (int j : sets.A) {
-                const std::size_t jj = std::size_t(j);
-                const Eigen::Vector2d t = lin.t.row(j).transpose();
-                const Eigen::Vector2d g =
-                    u.row(j).head<2>().transpose() - lin.w - anchor.row(j).transpose();
-                const Eigen::Vector2d tau = t - r_stiff(j) * g;
-                const double limit = mu * std::max(lin.lambda(j), 0.0);
-                // A node on the cone's surface (|tau| = mu lambda to rounding) keeps its state:
-                // both give the same forces, and flipping would never settle.
-                const bool slips = tau.norm() > limit * (sets.slip[jj] ? 1.0 - 1e-10 : 1.0 + 1e-10);
-                const Eigen::Vector2d projected =
-                    slips ? Eigen::Vector2d(limit * tau.normalized()) : tau;
-                law_error = std::max(law_error, (t - projected).norm());
-                changed = changed || slips != (sets.slip[jj] != 0);
-                sets.slip[jj] = slips;
-                if (slips)
-                    sets.law[jj] =
-                        friction_law(t, std::max(lin.lambda(j), 0.0), g, mu, r_stiff(j), true);
-            }
-        }
+        const double law_error =
+            kind.all_slip ? 0.0 : update_friction(u, lin, anchor, r_stiff, mu, sets, changed);
         for (const auto& [value, j] : release) {
             in_A[std::size_t(j)] = 0;
-            if (!all_slip) sets.slip[std::size_t(j)] = 0;
+            if (!kind.all_slip) sets.slip[std::size_t(j)] = 0;
         }
         for (const auto& [value, i] : add) { // sticks where it touches
             in_A[std::size_t(i)] = 1;
-            if (!all_slip) sets.slip[std::size_t(i)] = 0;
+            if (!kind.all_slip) sets.slip[std::size_t(i)] = 0;
             if (!was_in_contact[std::size_t(i)])
                 anchor.row(i) = u.row(i).head<2>() - lin.w.transpose();
         }
@@ -331,8 +413,8 @@ ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::Vector
             sets.A.clear();
             for (int i = 0; i < n; ++i)
                 if (in_A[std::size_t(i)]) sets.A.push_back(i);
-            continue;
         }
+        if (changed) continue;
         if (law_error <= 1e-12 * P) {
             sol.status = "ok";
             break;
@@ -346,15 +428,19 @@ ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::Vector
     const RowForces u_end = candidate_displacements(C, sets.A, lin, false);
     for (int j : sets.A) {
         sol.forces_N.row(j) << lin.t(j, 0), lin.t(j, 1), -lin.lambda(j);
-        // A node on the friction cone that did not move relative to the object sticks.
+        // A node on the friction cone that did not move relative to the object sticks; in a
+        // full slip every node slides with the object.
         const double slip_mm = (u_end.row(j).head<2>() - lin.w.transpose() - anchor.row(j)).norm();
-        const bool slips = sets.slip[std::size_t(j)] != 0 && (all_slip || slip_mm > 1e-13);
+        const bool slips = kind.full_slip ||
+                           (sets.slip[std::size_t(j)] != 0 && (kind.all_slip || slip_mm > 1e-13));
         sol.state[std::size_t(j)] = slips ? NodeContact::slip : NodeContact::stick;
         if (slips) sol.slipping.push_back(j);
     }
-    if (!full_slip) sol.object_displacement_mm = lin.w;
-    sol.sliding = full_slip || (!force && !sets.A.empty() && sol.slipping.size() == sets.A.size() &&
-                                (sol.object_displacement_mm - w_prev).norm() > 0);
+    sol.object_displacement_mm = lin.w;
+    const bool force = load.tangential == TangentialControl::force;
+    sol.sliding =
+        kind.full_slip || (!force && !sets.A.empty() && sol.slipping.size() == sets.A.size() &&
+                           (sol.object_displacement_mm - w_prev).norm() > 0);
     sol.displacement_mm = u_end;
     const Eigen::Vector2d w = sol.object_displacement_mm;
     for (int j : sets.A)
@@ -388,8 +474,8 @@ ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::Vector
             res_N = std::max(res_N, std::abs(tn - lim));
         }
     }
-    if (force && !sol.sliding)
-        res_N = std::max(res_N, (sol.tangential_force_N - load.tangential_force_N).norm());
+    if (kind.w_unknown)
+        res_N = std::max(res_N, (sol.tangential_force_N - kind.solved.tangential_force_N).norm());
     sol.residual_mm = res_mm;
     sol.residual_N = res_N;
     if (extra_mm) { // back to total displacements
@@ -397,6 +483,27 @@ ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::Vector
         for (int j : sets.A)
             sol.anchor_mm.row(j) += extra_mm->row(j).head<2>();
     }
+    return sol;
+}
+
+} // namespace
+
+ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_mm,
+                                   const ContactLoad& load, const ContactSolution* previous,
+                                   const ContactOptions& options, const RowForces* extra_mm) {
+    const double mu = std::max(0.0, load.mu);
+    const StepKind kind = step_kind(load, mu, previous, false);
+    ContactSolution sol = solve_step(C, gap_mm, load, previous, options, extra_mm, kind);
+    // Under force control a contact with no sticking node left slides: its stick zone is
+    // smaller than the mesh resolves (Mindlin's c = a (1 - Q / (mu P))^(1/3)), and the travel
+    // of a contact slipping everywhere below mu P is only fixed by the small spread of the
+    // slip directions (it grows without bound as Q -> mu P; with no sticking node at all the
+    // travel is singular).
+    const bool no_stick =
+        sol.converged && !sol.active.empty() && sol.slipping.size() == sol.active.size();
+    if (kind.w_unknown && (no_stick || sol.status == "singular"))
+        sol = solve_step(C, gap_mm, load, previous, options, extra_mm,
+                         step_kind(load, mu, previous, true));
     return sol;
 }
 

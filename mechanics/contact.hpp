@@ -20,9 +20,11 @@
 ///   an active-set loop updates the sets (Alart-Curnier trial tractions for stick/slip). On
 ///   request, Goodman's approximation (the normal problem blind to the tangential forces, as
 ///   Mindlin's solution assumes);
-/// - under force control |Q| >= mu P is full slip: every contact node carries mu times its
-///   normal force along the pull, the transmitted force is mu P, Gamma = 0, and the sliding
-///   object's travel is left undefined (w is kept, the contact re-anchored where it is).
+/// - under force control |Q| >= mu P (gross_slip) is full slip: the step is solved at the limit
+///   Q = mu P, where the last sticking node fixes the object's travel (Mindlin's finite travel
+///   as Q -> mu P); every contact node then carries mu times its normal force along the pull,
+///   the transmitted force is mu P and Gamma = 0. A quasi-static model has no slip rate, so a
+///   sliding object's travel stays at its onset value and the contact is re-anchored there.
 #include "mechanics/object_mesh.hpp"
 
 #include <Eigen/Core>
@@ -128,6 +130,13 @@ struct FrictionLaw {
 };
 FrictionLaw friction_law(const Eigen::Vector2d& t, double lambda, const Eigen::Vector2d& g,
                          double mu, double r, bool slip);
+
+/// Relative tolerance of gross_slip: a pull equal to mu P up to rounding reaches it.
+inline constexpr double kGrossSlipTolerance = 1e-9;
+
+/// Whether a pull of `tangential_force_N` (> 0) under force control slides the object:
+/// Q >= mu P (1 - kGrossSlipTolerance). The plan's slip phase and the solver use this one test.
+bool gross_slip(double mu, double normal_force_N, double tangential_force_N);
 
 /// Safety margin (mu P - |f_t|) / (mu P), clamped at 0 while sliding; 0 when mu P = 0.
 double safety_margin(double mu, double normal_force_N, double tangential_force_N);

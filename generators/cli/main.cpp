@@ -1,5 +1,6 @@
 // chromasim: the command line. Parses arguments and calls the libraries; nothing else.
 #include "generators/bench.hpp"
+#include "generators/check.hpp"
 #include "generators/generate.hpp"
 #include "generators/image_io.hpp"
 #include "generators/merge.hpp"
@@ -176,6 +177,12 @@ int main(int argc, char** argv) {
     std::vector<std::string> validate_paths;
     auto* validate = app.add_subcommand("validate", "check spec files; do no work");
     validate->add_option("spec", validate_paths, "spec file(s)")->required();
+
+    std::string check_dir;
+    auto* check = app.add_subcommand(
+        "check", "list impossible or inconsistent labels of a dataset (exit 1 if any)");
+    check->add_option("dataset", check_dir, "dataset folder (written by generate or merge)")
+        ->required();
 
     auto* schema = app.add_subcommand(
         "spec-doc", "print every spec key: the user manual of spec files (Markdown table)");
@@ -428,6 +435,11 @@ int main(int argc, char** argv) {
                           << frames << " frames, " << images << " images)\n";
             }
             return 0;
+        }
+        if (*check) {
+            const gen::CheckReport report = gen::check_dataset(check_dir);
+            gen::print_check_report(check_dir, report, std::cout);
+            return report.findings_total > 0 ? 1 : 0;
         }
         if (*bench_dome) {
             gen::bench_dome(dome_bench, std::cout);
