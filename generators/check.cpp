@@ -22,8 +22,9 @@ namespace fs = std::filesystem;
 /// control or marker displacement reaches it) and the tolerances of the consistency rules.
 struct Bounds {
     double outer_radius_mm = mechanics::DomeParams{}.radii_mm.back();
-    double relative = 1e-6; ///< of forces and Gamma (labels are written to 9 digits)
+    double relative = 1e-6; ///< of forces (labels are written to 9 significant digits)
     double absolute = 1e-9;
+    double gamma = 1e-6; ///< of Gamma against the forces it is computed from
 };
 
 [[noreturn]] void refuse(const fs::path& path, const std::string& why) {
@@ -190,7 +191,7 @@ double check_finger(const CsvRows& rows, Checker& c, const std::string& p, const
     if (ft > strength * (1 + k.relative) + k.absolute)
         c.find(col("tangential_force_N"), "above mu * normal_force_N (Coulomb's law)");
     if (strength > 0 && sliding == 0 &&
-        !near(gamma, std::clamp((strength - ft) / strength, 0.0, 1.0), k))
+        std::abs(gamma - std::clamp((strength - ft) / strength, 0.0, 1.0)) > k.gamma)
         c.find(col("gamma"), "not (mu f_n - f_t) / (mu f_n)");
     if (!(d >= -k.absolute && d < k.outer_radius_mm))
         c.find(col("indentation_mm"), "outside [0, the dome's outer radius)");

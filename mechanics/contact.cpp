@@ -183,6 +183,9 @@ RowForces candidate_displacements(const Eigen::MatrixXd& C, const std::vector<in
 
 namespace {
 
+/// Q / (mu P) from which a contact slipping everywhere is taken to slide.
+constexpr double kUnresolvedStickZone = 0.9;
+
 /// What a step solves for, from its load.
 struct StepKind {
     bool w_unknown = false;        ///< force control with friction: the object's travel is found
@@ -492,16 +495,23 @@ ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::Vector
                                    const ContactLoad& load, const ContactSolution* previous,
                                    const ContactOptions& options, const RowForces* extra_mm) {
     const double mu = std::max(0.0, load.mu);
-    const StepKind kind = step_kind(load, mu, previous, false);
+    // A contact that slid under force control keeps sliding while the pull does not drop.
+    const double Q = load.tangential_force_N.norm();
+    const bool slid = previous && previous->sliding && Q > 0 &&
+                      previous->load.tangential == TangentialControl::force &&
+                      Q >= previous->load.tangential_force_N.norm() * (1 - kGrossSlipTolerance);
+    const StepKind kind = step_kind(load, mu, previous, slid);
     ContactSolution sol = solve_step(C, gap_mm, load, previous, options, extra_mm, kind);
-    // Under force control a contact with no sticking node left slides: its stick zone is
-    // smaller than the mesh resolves (Mindlin's c = a (1 - Q / (mu P))^(1/3)), and the travel
-    // of a contact slipping everywhere below mu P is only fixed by the small spread of the
-    // slip directions (it grows without bound as Q -> mu P; with no sticking node at all the
-    // travel is singular).
+    // Under force control a contact pulled near mu P with no sticking node left slides: its
+    // stick zone is smaller than the mesh resolves (Mindlin's c = a (1 - Q / (mu P))^(1/3)),
+    // and the travel of a contact slipping everywhere that close to mu P is only fixed by the
+    // small spread of the slip directions (it grows without bound as Q -> mu P; with no
+    // sticking node at all the travel is singular). Far from mu P (a grasp with little
+    // friction slips radially everywhere) the slip directions fix the travel well.
+    const bool near_limit = Q > 0 && Q >= kUnresolvedStickZone * mu * load.normal_force_N;
     const bool no_stick =
         sol.converged && !sol.active.empty() && sol.slipping.size() == sol.active.size();
-    if (kind.w_unknown && (no_stick || sol.status == "singular"))
+    if (kind.w_unknown && near_limit && (no_stick || sol.status == "singular"))
         sol = solve_step(C, gap_mm, load, previous, options, extra_mm,
                          step_kind(load, mu, previous, true));
     return sol;

@@ -20,11 +20,14 @@
 ///   an active-set loop updates the sets (Alart-Curnier trial tractions for stick/slip). On
 ///   request, Goodman's approximation (the normal problem blind to the tangential forces, as
 ///   Mindlin's solution assumes);
-/// - under force control |Q| >= mu P (gross_slip) is full slip: the step is solved at the limit
-///   Q = mu P, where the last sticking node fixes the object's travel (Mindlin's finite travel
-///   as Q -> mu P); every contact node then carries mu times its normal force along the pull,
-///   the transmitted force is mu P and Gamma = 0. A quasi-static model has no slip rate, so a
-///   sliding object's travel stays at its onset value and the contact is re-anchored there.
+/// - under force control the contact slides once |Q| >= mu P (gross_slip), or once no node
+///   sticks under a pull of at least 0.9 mu P (the stick zone is below the mesh's resolution),
+///   and keeps sliding while the pull does not drop. A sliding step is solved at its onset:
+///   every contact node carries mu times its normal force along the pull but the previous
+///   step's node furthest inside its cone, whose stick condition fixes the object's travel
+///   (Mindlin's finite travel as Q -> mu P); the transmitted force is mu P and Gamma = 0. A
+///   quasi-static model has no slip rate, so a sliding object's travel stays at its onset
+///   value and the contact is re-anchored there.
 #include "mechanics/object_mesh.hpp"
 
 #include <Eigen/Core>
