@@ -5,6 +5,7 @@
 
 #include "run_chromasim.hpp"
 #include "scratch_dir.hpp"
+#include "test_files.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -17,6 +18,7 @@
 
 namespace fs = std::filesystem;
 using namespace chromasim::generators;
+using chromasim::generators::test::read_csv;
 
 namespace {
 
@@ -44,27 +46,6 @@ splits:
 outputs: {images: false, labels: true, markers: true}
 )";
 
-/// labels.csv as rows of column -> cell.
-std::vector<std::map<std::string, std::string>> read_labels(const fs::path& file) {
-    std::ifstream in(file);
-    std::string line;
-    std::getline(in, line);
-    std::vector<std::string> names;
-    std::stringstream header(line);
-    for (std::string cell; std::getline(header, cell, ',');)
-        names.push_back(cell);
-    std::vector<std::map<std::string, std::string>> rows;
-    while (std::getline(in, line)) {
-        std::map<std::string, std::string> row;
-        std::stringstream cells(line);
-        std::string cell;
-        for (std::size_t i = 0; i < names.size() && std::getline(cells, cell, ','); ++i)
-            row[names[i]] = cell;
-        rows.push_back(std::move(row));
-    }
-    return rows;
-}
-
 } // namespace
 
 TEST_CASE("load steps landing on mu f_n: every frame converged and physical, the slip frames "
@@ -77,7 +58,7 @@ TEST_CASE("load steps landing on mu f_n: every frame converged and physical, the
         run_chromasim(dir, "generate " + spec.string() + " -o " + out.string() + " --no-cache -q");
     INFO(gen.output);
     REQUIRE(gen.code == 0);
-    const auto rows = read_labels(out / "labels.csv");
+    const auto rows = read_csv(out / "labels.csv");
     REQUIRE(rows.size() == 46);
     std::map<std::string, double> onset; // object -> the left finger's travel at slip onset
     for (const auto& row : rows)
@@ -118,7 +99,7 @@ TEST_CASE("check names the rows of an impossible dataset, refuses a missing or n
                 .code == 0);
     // The labels an older version wrote at the limit: travel 788062 mm, converged, status ok.
     std::string labels = read_file(out / "labels.csv");
-    const auto rows = read_labels(out / "labels.csv");
+    const auto rows = read_csv(out / "labels.csv");
     const std::string travel = rows.at(20).at("left_object_travel_x_mm");
     const std::size_t at = labels.find("," + travel + ",");
     REQUIRE(at != std::string::npos);
