@@ -46,18 +46,25 @@ splits:
 outputs: {images: false, labels: true, markers: true}
 )";
 
+/// Generates kLimitSpec's dataset (its first `trials`, 0: all) into DIR/out; returns DIR/out.
+fs::path generate_limit(const ScratchDir& dir, int trials = 0) {
+    const fs::path spec = dir.write("limit.yaml", kLimitSpec);
+    const fs::path out = dir.path / "out";
+    const Run gen = run_chromasim(
+        dir, "generate " + spec.string() + " -o " + out.string() + " --no-cache -q" +
+                 (trials > 0 ? " --max-trials " + std::to_string(trials) : std::string()));
+    INFO(gen.output);
+    REQUIRE(gen.code == 0);
+    return out;
+}
+
 } // namespace
 
 TEST_CASE("load steps landing on mu f_n: every frame converged and physical, the slip frames "
           "held at the onset travel, the objects apart, and check finds nothing",
           "[generators][check]") {
     ScratchDir dir("check_limit");
-    const fs::path spec = dir.write("limit.yaml", kLimitSpec);
-    const fs::path out = dir.path / "out";
-    const Run gen =
-        run_chromasim(dir, "generate " + spec.string() + " -o " + out.string() + " --no-cache -q");
-    INFO(gen.output);
-    REQUIRE(gen.code == 0);
+    const fs::path out = generate_limit(dir);
     const auto rows = read_csv(out / "labels.csv");
     REQUIRE(rows.size() == 46);
     std::map<std::string, double> onset; // object -> the left finger's travel at slip onset
@@ -92,11 +99,7 @@ TEST_CASE("check names the rows of an impossible dataset, refuses a missing or n
           "writes nothing",
           "[generators][check]") {
     ScratchDir dir("check_bad");
-    const fs::path spec = dir.write("limit.yaml", kLimitSpec);
-    const fs::path out = dir.path / "out";
-    REQUIRE(run_chromasim(dir, "generate " + spec.string() + " -o " + out.string() +
-                                   " --no-cache -q --max-trials 1")
-                .code == 0);
+    const fs::path out = generate_limit(dir, 1);
     // The labels an older version wrote at the limit: travel 788062 mm, converged, status ok.
     std::string labels = read_file(out / "labels.csv");
     const auto rows = read_csv(out / "labels.csv");
