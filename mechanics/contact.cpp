@@ -86,14 +86,14 @@ struct LinearSolution {
     Eigen::Vector2d w{0, 0};
 };
 
-/// One (semi-smooth) Newton system. Unknowns: lambda and t on A, d, and w when `w_unknown` (force
-/// control with friction; otherwise w = `w_given`). Forces on the body F_j = (t_j, -lambda_j); u_i
-/// = sum_j C_ij F_j; slip g_j = u_t,j - w - a_j. Rows: u_z,i + d = gap_i on A (contact closed); g_j
-/// = 0 for a stick node; for a slip node the Alart-Curnier law t = mu lambda tau / |tau|, tau = t -
-/// r g, linearized at the last iterate (friction_law: (I - kappa P) t + kappa r P g - mu n lambda =
-/// 0, P = I - n n', or a fixed direction when everything slides); sum lambda = P; under force
-/// control
-/// sum t = Q. Goodman: the z rows ignore the tangential forces. Dense LU (not symmetric).
+/// One (semi-smooth) Newton system. Unknowns: lambda and t on A, d, and w when `w_unknown`
+/// (force control with friction; otherwise w = `w_given`). Forces on the body
+/// F_j = (t_j, -lambda_j); u_i = sum_j C_ij F_j; slip g_j = u_t,j - w - a_j. Rows:
+/// u_z,i + d = gap_i on A (contact closed); g_j = 0 for a stick node; for a slip node the
+/// Alart-Curnier law t = mu lambda tau / |tau|, tau = t - r g, linearized at the last iterate
+/// (friction_law: (I - kappa P) t + kappa r P g - mu n lambda = 0, P = I - n n', or a fixed
+/// direction when everything slides); sum lambda = P; when w is unknown, sum t = Q. Goodman:
+/// the z rows ignore the tangential forces. Dense LU (not symmetric).
 bool solve_linear(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, const RowVectors2& anchor,
                   const ActiveSets& sets, const ContactLoad& load, bool w_unknown,
                   const Eigen::Vector2d& w_given, bool coupled, LinearSolution& out) {
@@ -179,10 +179,6 @@ RowForces candidate_displacements(const Eigen::MatrixXd& C, const std::vector<in
     return Eigen::Map<const RowForces>(u.data(), n, 3);
 }
 
-} // namespace
-
-namespace {
-
 /// Q / (mu P) from which a contact slipping everywhere is taken to slide.
 constexpr double kUnresolvedStickZone = 0.9;
 
@@ -263,7 +259,7 @@ RowVectors2 start_anchors(const ContactSolution* previous, int n, const Eigen::V
 ActiveSets start_sets(const ContactSolution* previous, const Eigen::VectorXd& gap,
                       const Eigen::VectorXd& r_stiff, double mu, const StepKind& kind) {
     const std::size_t n = std::size_t(gap.size());
-    // Fixed-direction row (no friction): t = mu lambda along the pull.
+    // Fixed-direction row (no friction, or a sliding contact): t = mu lambda along the pull.
     const FrictionLaw along_pull{Eigen::Vector2d::Zero(), Eigen::Matrix2d::Identity(),
                                  Eigen::Matrix2d::Zero(), -mu * kind.pull};
     ActiveSets sets{{}, std::vector<char>(n, 0), std::vector<FrictionLaw>(n, along_pull)};
