@@ -192,7 +192,11 @@ Reading rules (an error names the file, line:column, key, value and what is allo
 - `number`: decimal or exponent notation (`0.5`, `-1`, `2e-3`), finite. `integer`: decimal
   digits only (`2.5`, `2.0` and `1e3` are rejected).
 - `bool`: exactly `true` or `false` (`yes`, `no`, `on`, `off`, `True` are rejected).
-- Quoted text (`"1.5"`) is a string: it is never taken as a number or a bool.
+- Quoted text (`"1.5"`) is a string: it is never taken as a number or a bool. A quoted value
+  ends on the line it starts.
+- Files the spec names (object meshes, spectra) are read while it is checked, so `validate`
+  refuses what `generate` would; a rule between keys points at its key, or at the section
+  above it when the key is left out.
 - `rgb`: a list of exactly 3 numbers in red, green, blue order, e.g. `[0.85, 0.85, 0.85]`.
 - `vec3`: a list of exactly 3 numbers x, y, z, e.g. `[0.0, 0.0, -1.5]`.
 - `factor`: a factor of the sampling plan: one number (`1.5`), a non-empty list of numbers

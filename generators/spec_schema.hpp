@@ -81,6 +81,9 @@ struct SchemaRule {
     /// Checks that a file the spec names exists: skipped for a spec read back from a dataset
     /// (parse_stored_spec), which reads none of them.
     bool reads_files = false;
+    /// When set, replaces `holds` and `problem`: what is wrong with item `item` (empty: it
+    /// holds), for rules whose problem is a file's own error.
+    std::function<std::string(const Spec&, std::size_t item)> diagnose;
 };
 
 /// Outcome of converting one scalar's text for an entry: `problem` is empty when `value` holds

@@ -3,6 +3,8 @@
 // machinery that reads, checks and prints values; this file only says what the keys are.
 #include "generators/spec_table.hpp"
 
+#include "generators/sensor_bridge.hpp"
+
 #include "render/fisheye_camera.hpp"
 #include "render/sensor_model.hpp"
 
@@ -915,25 +917,39 @@ std::vector<SchemaRule> build_rules() {
     SchemaRule mesh;
     mesh.reads_files = true;
     mesh.key = "objects[].mesh_file";
-    mesh.holds = [](const Spec& s, std::size_t i) {
+    // The mesh is read as generate reads it: a file that is not a usable glTF mesh fails here.
+    mesh.diagnose = [](const Spec& s, std::size_t i) -> std::string {
         const Spec::Object& o = s.objects[i];
-        if (o.shape != "mesh") return true;
+        if (o.shape != "mesh") return "";
         std::error_code ec;
-        return !o.mesh_file.empty() &&
-               std::filesystem::is_regular_file(resolve_spec_path(s, o.mesh_file), ec);
+        if (o.mesh_file.empty() ||
+            !std::filesystem::is_regular_file(resolve_spec_path(s, o.mesh_file), ec))
+            return "names no existing file, and the object's shape is mesh";
+        try {
+            object_shape(s, o);
+        } catch (const std::exception& e) {
+            return std::string("is not a usable object mesh (") + e.what() + ")";
+        }
+        return "";
     };
     SchemaRule spectra;
     spectra.reads_files = true;
     spectra.key = "sensor.optics.spectra_dir";
-    spectra.holds = [](const Spec& s, std::size_t) {
-        if (!s.render.spectral || !(s.outputs.images || s.outputs.exr)) return true;
+    // The spectra are read as generate reads them: a missing or malformed file fails here.
+    spectra.diagnose = [](const Spec& s, std::size_t) -> std::string {
+        if (!s.render.spectral || !(s.outputs.images || s.outputs.exr)) return "";
         std::error_code ec;
-        return std::filesystem::is_directory(spectra_directory(s), ec);
+        if (!std::filesystem::is_directory(spectra_directory(s), ec))
+            return "names no existing folder, and render.spectral is true";
+        try {
+            optics_params(s);
+        } catch (const std::exception& e) {
+            return std::string("holds spectra that cannot be used (") + e.what() + ")";
+        }
+        return "";
     };
-    spectra.problem = "names no existing folder, and render.spectral is true";
     spectra.allowed = "a folder with the six spectrum CSVs (assets/spectra/README.md), or empty "
                       "for the shipped ones";
-    mesh.problem = "names no existing file, and the object's shape is mesh";
     mesh.allowed = "a .gltf or .glb file; a relative path starts at the spec file's folder";
     SchemaRule camera;
     camera.key = "sensor.camera";

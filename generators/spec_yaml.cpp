@@ -12,6 +12,8 @@
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -323,8 +325,73 @@ DocumentMarks first_documents(const SpecReader& r, const std::string& text) {
     return marks;
 }
 
+/// The end of the quoted scalar opening at line[i] (the closing quote's index), or npos when it
+/// does not close on its line. Double quotes escape with '\\', single quotes by doubling.
+std::size_t closing_quote(std::string_view line, std::size_t i) {
+    const char q = line[i];
+    for (std::size_t j = i + 1; j < line.size(); ++j) {
+        if (q == '"' && line[j] == '\\') {
+            ++j;
+        } else if (line[j] == q) {
+            if (q == '\'' && j + 1 < line.size() && line[j + 1] == '\'') {
+                ++j;
+                continue;
+            }
+            return j;
+        }
+    }
+    return std::string_view::npos;
+}
+
+/// yaml-cpp lets a quoted scalar that is never closed run on over the lines after it, so its
+/// key swallows them: a spec's quoted values must open and close on one line. Quotes inside
+/// a plain scalar ("seed's"), comments and block scalars (| or >) are left alone.
+void check_quotes_closed(const SpecReader& r, const std::string& text) {
+    std::size_t line_no = 0, block_indent = std::string::npos;
+    for (std::size_t start = 0; start <= text.size(); ++line_no) {
+        std::size_t end = text.find('\n', start);
+        if (end == std::string::npos) end = text.size();
+        const std::string_view line(text.data() + start, end - start);
+        start = end + 1;
+        const std::size_t indent = line.find_first_not_of(" \t");
+        if (indent == std::string_view::npos) continue;
+        if (block_indent != std::string::npos && indent > block_indent) continue;
+        block_indent = std::string::npos;
+        bool scalar_start = true;  // the next non-blank character may open a scalar
+        char last = 0, before = 0; // the last two characters outside quotes and comments
+        for (std::size_t i = indent; i < line.size(); ++i) {
+            const char c = line[i];
+            if (c == '#' && (i == 0 || line[i - 1] == ' ' || line[i - 1] == '\t')) break;
+            if (c == ' ' || c == '\t') continue;
+            if ((c == '"' || c == '\'') && scalar_start) {
+                const std::size_t j = closing_quote(line, i);
+                if (j == std::string_view::npos) {
+                    YAML::Mark at;
+                    at.line = int(line_no);
+                    at.column = int(i);
+                    throw SpecError(where(r.file, at) + ": malformed YAML: the " +
+                                    (c == '"' ? "double" : "single") +
+                                    "-quoted value opened here is not closed on its line; "
+                                    "allowed: a quoted value that ends on the line it starts");
+                }
+                i = j;
+                before = last;
+                last = c;
+                scalar_start = false;
+                continue;
+            }
+            scalar_start = c == ':' || c == '-' || c == '[' || c == '{' || c == ',' || c == '?';
+            before = last;
+            last = c;
+        }
+        const auto block = [](char x) { return x == '|' || x == '>'; };
+        if (block(last) || ((last == '-' || last == '+') && block(before))) block_indent = indent;
+    }
+}
+
 /// The one document of the text, which must be a mapping.
 YAML::Node parse_document(const SpecReader& r, const std::string& text) {
+    check_quotes_closed(r, text);
     YAML::Node doc;
     try {
         const DocumentMarks marks = first_documents(r, text);
@@ -366,11 +433,26 @@ std::string resolved_text(const Spec& spec, const std::string& section, std::siz
     return out + "}";
 }
 
-/// The mark of the first of `keys` that was met (null when none).
+/// The mark of the first of `keys` that was met, else of the nearest section above the last
+/// one that was written, else the start of the file (a key left out has no mark of its own).
 YAML::Mark first_mark(const SpecReader& r, const std::vector<std::string>& keys) {
     for (const std::string& key : keys)
         if (const auto mark = r.key_marks.find(key); mark != r.key_marks.end()) return mark->second;
-    return YAML::Mark::null_mark();
+    for (std::string section = keys.back(); !section.empty();) {
+        const std::size_t dot = section.rfind('.');
+        section = dot == std::string::npos ? "" : section.substr(0, dot);
+        if (const auto mark = r.key_marks.find(section); mark != r.key_marks.end())
+            return mark->second;
+    }
+    YAML::Mark start;
+    start.line = start.column = 0;
+    return start;
+}
+
+/// What is wrong with item `i` under `rule` (empty: it holds).
+std::string rule_problem(const SchemaRule& rule, const Spec& spec, std::size_t i) {
+    if (rule.diagnose) return rule.diagnose(spec, i);
+    return rule.holds(spec, i) ? std::string() : rule.problem;
 }
 
 void check_rules(const SpecReader& r, const Spec& spec, bool check_files) {
@@ -378,17 +460,19 @@ void check_rules(const SpecReader& r, const Spec& spec, bool check_files) {
         if (rule.reads_files && !check_files) continue;
         const std::size_t brackets = rule.key.find("[]");
         if (brackets == std::string::npos) {
-            if (rule.holds(spec, 0)) continue;
-            fail(r, first_mark(r, {rule.key}), rule.key, resolved_text(spec, rule.key),
-                 rule.problem, rule.allowed);
+            const std::string problem = rule_problem(rule, spec, 0);
+            if (problem.empty()) continue;
+            fail(r, first_mark(r, {rule.key}), rule.key, resolved_text(spec, rule.key), problem,
+                 rule.allowed);
         }
         const std::string list = rule.key.substr(0, brackets);
         for (std::size_t i = 0; i < find_schema_list(list)->size(spec); ++i) {
-            if (rule.holds(spec, i)) continue;
+            const std::string problem = rule_problem(rule, spec, i);
+            if (problem.empty()) continue;
             const std::string item = list + "[" + std::to_string(i) + "]";
             const std::string key = item + rule.key.substr(brackets + 2);
             fail(r, first_mark(r, {key, item, list}), key, resolved_text(spec, rule.key, i),
-                 rule.problem, rule.allowed);
+                 problem, rule.allowed);
         }
     }
 }

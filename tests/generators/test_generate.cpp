@@ -281,10 +281,11 @@ TEST_CASE("a glTF mesh object from the spec presses like the analytic sphere it 
     std::ofstream(dir / "broken.glb") << "not a glTF file";
     std::ofstream(dir / "spec.yaml")
         << "name: s\nobjects: [{name: a}, {name: b, shape: mesh, mesh_file: broken.glb}]\n";
-    const Spec spec = load_spec(dir / "spec.yaml"); // exists: the spec is valid
-    std::ostringstream log;
-    CHECK_THROWS_WITH(generate(spec, quiet_to(dir / "out"), log),
-                      Catch::Contains("broken.glb"));
+    // Read while the spec is checked, as validate does: refused at the key, nothing written.
+    CHECK_THROWS_WITH(load_spec(dir / "spec.yaml"),
+                      Catch::Contains("spec.yaml:2:") && Catch::Contains("objects[1].mesh_file") &&
+                          Catch::Contains("not a usable object mesh (") &&
+                          Catch::Contains("broken.glb"));
     CHECK_FALSE(fs::exists(dir / "out"));
     fs::remove_all(dir);
 }

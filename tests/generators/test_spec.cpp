@@ -5,6 +5,8 @@
 #include "generators/spec.hpp"
 #include "generators/spec_schema.hpp"
 
+#include "scratch_dir.hpp"
+
 #include <catch2/catch.hpp>
 
 #include <filesystem>
@@ -672,4 +674,40 @@ TEST_CASE("cross-key rules of the trial keys", "[generators][spec]") {
     CHECK(error_of("sampling: {method: grid}\n") ==
           "bad.yaml:1:20: sampling.method: value 'grid' is not one of the allowed values; "
           "allowed: one of full_grid, random, latin_hypercube");
+}
+
+TEST_CASE("validate is as strict as generate: a quote never closed, a mesh or spectra that "
+          "cannot be read, a rule about a key left out, each at its line:col",
+          "[generators][spec]") {
+    // yaml-cpp would let the name swallow the lines up to the next quote.
+    CHECK(error_of("name: \"quick\nseed: 1\nrender: {width_px: 64}\n") ==
+          "bad.yaml:1:7: malformed YAML: the double-quoted value opened here is not closed on "
+          "its line; allowed: a quoted value that ends on the line it starts");
+    CHECK_THAT(error_of("seed: 1\nobjects:\n  - {name: 'flat, shape: flat}\n"),
+               StartsWith("bad.yaml:3:12: malformed YAML: the single-quoted value"));
+    // Quotes that close, quotes inside plain scalars, comments and block scalars pass.
+    CHECK_NOTHROW(parse_spec("name: \"a \\\" b\"  # it's \"\nobjects: [{name: 'it''s'}]\n"
+                             "friction: [{name: seed's, mu: 0.5}]\n",
+                             "ok.yaml"));
+    // A cross-key rule about a key left out points at its section, or the file's start.
+    CHECK_THAT(error_of("protocol:\n  type: slide\n  slide:\n    start_mm: 30\n"),
+               StartsWith("bad.yaml:3:3: protocol.slide.end_mm: value '6.0' is below"));
+    CHECK_THAT(error_of("name: x\noutputs: {marker_ids: true}\n"),
+               StartsWith("bad.yaml:2:1: outputs.exr: value 'false' is false while"));
+    // Files are read as generate reads them: a mesh that is not glTF, spectra that are missing.
+    const ScratchDir dir("strict_files");
+    dir.write("not.glb", "not a glTF file");
+    const std::filesystem::path mesh_spec = dir.write(
+        "mesh.yaml", "name: m\nobjects:\n  - {name: a, shape: mesh, mesh_file: not.glb}\n");
+    CHECK_THROWS_WITH(load_spec(mesh_spec),
+                      Catch::Contains("mesh.yaml:3:") &&
+                          Catch::Contains("objects[0].mesh_file: value '\"not.glb\"' is not a "
+                                          "usable object mesh ("));
+    std::filesystem::create_directories(dir.path / "no_spectra");
+    const std::filesystem::path spectra_spec =
+        dir.write("spectra.yaml", "name: s\nsensor:\n  optics:\n    spectra_dir: no_spectra\n");
+    CHECK_THROWS_WITH(load_spec(spectra_spec),
+                      Catch::Contains("spectra.yaml:4:") &&
+                          Catch::Contains("sensor.optics.spectra_dir") &&
+                          Catch::Contains("holds spectra that cannot be used ("));
 }
