@@ -1,0 +1,100 @@
+"""chromasim's own frictionless presses, run through `chromasim generate`, for cross-checks
+against an independent solver (scripts/crosscheck-calculix).
+
+A press is a grasp_load trial with mu = 0: the grip ramps to its value in `ramp_frames`
+frames (each frame one step from the previous, as in a dataset), and the last grasp frame is
+read: the indentation and the displacement of every marker centre (markers.csv).
+"""
+
+import csv
+import pathlib
+import re
+import subprocess
+import time
+
+import numpy as np
+
+SPEC = """name: press
+seed: 1
+sensor:
+  mesh_level: {level}
+  material_model: {model}
+objects:
+  - {{name: obj, shape: {shape}{radius}}}
+friction:
+  - {{name: none, mu: 0}}
+fingers: {{count: 1}}
+protocol:
+  type: grasp_load
+  frame_rate_Hz: 1
+  grip_N: [{grips}]
+  grasp_s: {ramp_frames}
+  hold_s: 0
+  load_rate_N_per_s: 1000
+  target_load_N: 0.001
+  slip_frames: 0
+splits:
+  - {{name: all, fraction: 1.0}}
+outputs: {{images: false, labels: true, markers: true}}
+"""
+
+
+def press_spec(shape, level, model, forces, ramp_frames=4, radius_mm=45.0):
+    """The spec text of presses of `shape` ("flat" or "sphere") at each force (N)."""
+    return SPEC.format(
+        level=level,
+        model=model,
+        shape=shape,
+        radius=f", radius_mm: {radius_mm}" if shape == "sphere" else "",
+        grips=", ".join(f"{f:g}" for f in forces),
+        ramp_frames=ramp_frames,
+    )
+
+
+def run_presses(exe, workdir, shape, level, model, forces, ramp_frames=4):
+    """Runs the presses; returns {force: {"indentation_mm", "converged", "status", "x0_mm"
+    (164 x 3), "u_mm" (164 x 3)}} and the mechanics seconds per solved frame."""
+    workdir = pathlib.Path(workdir)
+    workdir.mkdir(parents=True, exist_ok=True)
+    spec = workdir / f"press_{shape}_{level}_{model}.yaml"
+    spec.write_text(press_spec(shape, level, model, forces, ramp_frames))
+    out = workdir / spec.stem
+    start = time.monotonic()
+    run = subprocess.run(
+        [str(exe), "generate", str(spec), "-o", str(out), "--overwrite", "-q"],
+        capture_output=True, text=True, check=False)
+    if run.returncode != 0:
+        raise RuntimeError(f"chromasim generate {spec} failed:\n{run.stdout}{run.stderr}")
+    wall_s = time.monotonic() - start
+    m = re.search(r"\((?:[^()]*?)(\d+) solves.*?mechanics ([0-9.e+-]+) s", run.stdout + run.stderr)
+    per_frame_s = float(m.group(2)) / int(m.group(1)) if m else wall_s
+    return _read_presses(out, forces, ramp_frames), per_frame_s
+
+
+def _read_presses(out, forces, ramp_frames):
+    labels = list(csv.DictReader(open(out / "labels.csv", newline="")))
+    last = {}  # trial -> the last grasp frame's row
+    for row in labels:
+        if row["phase"] == "grasp":
+            last[int(row["trial"])] = row
+    markers = {}
+    for row in csv.DictReader(open(out / "markers.csv", newline="")):
+        t = int(row["trial"])
+        if t in last and row["frame"] == last[t]["frame"]:
+            markers.setdefault(t, []).append(
+                [float(row[k]) for k in ("x0_mm", "y0_mm", "z0_mm", "ux_mm", "uy_mm", "uz_mm")])
+    result = {}
+    for t, row in last.items():
+        grip = float(row["grip_N"])
+        m = np.array(markers[t])
+        result[grip] = {
+            "indentation_mm": float(row["left_indentation_mm"]),
+            "converged": row["left_converged"] == "1",
+            "status": row["left_status"],
+            "x0_mm": m[:, :3],
+            "u_mm": m[:, 3:],
+        }
+    missing = [f for f in forces if not any(abs(f - g) < 1e-9 for g in result)]
+    if missing:
+        raise RuntimeError(f"{out}: no grasp frame for grips {missing}")
+    return result
