@@ -6,13 +6,14 @@ frames (each frame one step from the previous, as in a dataset), and the last gr
 read: the indentation and the displacement of every marker centre (markers.csv).
 """
 
-import csv
 import pathlib
 import re
 import subprocess
 import time
 
 import numpy as np
+
+from chromasim.data import open_dataset
 
 SPEC = """name: press
 seed: 1
@@ -72,27 +73,21 @@ def run_presses(exe, workdir, shape, level, model, forces, ramp_frames=4):
 
 
 def _read_presses(out, forces, ramp_frames):
-    labels = list(csv.DictReader(open(out / "labels.csv", newline="")))
-    last = {}  # trial -> the last grasp frame's row
-    for row in labels:
-        if row["phase"] == "grasp":
-            last[int(row["trial"])] = row
-    markers = {}
-    for row in csv.DictReader(open(out / "markers.csv", newline="")):
-        t = int(row["trial"])
-        if t in last and row["frame"] == last[t]["frame"]:
-            markers.setdefault(t, []).append(
-                [float(row[k]) for k in ("x0_mm", "y0_mm", "z0_mm", "ux_mm", "uy_mm", "uz_mm")])
+    data = open_dataset(str(out))
+    labels, markers = data.labels, data.markers()
     result = {}
-    for t, row in last.items():
-        grip = float(row["grip_N"])
-        m = np.array(markers[t])
-        result[grip] = {
-            "indentation_mm": float(row["left_indentation_mm"]),
-            "converged": row["left_converged"] == "1",
-            "status": row["left_status"],
-            "x0_mm": m[:, :3],
-            "u_mm": m[:, 3:],
+    for trial in np.unique(labels["trial"]):
+        grasp = np.flatnonzero((labels["trial"] == trial) & (labels["phase"] == "grasp"))
+        last = grasp[-1]  # the last grasp frame: the press at its grip
+        rows = (markers["trial"] == trial) & (markers["frame"] == labels["frame"][last])
+        x0 = np.column_stack([markers[k][rows] for k in ("x0_mm", "y0_mm", "z0_mm")])
+        u = np.column_stack([markers[k][rows] for k in ("ux_mm", "uy_mm", "uz_mm")])
+        result[float(labels["grip_N"][last])] = {
+            "indentation_mm": float(labels["left_indentation_mm"][last]),
+            "converged": labels["left_converged"][last] == 1,
+            "status": str(labels["left_status"][last]),
+            "x0_mm": x0,
+            "u_mm": u,
         }
     missing = [f for f in forces if not any(abs(f - g) < 1e-9 for g in result)]
     if missing:
