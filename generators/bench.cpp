@@ -65,7 +65,7 @@ struct LevelRow {
 };
 
 LevelRow bench_level(const std::string& level, const DomeBenchOptions& o) {
-    mechanics::DomeModelOptions options;
+    mechanics::DomeModelOptions options = dome_options(Spec{}); // a spec's defaults
     options.mesh_level = level;
     options.volumetric = o.volumetric == "element" ? mechanics::Volumetric::element
                                                    : mechanics::Volumetric::nodal_average;

@@ -43,7 +43,7 @@ struct Spec {
     struct Sensor {
         std::string mesh_level = "coarse";        ///< coarse | medium | fine
         std::string volumetric = "nodal_average"; ///< nodal_average | element
-        std::string material_model = "linear";    ///< linear | neo_hookean
+        std::string material_model = "neo_hookean"; ///< neo_hookean | linear
         std::string interior = "hollow";          ///< hollow | rigid_core | soft_fill
         int contact_steps = 4; ///< load steps from rest to the first frame, per phase
         LayerMaterial inner_marker_layer{0.8, 0.45};
@@ -51,7 +51,7 @@ struct Spec {
         LayerMaterial outer_marker_layer{0.8, 0.45};
         LayerMaterial coating{1.0, 0.45};
         LayerMaterial fill{0.05, 0.45}; ///< used only with interior soft_fill
-        double contact_candidate_angle_deg = 35.0;
+        double contact_candidate_angle_deg = 50.0;
         double camera_half_fov_deg = 84.0;
         std::string camera_model = "equidistant"; ///< equidistant | kannala_brandt
         /// Kannala-Brandt intrinsics, OpenCV convention; 0: derived from the image size and

@@ -198,17 +198,18 @@ void add_sensor_mechanics(std::vector<SchemaEntry>& out) {
                          "layer, clamped on the base plane; mechanics only, the renderer still "
                          "sees a hollow dome).",
                          CHROMASIM_FIELD(sensor.interior)));
-    out.push_back(choice("sensor.material_model", "linear", {"linear", "neo_hookean"},
-                         "Constitutive model of the layers: linear (small strain; a frame is a "
-                         "small contact solve, milliseconds) or neo_hookean (compressible, large "
-                         "deformation; about 0.06 to 0.25 s per trial frame on the coarse mesh).",
+    out.push_back(choice("sensor.material_model", "neo_hookean", {"linear", "neo_hookean"},
+                         "Constitutive model of the layers: neo_hookean (compressible, large "
+                         "deformation) or linear (small strain: much faster, but 20 to 27 % "
+                         "too stiff at 1 to 3 N, docs/VALIDATION.md).",
                          CHROMASIM_FIELD(sensor.material_model)));
     out.push_back(integer("sensor.contact_steps", 4, closed(1, 1000), "",
                           "Steps of the first frame's load path from rest: the grip force ramps "
                           "up in this many steps with friction on, then the tangential load.",
                           CHROMASIM_FIELD(sensor.contact_steps)));
-    out.push_back(number("sensor.contact_candidate_angle_deg", 35, closed(5, 80), "deg",
-                         "Polar angle of the outer-surface cap whose nodes may touch the object.",
+    out.push_back(number("sensor.contact_candidate_angle_deg", 50, closed(5, 80), "deg",
+                         "Polar angle of the outer-surface cap whose nodes may touch the object; "
+                         "a frame whose contact reaches it is flagged.",
                          CHROMASIM_FIELD(sensor.contact_candidate_angle_deg)));
 }
 
@@ -979,7 +980,7 @@ std::vector<SchemaRule> build_rules() {
                    "sensor.contact_candidate_angle_deg or beyond (the contact would leave the "
                    "cap of nodes that may touch)";
     tilt.allowed = "a tilt acos(cos(roll) cos(pitch)) below sensor.contact_candidate_angle_deg "
-                   "- 5 deg (30 deg by default)";
+                   "- 5 deg (45 deg by default)";
     std::vector<SchemaRule> rules{outputs, channels, mesh, camera, tilt, spectra};
     for (const char* list : {"objects", "friction", "splits"})
         rules.push_back(unique_name(list));

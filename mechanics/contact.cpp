@@ -489,13 +489,15 @@ ContactSolution solve_step(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_
 
 ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_mm,
                                    const ContactLoad& load, const ContactSolution* previous,
-                                   const ContactOptions& options, const RowForces* extra_mm) {
+                                   const ContactOptions& options, const RowForces* extra_mm,
+                                   bool slides) {
     const double mu = std::max(0.0, load.mu);
     // A contact that slid under force control keeps sliding while the pull does not drop.
     const double Q = load.tangential_force_N.norm();
-    const bool slid = previous && previous->sliding && Q > 0 &&
-                      previous->load.tangential == TangentialControl::force &&
-                      Q >= previous->load.tangential_force_N.norm() * (1 - kGrossSlipTolerance);
+    const bool slid = (slides && load.tangential == TangentialControl::force && Q > 0) ||
+                      (previous && previous->sliding && Q > 0 &&
+                       previous->load.tangential == TangentialControl::force &&
+                       Q >= previous->load.tangential_force_N.norm() * (1 - kGrossSlipTolerance));
     const StepKind kind = step_kind(load, mu, previous, slid);
     ContactSolution sol = solve_step(C, gap_mm, load, previous, options, extra_mm, kind);
     // Under force control a contact pulled near mu P with no sticking node left slides: its

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace chromasim::mechanics {
 
@@ -23,10 +24,15 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
     out.status = "max_iterations";
     // Anderson acceleration (type II) over the last `depth` iterations: x_{k+1} = g_k - dG gamma
     // with gamma minimizing |f_k - dF gamma|, f = g(x) - x the fixed-point residual.
-    constexpr int depth = 6;
+    // The history restarts when it has not produced a new smallest increment for `patience`
+    // iterations: near the fixed point an old history can hold the iteration in a cycle.
+    constexpr int depth = 6, patience = 8;
+    double best_increment = std::numeric_limits<double>::infinity();
+    int since_best = 0;
     std::vector<Eigen::VectorXd> dF, dG;
     Eigen::VectorXd f_prev, g_prev;
     RowForces extra(n, 3);
+    bool slides = false;
     const Eigen::MatrixXd& field = m_body.candidate_field_responses();
     for (int it = 1; it <= options.max_iterations; ++it) {
         out.iterations = it;
@@ -35,8 +41,11 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
         const Eigen::VectorXd u_r = -m_body.solve(r);
         for (Eigen::Index j = 0; j < n; ++j)
             extra.row(j) = u_r.segment<3>(3 * candidates[std::size_t(j)]).transpose();
+        // Once an iterate's stick zone vanished near mu P the step slides (solve_contact_step);
+        // later iterates keep that decision rather than cycle between sticking and sliding.
         ContactSolution contact = solve_contact_step(m_body.compliance(), gap_mm, load, previous,
-                                                     contact_options, &extra);
+                                                     contact_options, &extra, slides);
+        slides = slides || contact.sliding;
         if (!contact.converged) {
             out.status = "contact: " + contact.status;
             out.contact = std::move(contact);
@@ -57,6 +66,15 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
             out.converged = out.min_jacobian > 0;
             out.status = out.converged ? "ok" : "inverted";
             return out;
+        }
+        if (out.increment_mm < best_increment) {
+            best_increment = out.increment_mm;
+            since_best = 0;
+        } else if (++since_best >= patience) {
+            dF.clear();
+            dG.clear();
+            f_prev.resize(0);
+            since_best = 0;
         }
         if (f_prev.size()) {
             dF.push_back(delta - f_prev);

@@ -252,16 +252,17 @@ TEST_CASE("the spec's object reaches the mechanics: a sphere indents deeper than
 TEST_CASE("the spec's material model, load steps and interior reach the mechanics",
           "[generators]") {
     const Spec spec = parse_spec(
-        "name: s\nsensor: {material_model: neo_hookean, contact_steps: 7, interior: rigid_core}\n",
+        "name: s\nsensor: {material_model: linear, contact_steps: 7, interior: rigid_core}\n",
         "inline.yaml");
     const chromasim::mechanics::DomeModelOptions o = dome_options(spec);
-    CHECK(o.material == chromasim::mechanics::MaterialModel::neo_hookean);
+    CHECK(o.material == chromasim::mechanics::MaterialModel::linear);
     CHECK(o.load_path.normal_steps == 7);
     CHECK(o.load_path.tangential_steps == 7);
     CHECK(o.interior == chromasim::mechanics::DomeModelOptions::Interior::rigid_core);
     const chromasim::mechanics::DomeModelOptions d =
         dome_options(parse_spec("name: s\n", "x.yaml"));
-    CHECK(d.material == chromasim::mechanics::MaterialModel::linear);
+    CHECK(d.material == chromasim::mechanics::MaterialModel::neo_hookean);
+    CHECK(d.contact_candidate_angle_deg == 50);
     CHECK(d.load_path.normal_steps == 4);
 }
 
@@ -360,7 +361,7 @@ TEST_CASE("object poses reach the mechanics: an offset sphere and a tilted flat 
     const Spec moved = parse_spec("objects:\n  - offset_x_mm: 5\n    yaw_deg: 30\n", "pose.yaml");
     CHECK(object_shape(moved, moved.objects[0]).kind == mechanics::ObjectShape::Kind::flat);
     // A tilt that would leave the contact cap is refused when the spec is read.
-    CHECK_THROWS_WITH(parse_spec("objects:\n  - shape: flat\n    roll_deg: 32\n", "pose.yaml"),
+    CHECK_THROWS_WITH(parse_spec("objects:\n  - shape: flat\n    roll_deg: 47\n", "pose.yaml"),
                       Catch::Contains("objects[0].pitch_deg") &&
                           Catch::Contains("sensor.contact_candidate_angle_deg"));
 }

@@ -131,7 +131,8 @@ TEST_CASE("a minimal spec gets the documented defaults", "[generators][spec]") {
     CHECK(spec.sensor.outer_marker_layer.E_MPa == 0.8);
     CHECK(spec.sensor.coating.E_MPa == 1.0);
     CHECK(spec.sensor.coating.nu == 0.45);
-    CHECK(spec.sensor.contact_candidate_angle_deg == 35.0);
+    CHECK(spec.sensor.contact_candidate_angle_deg == 50.0);
+    CHECK(spec.sensor.material_model == "neo_hookean");
     CHECK(spec.sensor.camera_half_fov_deg == 84.0);
     CHECK(spec.sensor.led_count == 6);
     CHECK(spec.sensor.led_ring_radius_mm == 10.0);
@@ -666,7 +667,7 @@ TEST_CASE("cross-key rules of the trial keys", "[generators][spec]") {
                           "grasp, hold and load durations plans a trial longer than 1000000 "
                           "frames"));
     // A rule about one item points at that item's key.
-    CHECK_THAT(error_of("objects:\n  - {name: a}\n  - {name: b, shape: flat, roll_deg: 32}\n"),
+    CHECK_THAT(error_of("objects:\n  - {name: a}\n  - {name: b, shape: flat, roll_deg: 47}\n"),
                StartsWith("bad.yaml:3:5: objects[1].pitch_deg: value '0.0' with roll_deg tilts "
                           "the flat object"));
     CHECK(error_of("fingers: {count: 3}\n") ==

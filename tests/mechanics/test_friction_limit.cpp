@@ -143,3 +143,37 @@ TEST_CASE("frames after a slide: the travel is held while the contact slides, a 
     REQUIRE(flat.contact.converged);
     CHECK(std::abs(flat.contact.indentation_mm - f.contact.indentation_mm) > 0.01);
 }
+
+TEST_CASE("the neo-Hookean dome pulled in small steps up to and past mu P: every frame "
+          "converges, slides once its stick zone vanishes, and keeps sliding",
+          "[mechanics][friction][neo_hookean]") {
+    DomeModelOptions options;
+    options.material = MaterialModel::neo_hookean;
+    options.contact_candidate_angle_deg = 50;
+    const DomeModel model(options);
+    const double P = 1.0, mu = 1.06;
+    for (const NamedObject& object : {objects()[0], objects()[1]}) {
+        INFO(object.name);
+        FrameResult f = model.solve({P, {0.9 * mu * P, 0}, mu}, {}, object.shape);
+        bool slid = false;
+        Eigen::Vector2d onset{0, 0};
+        // The seed protocols' steps near the limit: 0.5 % of mu P per frame.
+        for (double ratio = 0.905; ratio < 1.02; ratio += 0.005) {
+            const ContactLoad load{P, {ratio * mu * P, 0}, mu};
+            f = model.solve(load, {}, object.shape, &f);
+            INFO("Q / (mu P) " << ratio << ", iterations " << f.material_iterations);
+            check_physical(f, load, 13.2);
+            if (slid) {
+                CHECK(f.contact.sliding);
+                CHECK((f.contact.object_displacement_mm - onset).norm() < 1e-9);
+            } else if (f.contact.sliding) {
+                slid = true;
+                onset = f.contact.object_displacement_mm;
+                CHECK(ratio > 0.9);
+            }
+        }
+        CHECK(slid);
+        CHECK(onset.norm() > 0.3); // Mindlin-like finite travel, about 1 mm here
+        CHECK(onset.norm() < 3.0);
+    }
+}
