@@ -65,7 +65,8 @@ struct LevelRow {
 };
 
 LevelRow bench_level(const std::string& level, const DomeBenchOptions& o) {
-    mechanics::DomeModelOptions options = dome_options(Spec{}); // a spec's defaults
+    // A spec's defaults (contact cap, materials), then the bench's own options.
+    mechanics::DomeModelOptions options = dome_options(Spec{});
     options.mesh_level = level;
     options.volumetric = o.volumetric == "element" ? mechanics::Volumetric::element
                                                    : mechanics::Volumetric::nodal_average;

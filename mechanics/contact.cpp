@@ -509,7 +509,7 @@ ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::Vector
     const bool near_limit = Q > 0 && Q >= kUnresolvedStickZone * mu * load.normal_force_N;
     const bool no_stick =
         sol.converged && !sol.active.empty() && sol.slipping.size() == sol.active.size();
-    if (kind.w_unknown && near_limit && (no_stick || sol.status == "singular"))
+    if (kind.w_unknown && !kind.full_slip && near_limit && (no_stick || sol.status == "singular"))
         sol = solve_step(C, gap_mm, load, previous, options, extra_mm,
                          step_kind(load, mu, previous, true));
     return sol;

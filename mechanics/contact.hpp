@@ -150,8 +150,8 @@ double safety_margin(double mu, double normal_force_N, double tangential_force_N
 /// shifted by the previous step's object displacement). `extra_mm` (n x 3, optional) is a
 /// displacement of the candidates that the contact forces do not cause (the nonlinear
 /// correction of a hyperelastic solve): the total displacement is C F + extra. `slides`: under
-/// force control, solve the step as sliding (an earlier solve of the same step found that its
-/// stick zone vanished near mu P), so that an outer iteration does not cycle between the two.
+/// force control, solve the step as sliding (earlier solves of the same step found its stick
+/// zone vanished near mu P), so that an outer iteration does not cycle between the two.
 ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_mm,
                                    const ContactLoad& load, const ContactSolution* previous,
                                    const ContactOptions& options = {},

@@ -40,7 +40,8 @@ struct DomeModelOptions {
     /// Folder of the on-disk cache of mesh and responses (empty: no cache). Entries are keyed
     /// by a hash of everything above and the chromasim version.
     std::filesystem::path cache_dir;
-    /// Outer-surface nodes up to this polar angle may touch the object.
+    /// Outer-surface nodes up to this polar angle may touch the object. Enough for the small
+    /// strain model to 3 N; a spec's default is 50 deg, which large-deformation presses need.
     double contact_candidate_angle_deg = 35.0;
     /// Interior (r < the inner radius): hollow (air, the default), a rigid core to which the
     /// inner surface is bonded (every node of the inner surface clamped), or a soft fill:

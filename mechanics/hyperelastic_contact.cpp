@@ -32,7 +32,11 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
     std::vector<Eigen::VectorXd> dF, dG;
     Eigen::VectorXd f_prev, g_prev;
     RowForces extra(n, 3);
+    // Near mu P an iterate whose stick zone vanished slides (solve_contact_step) and the next
+    // may stick again. The second iterate that slides decides: the step slides to its end,
+    // rather than cycle between the two maps, and the history restarts on the sliding map.
     bool slides = false;
+    int sliding_iterates = 0;
     const Eigen::MatrixXd& field = m_body.candidate_field_responses();
     for (int it = 1; it <= options.max_iterations; ++it) {
         out.iterations = it;
@@ -41,11 +45,16 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
         const Eigen::VectorXd u_r = -m_body.solve(r);
         for (Eigen::Index j = 0; j < n; ++j)
             extra.row(j) = u_r.segment<3>(3 * candidates[std::size_t(j)]).transpose();
-        // Once an iterate's stick zone vanished near mu P the step slides (solve_contact_step);
-        // later iterates keep that decision rather than cycle between sticking and sliding.
         ContactSolution contact = solve_contact_step(m_body.compliance(), gap_mm, load, previous,
                                                      contact_options, &extra, slides);
-        slides = slides || contact.sliding;
+        if (!slides && contact.sliding && ++sliding_iterates == 2) {
+            slides = true;
+            dF.clear();
+            dG.clear();
+            f_prev.resize(0);
+            best_increment = std::numeric_limits<double>::infinity();
+            since_best = 0;
+        }
         if (!contact.converged) {
             out.status = "contact: " + contact.status;
             out.contact = std::move(contact);

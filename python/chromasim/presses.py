@@ -84,7 +84,7 @@ def _read_presses(out, forces, ramp_frames):
         u = np.column_stack([markers[k][rows] for k in ("ux_mm", "uy_mm", "uz_mm")])
         result[float(labels["grip_N"][last])] = {
             "indentation_mm": float(labels["left_indentation_mm"][last]),
-            "converged": labels["left_converged"][last] == 1,
+            "converged": bool(labels["left_converged"][last] == 1),
             "status": str(labels["left_status"][last]),
             "x0_mm": x0,
             "u_mm": u,

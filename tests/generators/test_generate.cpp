@@ -361,9 +361,14 @@ TEST_CASE("object poses reach the mechanics: an offset sphere and a tilted flat 
     const Spec moved = parse_spec("objects:\n  - offset_x_mm: 5\n    yaw_deg: 30\n", "pose.yaml");
     CHECK(object_shape(moved, moved.objects[0]).kind == mechanics::ObjectShape::Kind::flat);
     // A tilt that would leave the contact cap is refused when the spec is read.
-    CHECK_THROWS_WITH(parse_spec("objects:\n  - shape: flat\n    roll_deg: 47\n", "pose.yaml"),
+    CHECK_THROWS_WITH(parse_spec("objects:\n  - shape: flat\n    roll_deg: 32\n", "pose.yaml"),
                       Catch::Contains("objects[0].pitch_deg") &&
                           Catch::Contains("sensor.contact_candidate_angle_deg"));
+    CHECK_NOTHROW(parse_spec("objects:\n  - shape: flat\n    roll_deg: 29\n", "pose.yaml"));
+    CHECK_THROWS_WITH(parse_spec("sensor: {contact_candidate_angle_deg: 25}\nobjects:\n"
+                                 "  - shape: flat\n    roll_deg: 21\n",
+                                 "pose.yaml"),
+                      Catch::Contains("objects[0].pitch_deg"));
 }
 
 TEST_CASE("EXR output: linear RGB like the PNG, marker ids and variance channels on request",

@@ -667,7 +667,7 @@ TEST_CASE("cross-key rules of the trial keys", "[generators][spec]") {
                           "grasp, hold and load durations plans a trial longer than 1000000 "
                           "frames"));
     // A rule about one item points at that item's key.
-    CHECK_THAT(error_of("objects:\n  - {name: a}\n  - {name: b, shape: flat, roll_deg: 47}\n"),
+    CHECK_THAT(error_of("objects:\n  - {name: a}\n  - {name: b, shape: flat, roll_deg: 32}\n"),
                StartsWith("bad.yaml:3:5: objects[1].pitch_deg: value '0.0' with roll_deg tilts "
                           "the flat object"));
     CHECK(error_of("fingers: {count: 3}\n") ==

@@ -155,6 +155,8 @@ TEST_CASE("the neo-Hookean dome pulled in small steps up to and past mu P: every
     for (const NamedObject& object : {objects()[0], objects()[1]}) {
         INFO(object.name);
         FrameResult f = model.solve({P, {0.9 * mu * P, 0}, mu}, {}, object.shape);
+        REQUIRE(f.contact.converged);
+        CHECK_FALSE(f.contact.sliding);
         bool slid = false;
         Eigen::Vector2d onset{0, 0};
         // The seed protocols' steps near the limit: 0.5 % of mu P per frame.
@@ -169,7 +171,7 @@ TEST_CASE("the neo-Hookean dome pulled in small steps up to and past mu P: every
             } else if (f.contact.sliding) {
                 slid = true;
                 onset = f.contact.object_displacement_mm;
-                CHECK(ratio > 0.9);
+                CHECK(ratio > 0.95); // the stick zone resolved down to a few nodes first
             }
         }
         CHECK(slid);
