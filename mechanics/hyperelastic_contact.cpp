@@ -37,6 +37,12 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
     // rather than cycle between the two maps, and the history restarts on the sliding map.
     bool slides = false;
     int sliding_iterates = 0;
+    const auto restart_history = [&] {
+        dF.clear();
+        dG.clear();
+        f_prev.resize(0);
+        since_best = 0;
+    };
     const Eigen::MatrixXd& field = m_body.candidate_field_responses();
     for (int it = 1; it <= options.max_iterations; ++it) {
         out.iterations = it;
@@ -49,11 +55,8 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
                                                      contact_options, &extra, slides);
         if (!slides && contact.sliding && ++sliding_iterates == 2) {
             slides = true;
-            dF.clear();
-            dG.clear();
-            f_prev.resize(0);
+            restart_history();
             best_increment = std::numeric_limits<double>::infinity();
-            since_best = 0;
         }
         if (!contact.converged) {
             out.status = "contact: " + contact.status;
@@ -80,10 +83,7 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
             best_increment = out.increment_mm;
             since_best = 0;
         } else if (++since_best >= patience) {
-            dF.clear();
-            dG.clear();
-            f_prev.resize(0);
-            since_best = 0;
+            restart_history();
         }
         if (f_prev.size()) {
             dF.push_back(delta - f_prev);
