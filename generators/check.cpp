@@ -1,5 +1,6 @@
 #include "generators/check.hpp"
 
+#include "generators/csv_rows.hpp"
 #include "generators/spec.hpp"
 #include "mechanics/dome_geometry.hpp"
 
@@ -78,51 +79,6 @@ std::string read_manifest(const fs::path& dir, std::map<std::string, std::string
             if (sha.is_string()) files[path] = sha.get<std::string>();
     return version;
 }
-
-std::vector<std::string> split_csv(const std::string& line) {
-    std::vector<std::string> out;
-    std::stringstream in(line);
-    std::string cell;
-    while (std::getline(in, cell, ','))
-        out.push_back(cell);
-    if (!line.empty() && line.back() == ',') out.emplace_back();
-    return out;
-}
-
-/// One CSV file read row by row, its cells found by column name.
-class CsvRows {
-public:
-    CsvRows(const fs::path& dir, const std::string& name) : m_name(name), m_in(dir / name) {
-        std::string header;
-        if (!m_in || !std::getline(m_in, header)) refuse(dir / name, "missing or empty");
-        const std::vector<std::string> names = split_csv(header);
-        for (std::size_t i = 0; i < names.size(); ++i)
-            m_columns[names[i]] = i;
-    }
-    bool next() {
-        if (!std::getline(m_in, m_line)) return false;
-        ++m_number;
-        m_cells = split_csv(m_line);
-        return true;
-    }
-    bool has(const std::string& column) const { return m_columns.count(column) > 0; }
-    /// The cell of `column` in the current row ("" when the column or the cell is absent).
-    const std::string& cell(const std::string& column) const {
-        static const std::string empty;
-        const auto it = m_columns.find(column);
-        return it != m_columns.end() && it->second < m_cells.size() ? m_cells[it->second] : empty;
-    }
-    long line() const { return m_number + 1; }
-    const std::string& name() const { return m_name; }
-
-private:
-    std::string m_name;
-    std::ifstream m_in;
-    std::map<std::string, std::size_t> m_columns;
-    std::string m_line;
-    std::vector<std::string> m_cells;
-    long m_number = 0;
-};
 
 /// Collects findings for one row of a file.
 class Checker {
@@ -212,7 +168,7 @@ double check_finger(const CsvRows& rows, Checker& c, const std::string& p, const
 void check_labels(const fs::path& dir, const Bounds& k, const CheckOptions& options,
                   CheckReport& report,
                   std::map<std::string, std::pair<std::string, double>>& image_objects) {
-    CsvRows rows(dir, "labels.csv");
+    CsvRows rows(dir, "labels.csv", "chromasim check: ");
     std::vector<std::string> fingers;
     for (const char* f : {"left", "right"})
         if (rows.has(std::string(f) + "_gamma")) fingers.push_back(f);
@@ -246,7 +202,7 @@ void check_labels(const fs::path& dir, const Bounds& k, const CheckOptions& opti
 void check_markers(const fs::path& dir, const Bounds& k, const CheckOptions& options,
                    CheckReport& report) {
     if (!fs::exists(dir / "markers.csv")) return;
-    CsvRows rows(dir, "markers.csv");
+    CsvRows rows(dir, "markers.csv", "chromasim check: ");
     Checker c(rows, report, options);
     while (rows.next()) {
         ++report.marker_rows;

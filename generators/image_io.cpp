@@ -37,20 +37,28 @@ double srgb_encode(double x) {
     return x <= 0.0031308 ? 12.92 * x : 1.055 * std::pow(x, 1.0 / 2.4) - 0.055;
 }
 
+Image8 to_srgb8(const render::Image& image) {
+    Image8 png{image.width, image.height, 3, std::vector<std::uint8_t>(image.rgb.size())};
+    for (std::size_t i = 0; i < png.data.size(); ++i)
+        png.data[i] = std::uint8_t(std::lround(255.0 * srgb_encode(image.rgb[i])));
+    return png;
+}
+
 void write_png(const std::filesystem::path& final_path, const render::Image& image) {
+    write_png8(final_path, to_srgb8(image));
+}
+
+void write_png8(const std::filesystem::path& final_path, const Image8& image) {
     write_then_rename(final_path, [&](const std::filesystem::path& path) {
-        std::vector<std::uint8_t> bytes(image.rgb.size());
-        for (std::size_t i = 0; i < bytes.size(); ++i)
-            bytes[i] = std::uint8_t(std::lround(255.0 * srgb_encode(image.rgb[i])));
         auto out = OIIO::ImageOutput::create(path.string());
         if (!out)
             throw std::runtime_error("cannot create image writer for " + path.string() + ": " +
                                      OIIO::geterror());
-        OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT8);
+        OIIO::ImageSpec spec(image.width, image.height, image.channels, OIIO::TypeDesc::UINT8);
         spec.attribute("oiio:ColorSpace", "sRGB");
         spec.attribute("Software", "chromasim " CHROMASIM_VERSION);
         if (!out->open(path.string(), spec) ||
-            !out->write_image(OIIO::TypeDesc::UINT8, bytes.data()) || !out->close())
+            !out->write_image(OIIO::TypeDesc::UINT8, image.data.data()) || !out->close())
             throw std::runtime_error("cannot write " + path.string() + ": " + out->geterror());
     });
 }

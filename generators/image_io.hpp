@@ -39,6 +39,10 @@ struct Image8 {
     }
 };
 Image8 read_image8(const std::filesystem::path& path);
+/// A linear-RGB image as the 8-bit sRGB values write_png stores.
+Image8 to_srgb8(const render::Image& linear_rgb);
+/// Writes 8-bit sRGB data as a PNG, complete or absent (as write_png).
+void write_png8(const std::filesystem::path& path, const Image8& image);
 
 /// sRGB transfer function of a linear value in [0, 1].
 double srgb_encode(double linear);

@@ -9,6 +9,7 @@
 #include "generators/spec.hpp"
 #include "generators/verify.hpp"
 #include "generators/verify_render.hpp"
+#include "generators/verify_sensor.hpp"
 
 #include <CLI/CLI.hpp>
 #include <tbb/global_control.h>
@@ -398,6 +399,21 @@ int main(int argc, char** argv) {
     verify_rend->add_option("--reference-spp", reference_spp, "its samples per pixel")
         ->check(CLI::Range(1, 1 << 20));
 
+    gen::SensorVerifyOptions sensor_verify;
+    std::string sensor_spec, sensor_json, sensor_picture, sensor_keep;
+    auto* verify_sens = verify->add_subcommand(
+        "sensor", "the sensor's hue, size and centroid laws, measured from rendered images");
+    verify_sens->add_option("spec", sensor_spec,
+                            "spec whose sensor and render sections to verify (default: the "
+                            "default sensor, fast integrator, 2 spp)");
+    verify_sens->add_option("--size-px", sensor_verify.size_px, "image side (px)")
+        ->capture_default_str();
+    verify_sens->add_option("--json", sensor_json, "also write the results to this JSON file");
+    verify_sens->add_option("--picture", sensor_picture,
+                            "write the apex marker at rest and at 3 N to this PNG");
+    verify_sens->add_option("--keep", sensor_keep, "keep the rendered dataset in this new folder");
+    add_cache_options(verify_sens, cache_dir, no_cache);
+
     CLI11_PARSE(app, argc, argv);
     std::unique_ptr<tbb::global_control> limit;
     if (threads > 0)
@@ -482,6 +498,21 @@ int main(int argc, char** argv) {
                 if (!json) throw std::runtime_error("cannot write " + verify_json);
             }
             return 0;
+        }
+        if (*verify_sens) {
+            sensor_verify.spec_file = sensor_spec;
+            sensor_verify.json = sensor_json;
+            sensor_verify.picture = sensor_picture;
+            sensor_verify.keep_dir = sensor_keep;
+            if (!no_cache) sensor_verify.cache_dir = cache_dir;
+            const auto report = gen::verify_sensor(sensor_verify, std::cout);
+            gen::print_sensor_verify(report, std::cout);
+            if (!sensor_json.empty()) {
+                std::ofstream json(sensor_json);
+                gen::write_sensor_verify_json(report, json);
+                if (!json) throw std::runtime_error("cannot write " + sensor_json);
+            }
+            return report.all_met() ? 0 : 1;
         }
         if (*schema) {
             std::cout << gen::schema_markdown();
