@@ -3,6 +3,7 @@
 #include "generators/image_io.hpp"
 #include "generators/sensor_bridge.hpp"
 #include "generators/spec.hpp"
+#include "generators/spec_schema.hpp"
 #include "mechanics/dome_model.hpp"
 #include "render/embree_scene.hpp"
 #include "render/fisheye_camera.hpp"
@@ -229,8 +230,8 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
                                         (ec ? ec.message() : "a file is in the way") +
                                         "); allowed: a folder that exists or can be made");
     }
-    mechanics::DomeModelOptions options;
-    const mechanics::DomeModel model(options);
+    // The default spec's dome (neo-Hookean, the sensor a dataset gets).
+    const mechanics::DomeModel model(dome_options(default_spec()));
     mechanics::FrameRequest request{true, true, false};
     request.inner_surface = true; // the path integrator's refraction
     render::SensorFrame sensor;
@@ -240,7 +241,8 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
             model.solve({o.normal_N, {o.shear_N, 0.0}, o.mu}, request);
         fill_sensor_frame(model, frame, sensor);
         std::ostringstream name;
-        name << "coarse dome at " << o.normal_N << " N + " << o.shear_N << " N pull, mu " << o.mu;
+        name << "coarse neo-Hookean dome at " << o.normal_N << " N + " << o.shear_N
+             << " N pull, mu " << o.mu;
         frame_name = name.str();
     } else {
         sensor = undeformed_sensor_frame(model);
@@ -251,20 +253,10 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
     render::OpticsParams spectral;
     spectral.spectra = render::load_sensor_spectra(
         render::SensorSpectraFiles::in_directory(spectra_directory(Spec{})));
-    const render::SensorSpectra& sp = *spectral.spectra;
     std::vector<double> thickness = model.markers().thickness_mm;
     std::sort(thickness.begin(), thickness.end());
     const double path_mm = thickness[thickness.size() / 2];
-    render::OpticsParams rgb;
-    rgb.coating_albedo = render::rgb_of_reflectance(sp.camera, sp.coating_albedo).matrix();
-    rgb.outer_marker_albedo =
-        render::rgb_of_reflectance(sp.camera, sp.outer_marker_albedo).matrix();
-    rgb.inner_marker_absorption_per_mm =
-        render::rgb_absorption_per_mm(sp.camera, sp.inner_marker_absorption_per_mm, path_mm)
-            .matrix();
-    rgb.outer_marker_absorption_per_mm =
-        render::rgb_absorption_per_mm(sp.camera, sp.outer_marker_absorption_per_mm, path_mm)
-            .matrix();
+    const render::OpticsParams rgb = rgb_optics(spectral, path_mm);
 
     const render::CameraParams camera{o.size_px, o.size_px, 84.0};
     render::Renderer reference_renderer(camera, spectral);
@@ -363,7 +355,7 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
            "circle % | max error % |\n"
         << "|---|---|---|---|---|---|---|---|\n";
     std::map<std::string, std::pair<double, double>> rays; // mode -> (rays, seconds)
-    std::map<std::string, std::size_t> kept;                // mode -> camera samples kept, bytes
+    std::map<std::string, std::size_t> kept;               // mode -> camera samples kept, bytes
     for (const std::string& integrator : o.integrators)
         for (const std::string& mode : o.modes) {
             render::Renderer renderer(camera, mode == "rgb" ? rgb : spectral);

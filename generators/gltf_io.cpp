@@ -579,6 +579,7 @@ tinygltf::Material gltf_material(const GltfMaterial& g, std::set<std::string>& u
             {{"thicknessFactor", tinygltf::Value(g.volume->thickness_mm * kMmToM)},
              {"attenuationDistance", tinygltf::Value(g.volume->attenuation_distance_mm * kMmToM)},
              {"attenuationColor", number_array(g.volume->attenuation_color)}});
+    if (!g.extras.empty()) m.extras = extras_value(g.extras);
     return m;
 }
 
@@ -723,6 +724,7 @@ GltfMaterial read_material(const tinygltf::Material& m, double scale_to_mm) {
                 volume.attenuation_color[k] = v->Get("attenuationColor").Get(k).GetNumberAsDouble();
         g.volume = volume;
     }
+    g.extras = read_extras(m.extras);
     return g;
 }
 

@@ -82,6 +82,7 @@ struct GltfMaterial {
     std::optional<double> transmission; ///< KHR_materials_transmission transmissionFactor
     std::optional<double> ior;          ///< KHR_materials_ior
     std::optional<GltfVolume> volume;   ///< KHR_materials_volume
+    GltfExtras extras; ///< what glTF cannot say (chromasim's optical model; EXPORT_SCENE.md)
 };
 
 /// A named triangle mesh with one material.

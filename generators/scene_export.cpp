@@ -6,6 +6,7 @@
 #include "mechanics/stopwatch.hpp"
 #include "render/fisheye_camera.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -23,14 +24,9 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 /// Vertical field of the perspective stand-in for the fisheye. The fisheye sees up to 180 deg
 /// across; viewers refuse or badly distort perspective fields near that, 120 deg they show.
 constexpr double kStandInYfov_deg = 120.0;
-/// The LED package (SMD 3528, SENSOR.md), mm: the long side along the ring.
-constexpr double kLedLength_mm = 3.5, kLedWidth_mm = 2.8;
-/// The package's face sits this far below the light, so that it does not shadow it.
-constexpr double kLedFaceBelowLight_mm = 0.05;
-/// On-axis luminous intensity of an LED of led_rgb (1, 1, 1), cd: the order of a 3528 white
-/// LED's. chromasim's own images are in relative units (auto exposure), so this only sets how
-/// bright a viewer draws the scene.
-constexpr double kLedIntensity_cd = 1.0;
+/// Outer radius of the black frame plane exported at z = 0 (the renderer's plane has none).
+constexpr double kFrameOuterRadius_mm = 40.0;
+constexpr int kFrameSegments = 96;
 /// Distance over which the marker volumes' attenuationColor is the transmittance, mm.
 constexpr double kAttenuationDistance_mm = 1.0;
 
@@ -84,8 +80,9 @@ Eigen::Vector3d led_position(const render::OpticsParams& o, int k) {
     return {o.led_ring_radius_mm * std::cos(phi), o.led_ring_radius_mm * std::sin(phi), o.led_z_mm};
 }
 
-/// One emissive rectangle per LED, facing +z (towards the dome), just below its light.
-GltfMesh led_packages(const render::OpticsParams& o) {
+/// One emissive rectangle per LED in the LED plane, facing +z (towards the dome): the
+/// renderer's Lambertian LEDs, `led_width_mm` along the ring and `led_height_mm` across it.
+GltfMesh led_rectangles(const render::OpticsParams& o) {
     render::SurfaceMesh s;
     s.V.resize(4 * o.led_count, 3);
     s.F.resize(2 * o.led_count, 3);
@@ -93,9 +90,8 @@ GltfMesh led_packages(const render::OpticsParams& o) {
         const double phi = led_azimuth(o, k);
         const Eigen::Vector3d radial(std::cos(phi), std::sin(phi), 0.0);
         const Eigen::Vector3d along(-std::sin(phi), std::cos(phi), 0.0); // the ring's tangent
-        const Eigen::Vector3d c =
-            led_position(o, k) - kLedFaceBelowLight_mm * Eigen::Vector3d::UnitZ();
-        const double a = kLedLength_mm / 2, b = kLedWidth_mm / 2;
+        const Eigen::Vector3d c = led_position(o, k);
+        const double a = o.led_width_mm / 2, b = o.led_height_mm / 2;
         const int v = 4 * k;
         s.V.row(v + 0) = (c - b * radial - a * along).transpose().cast<float>();
         s.V.row(v + 1) = (c + b * radial - a * along).transpose().cast<float>();
@@ -108,25 +104,32 @@ GltfMesh led_packages(const render::OpticsParams& o) {
     GltfMesh m = mesh("leds", s, false);
     m.material.name = "led";
     m.material.emissive = normalised_colour(o.led_rgb);
+    m.material.extras = {{"chromasim_optics", std::string("lambertian emitter, front (+z) only")},
+                         {"relative_radiance", o.led_rgb.maxCoeff()}};
     return m;
 }
 
-/// The LEDs as spot lights along +z: a 90 deg outer cone stands in for their Lambertian
-/// emission into the half space above the board.
-std::vector<GltfLight> led_lights(const render::OpticsParams& o) {
-    std::vector<GltfLight> lights;
-    for (int k = 0; k < o.led_count; ++k) {
-        GltfLight& l = lights.emplace_back();
-        l.name = "led_" + std::to_string(k);
-        l.type = GltfLight::Type::spot;
-        l.position_mm = led_position(o, k);
-        l.direction = Eigen::Vector3d::UnitZ();
-        l.color = normalised_colour(o.led_rgb);
-        l.intensity_cd = kLedIntensity_cd * o.led_rgb.maxCoeff();
-        l.inner_cone_rad = 0.0;
-        l.outer_cone_rad = 0.5 * std::numbers::pi;
+/// The rigid frame that clamps the dome: black, in the rim plane z = 0, from the renderer's
+/// frame_inner_radius_mm outwards.
+GltfMesh frame_plane(const render::OpticsParams& o) {
+    render::SurfaceMesh s;
+    s.V.resize(2 * kFrameSegments, 3);
+    s.F.resize(2 * kFrameSegments, 3);
+    for (int k = 0; k < kFrameSegments; ++k) {
+        const double phi = 2.0 * std::numbers::pi * k / kFrameSegments;
+        const Eigen::Vector3d d(std::cos(phi), std::sin(phi), 0.0);
+        s.V.row(2 * k) = (o.frame_inner_radius_mm * d).transpose().cast<float>();
+        s.V.row(2 * k + 1) = (kFrameOuterRadius_mm * d).transpose().cast<float>();
+        const auto i = std::uint32_t(2 * k), j = std::uint32_t(2 * ((k + 1) % kFrameSegments));
+        s.F.row(2 * k) << i, i + 1, j + 1; // counter-clockwise seen from +z
+        s.F.row(2 * k + 1) << i, j + 1, j;
     }
-    return lights;
+    GltfMesh m = mesh("frame", s, false);
+    m.material.base_color = {0.0, 0.0, 0.0, 1.0};
+    m.material.roughness = 1.0;
+    m.material.double_sided = true;
+    m.material.extras = {{"chromasim_optics", std::string("black absorber")}};
+    return m;
 }
 
 /// The fisheye's intrinsics in OpenCV's cv::fisheye convention (the equidistant camera's
@@ -225,25 +228,35 @@ GltfScene make_gltf_scene(const render::SensorFrame& frame, const render::Camera
     coating.material.base_color = rgba(optics.coating_albedo);
     coating.material.roughness = 1.0;
     coating.material.double_sided = true;
+    coating.material.extras = {{"chromasim_optics", std::string("lambertian")}};
     scene.meshes.push_back(std::move(coating));
     if (frame.inner_surface.F.rows() > 0) {
         GltfMesh inner = mesh("inner_surface", frame.inner_surface, true);
         make_clear(inner.material, ior);
         inner.material.double_sided = true;
+        inner.material.extras = {
+            {"chromasim_optics", std::string("smooth dielectric: air on the normal's side")}};
         scene.meshes.push_back(std::move(inner));
     }
+    // The markers lie in silicone of their own index: no refraction at their faces (ior 1).
     GltfMesh magenta = mesh("inner_markers", frame.inner_markers, false);
     make_dyed(magenta.material, optics.inner_marker_absorption_per_mm, info.marker_thickness_mm,
-              ior);
+              1.0);
+    magenta.material.extras = {{"chromasim_optics", std::string("absorbing, index-matched")}};
     scene.meshes.push_back(std::move(magenta));
-    // The cyan layer also scatters: that share of the light is diffuse, of the marker albedo.
+    // The cyan layer also scatters: entering light is scattered back diffusely with this
+    // probability, of the marker albedo; the rest passes and is absorbed.
     GltfMesh cyan = mesh("outer_markers", frame.outer_markers, false);
-    make_dyed(cyan.material, optics.outer_marker_absorption_per_mm, info.marker_thickness_mm, ior);
+    make_dyed(cyan.material, optics.outer_marker_absorption_per_mm, info.marker_thickness_mm, 1.0);
     cyan.material.base_color = rgba(optics.outer_marker_albedo);
     cyan.material.transmission = 1.0 - optics.outer_marker_scatter_fraction;
+    cyan.material.extras = {
+        {"chromasim_optics",
+         std::string("absorbing, index-matched; scatters back on entry (front faces)")},
+        {"scatter_fraction", optics.outer_marker_scatter_fraction}};
     scene.meshes.push_back(std::move(cyan));
-    scene.meshes.push_back(led_packages(optics));
-    scene.lights = led_lights(optics);
+    scene.meshes.push_back(led_rectangles(optics));
+    scene.meshes.push_back(frame_plane(optics));
     scene.camera = stand_in_camera(camera);
     return scene;
 }
@@ -286,7 +299,7 @@ SceneExportReport export_scene(const Spec& spec, const SceneSelection& which,
         object_shape(spec, posed_object(spec.objects[std::size_t(trial.object)],
                                         trial.fingers[std::size_t(which.finger)]));
     const render::CameraParams camera = camera_params(spec);
-    const render::OpticsParams optics = optics_params(spec);
+    const render::OpticsParams spectral_or_rgb = optics_params(spec);
 
     // 2. The dome model (from the cache when there).
     auto t0 = Clock::now();
@@ -322,6 +335,12 @@ SceneExportReport export_scene(const Spec& spec, const SceneSelection& which,
     const SceneInfo info{spec.name + " trial " + std::to_string(which.trial) + " " +
                              finger_name(which.finger) + " frame " + std::to_string(which.frame),
                          spec.sensor.marker_thickness_mm, frame_extras(spec, report)};
+    // glTF colours are RGB: with spectra, the colours the camera sees (the markers'
+    // absorption at their median thickness, as bench render's RGB mode).
+    std::vector<double> thickness = model.markers().thickness_mm;
+    std::nth_element(thickness.begin(), thickness.begin() + thickness.size() / 2, thickness.end());
+    const render::OpticsParams optics =
+        rgb_optics(spectral_or_rgb, thickness[thickness.size() / 2]);
     write_gltf_scene(out, make_gltf_scene(sensor, camera, optics, info));
     report.total_s = mechanics::seconds_since(t_start);
     return report;

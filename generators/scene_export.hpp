@@ -1,7 +1,7 @@
 #pragma once
 /// `chromasim export-scene`: one frame's sensor as a glTF 2.0 scene for a viewer or Blender
 /// (docs/EXPORT_SCENE.md): the deformed coating, inner surface and marker volumes with their
-/// materials, the LEDs as lights and small emissive packages, and a stand-in for the camera.
+/// materials, the LEDs as emissive rectangles, the black frame, and a stand-in for the camera.
 #include "generators/dataset_writer.hpp"
 #include "generators/gltf_io.hpp"
 #include "generators/spec.hpp"
@@ -25,12 +25,14 @@ struct SceneInfo {
     GltfExtras extras;                ///< the glTF scene's extras (spec hash, frame, forces, ...)
 };
 
-/// The glTF scene of one sensor frame (mm, chromasim's dome frame; docs/EXPORT_SCENE.md):
+/// The glTF scene of one sensor frame, the scene the renderer sees (mm, chromasim's dome
+/// frame; docs/EXPORT_SCENE.md), with `optics`' RGB values:
 /// - meshes "coating" (smooth normals, white diffuse), "inner_surface" when `frame` has one
 ///   (smooth normals, clear: transmission and ior), "inner_markers" and "outer_markers"
-///   (flat-shaded closed volumes: transmission, ior and a Beer-Lambert volume), "leds"
-///   (one emissive 3.5 x 2.8 mm SMD 3528 package per LED);
-/// - one spot light per LED, on the ring, the first on +x, pointing along +z;
+///   (flat-shaded closed volumes: transmission, ior 1 and a Beer-Lambert volume; the outer
+///   ones scatter), "leds" (one emissive rectangle per LED in the LED plane) and "frame" (the
+///   black plane z = 0 beyond the dome's inner radius);
+/// - material extras for what glTF cannot say (the outer markers' scatter fraction);
 /// - a perspective camera at the camera's pose, with the true fisheye intrinsics in its extras.
 /// Throws std::invalid_argument for camera parameters the fisheye camera rejects.
 GltfScene make_gltf_scene(const render::SensorFrame& frame, const render::CameraParams& camera,

@@ -150,6 +150,23 @@ render::OpticsParams optics_params(const Spec& spec) {
     return o;
 }
 
+render::OpticsParams rgb_optics(const render::OpticsParams& optics, double path_mm) {
+    if (!optics.spectra) return optics;
+    const render::SensorSpectra& sp = *optics.spectra;
+    render::OpticsParams rgb = optics;
+    rgb.spectra.reset();
+    rgb.coating_albedo = render::rgb_of_reflectance(sp.camera, sp.coating_albedo).matrix();
+    rgb.outer_marker_albedo =
+        render::rgb_of_reflectance(sp.camera, sp.outer_marker_albedo).matrix();
+    rgb.inner_marker_absorption_per_mm =
+        render::rgb_absorption_per_mm(sp.camera, sp.inner_marker_absorption_per_mm, path_mm)
+            .matrix();
+    rgb.outer_marker_absorption_per_mm =
+        render::rgb_absorption_per_mm(sp.camera, sp.outer_marker_absorption_per_mm, path_mm)
+            .matrix();
+    return rgb;
+}
+
 render::RenderSettings render_settings(const Spec& spec) {
     render::RenderSettings s;
     s.samples_per_pixel = spec.render.samples_per_pixel;

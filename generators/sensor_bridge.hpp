@@ -18,6 +18,10 @@ render::CameraParams camera_params(const Spec& spec);
 /// object's travel under displacement control).
 mechanics::ContactLoad contact_load(const FingerLoad& f);
 render::OpticsParams optics_params(const Spec& spec);
+/// `optics` in RGB mode: with spectra, the coating and marker colours the camera sees under
+/// the LEDs (albedos, and the markers' absorption over a path of `marker_path_mm`, the
+/// markers' median thickness), the spectra dropped; without, `optics` unchanged.
+render::OpticsParams rgb_optics(const render::OpticsParams& optics, double marker_path_mm);
 /// samples per pixel, seed, extra channels and integrator of the spec.
 render::RenderSettings render_settings(const Spec& spec);
 /// The fast integrator's light cache settings (render.fast.*).

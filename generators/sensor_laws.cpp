@@ -66,8 +66,9 @@ Hsv rgb_to_hsv(std::uint8_t r8, std::uint8_t g8, std::uint8_t b8) {
     hsv.value = max;
     hsv.saturation = max > 0 ? d / max : 0.0;
     if (d <= 0) return hsv;
-    double h = max == r ? std::fmod((g - b) / d + 6.0, 6.0) : max == g ? (b - r) / d + 2.0
-                                                                       : (r - g) / d + 4.0;
+    double h = max == r   ? std::fmod((g - b) / d + 6.0, 6.0)
+               : max == g ? (b - r) / d + 2.0
+                          : (r - g) / d + 4.0;
     hsv.hue_deg = 60.0 * h;
     return hsv;
 }

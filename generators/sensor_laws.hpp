@@ -23,7 +23,7 @@ Hsv rgb_to_hsv(std::uint8_t r, std::uint8_t g, std::uint8_t b);
 struct Blob {
     int pixels = 0;
     Eigen::Vector2d centroid_px = Eigen::Vector2d::Zero(); ///< mean of its pixel centres
-    double mean_hue_deg = 0; ///< circular mean of its pixels' hue, [0, 360)
+    double mean_hue_deg = 0;                  ///< circular mean of its pixels' hue, [0, 360)
     std::array<double, 3> mean_srgb{0, 0, 0}; ///< mean 8-bit colour / 255
 };
 

@@ -127,12 +127,12 @@ void check_rest_blobs(const Spec& spec, const SensorVerifyOptions& o, const Imag
         in_view += camera.project(12.0 * d).has_value();
     const auto blobs = find_blobs(rest, 0.5, 3);
     if (2 * int(blobs.size()) >= in_view) return;
-    throw SpecError((o.spec_file.empty() ? std::string("the default sensor")
-                                         : o.spec_file.string()) +
-                    ": the rest image shows " + std::to_string(blobs.size()) +
-                    " blobs with saturation above 50 % for " + std::to_string(in_view) +
-                    " markers in view: the markers are too pale for the papers' rule; "
-                    "verify sensor needs coloured markers (sensor.optics.*)");
+    throw SpecError(
+        (o.spec_file.empty() ? std::string("the default sensor") : o.spec_file.string()) +
+        ": the rest image shows " + std::to_string(blobs.size()) +
+        " blobs with saturation above 50 % for " + std::to_string(in_view) +
+        " markers in view: the markers are too pale for the papers' rule; "
+        "verify sensor needs coloured markers (sensor.optics.*)");
 }
 
 /// One image of a trial's sequence and its outer markers' displacements.
@@ -303,7 +303,8 @@ MarkerLaw marker_law(const std::vector<FrameData>& seq, const Tracks& tracks, st
     law.hue = fit_line(p.normal_mm, p.hue_deg);
     law.area = fit_line(p.normal_mm, p.area);
     if (!p.hue_deg.empty())
-        law.hue_range_deg = largest(p.hue_deg) - *std::min_element(p.hue_deg.begin(), p.hue_deg.end());
+        law.hue_range_deg =
+            largest(p.hue_deg) - *std::min_element(p.hue_deg.begin(), p.hue_deg.end());
     if (pressed == 0) return law;
     law.delta_e = delta_e76(tracks[0][m]->mean_srgb, tracks[pressed][m]->mean_srgb);
     law.hue_rest_deg = tracks[0][m]->mean_hue_deg;
@@ -425,14 +426,14 @@ void write_apex_picture(const fs::path& path, const std::vector<fs::path>& pngs,
 void add_targets(SensorVerifyReport& r) {
     using T = SensorVerifyReport::Target;
     for (const ObjectLaws& o : r.objects) {
-        r.targets.push_back(T{o.object + ": hue vs normal displacement, R2 median",
-                              o.hue.r2_median, 0.95, true});
+        r.targets.push_back(
+            T{o.object + ": hue vs normal displacement, R2 median", o.hue.r2_median, 0.95, true});
         r.targets.push_back(T{o.object + ": hue vs normal displacement, R2 10th percentile",
                               o.hue.r2_p10, 0.90, true});
-        r.targets.push_back(T{o.object + ": apex marker's hue change over the press (deg)",
-                              std::abs(hue_difference_deg(o.apex_hue_pressed_deg,
-                                                          o.apex_hue_rest_deg)),
-                              kVisibleHueChangeDeg, true});
+        r.targets.push_back(
+            T{o.object + ": apex marker's hue change over the press (deg)",
+              std::abs(hue_difference_deg(o.apex_hue_pressed_deg, o.apex_hue_rest_deg)),
+              kVisibleHueChangeDeg, true});
         r.targets.push_back(T{o.object + ": centroid vs lateral displacement, R2 median",
                               o.centroid.r2_median, 0.99, true});
         r.targets.push_back(T{o.object + ": blobs not the marker taken for (marker id channel)",
@@ -496,8 +497,7 @@ SensorVerifyReport verify_sensor(const SensorVerifyOptions& o, std::ostream& log
     add_targets(report);
     if (!o.picture.empty() && apex_px)
         write_apex_picture(o.picture, pictures, *apex_px, report.marker_span_px);
-    report.seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return report;
 }
 

@@ -19,16 +19,16 @@ struct SensorVerifyOptions {
     /// The spec whose sensor and render sections are verified (empty: the default sensor with
     /// the shipped fast render settings). Its objects, protocol and outputs are replaced.
     std::filesystem::path spec_file;
-    int size_px = 448;                ///< square image side; a marker must span >= 10 px
-    std::filesystem::path json;       ///< also write the results here (empty: no)
-    std::filesystem::path picture;    ///< PNG of the apex marker at rest and at 3 N (empty: no)
-    std::filesystem::path keep_dir;   ///< keep the rendered dataset here (empty: a temporary one)
-    std::filesystem::path cache_dir;  ///< mechanics and light cache (GenerateOptions::cache_dir)
+    int size_px = 448;               ///< square image side; a marker must span >= 10 px
+    std::filesystem::path json;      ///< also write the results here (empty: no)
+    std::filesystem::path picture;   ///< PNG of the apex marker at rest and at 3 N (empty: no)
+    std::filesystem::path keep_dir;  ///< keep the rendered dataset here (empty: a temporary one)
+    std::filesystem::path cache_dir; ///< mechanics and light cache (GenerateOptions::cache_dir)
 };
 
-inline constexpr double kLawCapDeg = 25.0;        ///< markers within this of the apex
-inline constexpr double kLawMinTravelMm = 0.2;    ///< a marker's law needs this much travel
-inline constexpr double kMinMarkerSpanPx = 10.0;  ///< smallest marker image the metrics take
+inline constexpr double kLawCapDeg = 25.0;       ///< markers within this of the apex
+inline constexpr double kLawMinTravelMm = 0.2;   ///< a marker's law needs this much travel
+inline constexpr double kMinMarkerSpanPx = 10.0; ///< smallest marker image the metrics take
 /// A hue change a person sees in the marker under the contact's centre: the ICRA 2020 dome's
 /// calibration of that marker spans about 13 deg over 1.4 mm (docs/SENSOR.md).
 inline constexpr double kVisibleHueChangeDeg = 10.0;
@@ -52,14 +52,14 @@ struct LawSummary {
     int markers = 0;
     double r2_median = 0, r2_p10 = 0, slope_median = 0;
     double range_median = 0; ///< hue: hue range (deg); area: colour change (CIE76); centroid: mm
-    LineFit pooled; ///< one line through every qualifying marker's points
+    LineFit pooled;          ///< one line through every qualifying marker's points
 };
 
 struct ObjectLaws {
     std::string object;
-    int frames = 0;          ///< images read (rest included)
-    int flagged_frames = 0;  ///< frames left out: the solver did not converge
-    int tracked = 0;         ///< markers tracked from rest to the last frame
+    int frames = 0;         ///< images read (rest included)
+    int flagged_frames = 0; ///< frames left out: the solver did not converge
+    int tracked = 0;        ///< markers tracked from rest to the last frame
     int id_checks = 0, id_mismatches = 0;
     std::vector<MarkerLaw> markers;
     LawSummary hue, area, centroid;
@@ -67,7 +67,7 @@ struct ObjectLaws {
 };
 
 struct SensorVerifyReport {
-    std::string spec; ///< the spec file, or "default sensor"
+    std::string spec;   ///< the spec file, or "default sensor"
     std::string render; ///< integrator, samples, size
     double marker_span_px = 0;
     std::vector<ObjectLaws> objects;

@@ -12,20 +12,25 @@ namespace chromasim::generators {
 namespace {
 
 /// A number for JSON: null when not finite.
-nlohmann::json number(double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(); }
+nlohmann::json number(double x) {
+    return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json();
+}
 
 nlohmann::json fit_json(const LineFit& f) {
     return {{"slope", number(f.slope)}, {"r2", number(f.r2)}, {"points", f.points}};
 }
 
 nlohmann::json summary_json(const LawSummary& s) {
-    return {{"markers", s.markers},         {"r2_median", number(s.r2_median)},
-            {"r2_p10", number(s.r2_p10)},   {"slope_median", number(s.slope_median)},
-            {"range_median", number(s.range_median)}, {"pooled", fit_json(s.pooled)}};
+    return {{"markers", s.markers},
+            {"r2_median", number(s.r2_median)},
+            {"r2_p10", number(s.r2_p10)},
+            {"slope_median", number(s.slope_median)},
+            {"range_median", number(s.range_median)},
+            {"pooled", fit_json(s.pooled)}};
 }
 
-void print_law(std::ostream& out, const std::string& object, const char* law,
-               const LawSummary& s, const char* slope_unit, const char* range_name) {
+void print_law(std::ostream& out, const std::string& object, const char* law, const LawSummary& s,
+               const char* slope_unit, const char* range_name) {
     out << "  " << std::left << std::setw(7) << object << std::setw(32) << law << std::right
         << std::setw(4) << s.markers << std::setw(9) << s.r2_median << std::setw(9) << s.r2_p10
         << std::setw(9) << s.pooled.r2 << std::setw(10) << s.slope_median << " " << std::left
@@ -56,8 +61,8 @@ void print_sensor_verify(const SensorVerifyReport& r, std::ostream& out) {
             << o.apex_hue_pressed_deg << " deg at the full press (colour change dE76 "
             << o.apex_delta_e << "); " << o.frames << " images, " << o.flagged_frames
             << " flagged frames left out, " << o.tracked << " markers tracked to the end; "
-            << o.id_checks << " blobs checked against the marker id channel, "
-            << o.id_mismatches << " not the marker taken for\n";
+            << o.id_checks << " blobs checked against the marker id channel, " << o.id_mismatches
+            << " not the marker taken for\n";
     out << "\n  targets\n" << std::setprecision(3);
     for (const auto& t : r.targets)
         out << "  " << (t.met() ? "ok  " : "FAIL") << "  " << t.what << ": " << t.measured

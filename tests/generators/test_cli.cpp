@@ -137,11 +137,12 @@ TEST_CASE("export-scene writes any frame as glTF, reuses the cache, and refuses 
     for (const auto& m : scene.meshes)
         names.push_back(m.name);
     CHECK(names == std::vector<std::string>{"coating", "inner_surface", "inner_markers",
-                                            "outer_markers", "leds"});
+                                            "outer_markers", "leds", "frame"});
     CHECK(scene.meshes[0].surface.V.rows() > 100);
     CHECK(scene.meshes[2].surface.F.rows() == 82 * 48); // 82 prisms of 48 triangles per layer
     CHECK(scene.meshes[3].surface.F.rows() == 82 * 48);
-    CHECK(scene.lights.size() == 6);
+    CHECK(scene.meshes[4].surface.F.rows() == 6 * 2); // 6 LED rectangles
+    CHECK(scene.lights.empty());
     REQUIRE(scene.camera.has_value());
     CHECK(scene.camera->aspect_ratio == Approx(64.0 / 48.0));
     CHECK(number(scene, "frame") == 2.0);

@@ -122,18 +122,23 @@ TEST_CASE("a hand-made sensor frame written as .gltf and .glb reads back in metr
         }
         const generators::GltfSceneFile back = generators::read_gltf_scene(file);
         CHECK_THAT(back.generator, StartsWith("chromasim "));
-        for (const char* ext : {"KHR_materials_transmission", "KHR_materials_volume",
-                                "KHR_materials_ior", "KHR_lights_punctual"})
+        for (const char* ext :
+             {"KHR_materials_transmission", "KHR_materials_volume", "KHR_materials_ior"})
             CHECK(std::count(back.extensions_used.begin(), back.extensions_used.end(), ext) == 1);
+        // The LEDs are the renderer's area emitters, not punctual lights.
+        CHECK(std::count(back.extensions_used.begin(), back.extensions_used.end(),
+                         "KHR_lights_punctual") == 0);
+        CHECK(back.scene.lights.empty());
 
         // Meshes: names, counts, positions (mm -> m, z up -> y up), normals.
         const auto& meshes = back.scene.meshes;
-        REQUIRE(meshes.size() == 5);
+        REQUIRE(meshes.size() == 6);
         CHECK(meshes[0].name == "coating");
         CHECK(meshes[1].name == "inner_surface");
         CHECK(meshes[2].name == "inner_markers");
         CHECK(meshes[3].name == "outer_markers");
         CHECK(meshes[4].name == "leds");
+        CHECK(meshes[5].name == "frame");
         check_surface_y_up(meshes[0].surface, frame.coating);
         check_surface_y_up(meshes[1].surface, frame.inner_surface);
         check_surface_y_up(meshes[2].surface, frame.inner_markers);
@@ -177,17 +182,35 @@ TEST_CASE("a hand-made sensor frame written as .gltf and .glb reads back in metr
               Approx(std::exp(-optics.outer_marker_absorption_per_mm[0])));
         CHECK(meshes[4].material.emissive.isApprox(Eigen::Vector3d(0.25, 1.0, 0.125)));
 
-        // LEDs: one spot light each on the ring, the first on +x, shining along +z (file +y).
-        REQUIRE(int(back.scene.lights.size()) == optics.led_count);
+        // Markers in silicone of their own index; the cyan ones' scattering in extras.
+        CHECK(magenta.ior.value_or(0.0) == 1.0);
+        CHECK(cyan.ior.value_or(0.0) == 1.0);
+        CHECK(number(cyan.extras, "scatter_fraction") ==
+              Approx(optics.outer_marker_scatter_fraction));
+
+        // LEDs: one rectangle each in the LED plane, centred on the ring, the first on +x,
+        // led_width_mm along the ring.
+        const auto& leds = meshes[4].surface;
         for (int k = 0; k < optics.led_count; ++k) {
-            const auto& l = back.scene.lights[std::size_t(k)];
             const double phi = 2 * std::numbers::pi * k / optics.led_count;
-            CHECK(l.type == generators::GltfLight::Type::spot);
-            CHECK((l.position_mm - y_up({9 * std::cos(phi), 9 * std::sin(phi), -2})).norm() < 1e-9);
-            CHECK((l.direction - Eigen::Vector3d::UnitY()).norm() < 1e-12);
-            CHECK(l.color.isApprox(Eigen::Vector3d(0.25, 1.0, 0.125)));
-            CHECK(l.intensity_cd == Approx(2.0));
-            CHECK(l.outer_cone_rad == Approx(std::numbers::pi / 2));
+            Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+            for (int j = 0; j < 4; ++j)
+                centre += leds.V.row(4 * k + j).cast<double>().transpose() / 4;
+            CHECK((centre - y_up({9 * std::cos(phi), 9 * std::sin(phi), -2})).norm() < 1e-5);
+            const Eigen::Vector3d side =
+                (leds.V.row(4 * k + 3) - leds.V.row(4 * k)).cast<double>().transpose();
+            CHECK(side.norm() == Approx(optics.led_width_mm).epsilon(1e-5));
+            CHECK(std::abs(side.dot(y_up({-std::sin(phi), std::cos(phi), 0}))) ==
+                  Approx(optics.led_width_mm).epsilon(1e-5));
+        }
+        CHECK(number(meshes[4].material.extras, "relative_radiance") == Approx(2.0));
+        // The frame: black, in the rim plane (file y = 0), from the inner radius outwards.
+        const auto& frame_plane = meshes[5];
+        CHECK(frame_plane.material.base_color.head<3>().isZero());
+        for (Eigen::Index v = 0; v < frame_plane.surface.V.rows(); ++v) {
+            const Eigen::Vector3d x = frame_plane.surface.V.row(v).cast<double>().transpose();
+            CHECK(std::abs(x.y()) < 1e-9);
+            CHECK(std::hypot(x.x(), x.z()) >= optics.frame_inner_radius_mm - 1e-4);
         }
 
         // Camera: the fisheye's pose, a 120 deg stand-in, the true intrinsics in its extras.
@@ -244,7 +267,7 @@ TEST_CASE("a Kannala-Brandt calibration goes to the camera extras as given, and 
     CHECK(number(e, "k2") == -0.002);
     CHECK(number(e, "k3") == 0.0005);
     CHECK(number(e, "k4") == -0.0001);
-    CHECK(int(scene.lights.size()) == render::OpticsParams{}.led_count);
+    CHECK(scene.lights.empty()); // the LEDs are emissive rectangles
 }
 
 TEST_CASE("write_gltf_scene refuses a bad extension, a missing folder and a bad mesh, and "
