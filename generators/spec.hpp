@@ -148,7 +148,7 @@ struct Spec {
             double smoothing_mm = 0.75;
             bool refresh_direct = true;
             double refresh_threshold = 0.5;
-            bool scale_indirect = true;
+            bool scale_indirect = false;
             double shadow_filter_px = 1.0; ///< render::RenderSettings::shadow_filter_px
             /// render::RenderSettings::shadow_filter_rim_px
             double shadow_filter_rim_px = 0.5;

@@ -627,15 +627,10 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                          "0.5, 48 ms, 2.30 %; 0.1, 251 ms, 2.02 %; 0, 326 ms, 2.00 % "
                          "(docs/VALIDATION.md).",
                          CHROMASIM_FIELD(render.fast.refresh_threshold)));
-    out.push_back(boolean("render.fast.scale_indirect", true,
+    out.push_back(boolean("render.fast.scale_indirect", false,
                           "Fast integrator: per frame, scale the cached indirect light by the "
-                          "LEDs' unshadowed flux onto the coating on the frame over rest; "
-                          "false: the rest value on every frame. A press takes light off the "
-                          "coating (7.5 % at 5 N); this takes the bias against the path "
-                          "integrator at 5 N from 4.3 to 3.0 % RMS of white and at 1.5 N + "
-                          "0.6 N from 2.8 to 2.7 % (256 cache paths), at no measurable cost "
-                          "per frame "
-                          "(docs/VALIDATION.md).",
+                          "LEDs' unshadowed flux onto the coating over rest; false keeps the rest "
+                          "value, which is closer to the path integrator (docs/VALIDATION.md).",
                           CHROMASIM_FIELD(render.fast.scale_indirect)));
     out.push_back(number(
         "render.fast.shadow_filter_px", 1.0, closed(0, render::kMaxShadowFilterPx), "px",

@@ -32,6 +32,9 @@ constexpr double kConnectMaxStep = 0.1;
 /// starts may find the same); the solves stop within 1e-6 mm on the LED plane, some 20 mm
 /// away.
 constexpr double kSameConnection = 1e-6;
+/// A BSDF-sampled path and a connection solved to its LED point are the same path when their
+/// directions at p are this close (rad); distinct connections lie much farther apart.
+constexpr double kSamePath = 1e-4;
 
 /// Power heuristic weight of the strategy with density `a` against `b`.
 double power_heuristic(double a, double b) {
@@ -389,6 +392,21 @@ int PathIntegrator::sphere_candidates(const EmbreeScene& scene, const Vec3& p, c
     return radius ? int(sphere_mirrors(p, l, *radius, m_eta).size()) : 0;
 }
 
+double PathIntegrator::nee_share(const EmbreeScene& scene, Chain chain, const Vec3& p,
+                                 const Vec3& l, const Vec3& w) const {
+    const auto radius = radius_below(scene, p);
+    if (!radius) return 0.0;
+    const std::vector<Vec3> starts = chain == Chain::refracted
+                                         ? std::vector<Vec3>{sphere_start(p, l, *radius, m_eta)}
+                                         : sphere_mirrors(p, l, *radius, m_eta);
+    int found = 0;
+    for (const Vec3& start : starts) {
+        const auto c = solve_connection(scene, p, l, chain, start, int(starts.size()));
+        found += c && (c->direction - w).norm() < kSamePath;
+    }
+    return starts.empty() ? 0.0 : double(found) / double(starts.size());
+}
+
 std::optional<InterfaceConnection> PathIntegrator::connect(const EmbreeScene& scene, const Vec3& p,
                                                            const Vec3& l, Chain chain,
                                                            double u) const {
@@ -739,15 +757,15 @@ LanesN<N> PathIntegrator::trace(const EmbreeScene& scene, const Vec3& origin, co
                 break; // straight light of the start vertex: led_flux_sample's
             if (at_start && last.chain && scene.has_interface() && last.events > 0) {
                 // Light of the start vertex through a Chain: led_flux_sample's share under
-                // MIS (weight 1 where its solve cannot find this path).
+                // MIS (weight 1 where no start of its solve finds this path).
                 const Vec3 l = o + led->first * d;
                 const Chain chain = Chain(last.events);
-                const int candidates = sphere_candidates(scene, last.p, l, chain);
                 const auto c = along(scene, chain, last.prims, last.p, last.w);
-                if (c && candidates > 0)
+                const double share = c ? nee_share(scene, chain, last.p, l, last.w) : 0.0;
+                if (share > 0.0)
                     weight = power_heuristic(last.pdf_bsdf * c->fresnel,
-                                             start_nee_per_bsdf * c->jacobian_mm2_per_sr /
-                                                 (candidates * m_led_area_mm2));
+                                             start_nee_per_bsdf * c->jacobian_mm2_per_sr * share /
+                                                 m_led_area_mm2);
                 L += beta * (lanes.led / m_led_area_mm2) * weight;
                 break;
             }
@@ -759,11 +777,11 @@ LanesN<N> PathIntegrator::trace(const EmbreeScene& scene, const Vec3& origin, co
                 } else if (scene.has_interface() && last.events > 0) {
                     // The density next-event estimation gives this chain (what next_event does).
                     const Chain chain = Chain(last.events);
-                    const int candidates = sphere_candidates(scene, last.p, l, chain);
                     const auto c = along(scene, chain, last.prims, last.p, last.w);
-                    if (c && candidates > 0)
+                    const double share = c ? nee_share(scene, chain, last.p, l, last.w) : 0.0;
+                    if (share > 0.0)
                         weight = power_heuristic(last.pdf_bsdf * c->fresnel,
-                                                 pdf_area * c->jacobian_mm2_per_sr / candidates);
+                                                 pdf_area * c->jacobian_mm2_per_sr * share);
                 }
             }
             L += beta * (lanes.led / m_led_area_mm2) * weight;

@@ -171,6 +171,12 @@ public:
     /// Connections of the sphere model from p to l for `chain` (refracted: 1).
     int sphere_candidates(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& led_point_mm,
                           Chain chain) const;
+    /// The share of connect()'s starts for p and l whose Newton solve ends on the path that
+    /// leaves p along `direction`: the factor of next-event estimation's density of that path
+    /// over pdf_area |det dl/dw|. 0 where next-event estimation never finds it (a deformed
+    /// surface has connections that no start leads to), so that BSDF sampling keeps it whole.
+    double nee_share(const EmbreeScene& scene, Chain chain, const Vec3& p_mm,
+                     const Vec3& led_point_mm, const Vec3& direction) const;
 
     /// Number of LEDs, their area (mm^2), and the LED rectangle hit by the segment, if any.
     int led_count() const { return int(m_led_centres.size()); }

@@ -147,9 +147,10 @@ struct LightCacheSettings {
     double refresh_threshold = 0.5;
     /// Per frame, not part of the stored cache: scale the cached indirect light by the LEDs'
     /// unshadowed flux onto the coating on this frame over rest (LightCache::direct_flux).
-    /// A press takes light off the coating (7.5 % at 5 N); the rest value then left the image
-    /// 3.5 % of white too bright on average (docs/VALIDATION.md).
-    bool scale_indirect = true;
+    /// Off: the path integrator finds the indirect light of a press within 0.5 % of rest,
+    /// while the scale follows the cache's point-LED flux, which misses light a deformed
+    /// surface passes (docs/VALIDATION.md, "Fast against path").
+    bool scale_indirect = false;
     /// Per frame, not part of the stored cache: skip the fast integrator's shadow rays that
     /// provably meet no marker (each ray's path tested against the bounding balls of the
     /// markers near its triangle's paths, listed per frame), and start each shadow ray's

@@ -259,9 +259,9 @@ int main(int argc, char** argv) {
     bench_render->add_flag(
         "!--no-refresh", render_bench.light_cache.refresh_direct,
         "fast integrator: keep the rest ratio of area to point LED light on every vertex");
-    bench_render->add_flag("!--no-indirect-scale", render_bench.light_cache.scale_indirect,
-                           "fast integrator: use the cached indirect light as at rest on every "
-                           "frame (no scaling by the coating's LED light)");
+    bench_render->add_flag("--indirect-scale", render_bench.light_cache.scale_indirect,
+                           "fast integrator: scale the cached indirect light on every frame by "
+                           "the coating's LED light over rest (render.fast.scale_indirect)");
     bench_render->add_flag("!--no-shadow-cull", render_bench.light_cache.cull_shadows,
                            "fast integrator: trace every shadow ray, also those that provably "
                            "meet no marker (the same image; to measure what the culling saves)");

@@ -67,6 +67,23 @@ inline SensorFrame pressed_flat(const SensorFrame& rest) {
     return pressed;
 }
 
+/// A smooth press: every vertex of both surfaces of `rest` moved towards the centre by
+/// depth_mm exp(-theta^2 / (2 sigma^2)) at polar angle theta, so that the inner surface's
+/// normals tilt by up to about 10 deg on the dent's flank (a 45 mm sphere at 2 N).
+inline SensorFrame pressed_smooth(const SensorFrame& rest, double depth_mm = 2.0,
+                                  double sigma_deg = 15.0) {
+    SensorFrame pressed = rest;
+    const double sigma = sigma_deg * std::numbers::pi / 180.0;
+    for (SurfaceMesh* mesh : {&pressed.inner_surface, &pressed.coating})
+        for (Eigen::Index v = 0; v < mesh->V.rows(); ++v) {
+            const Vec3 x = mesh->V.row(v).cast<double>();
+            const double theta = std::acos(std::clamp(x.z() / x.norm(), -1.0, 1.0));
+            const double r = x.norm() - depth_mm * std::exp(-theta * theta / (2 * sigma * sigma));
+            mesh->V.row(v) = (r * x.normalized()).cast<float>().transpose();
+        }
+    return pressed;
+}
+
 /// Box markers (12 triangles each, normals outwards) on ChromaTouch's pattern (SENSOR.md 1: an
 /// apex marker and rings every 12.5 degrees of polar angle up to 62.5, round(6 sin(k 12.5) /
 /// sin(12.5)) markers on ring k), centred on the sphere of radius_mm, thickness_mm along the

@@ -13,6 +13,7 @@
 
 #include <cmath>
 #include <numbers>
+#include <vector>
 
 using namespace chromasim::render;
 using namespace chromasim::render::detail;
@@ -118,7 +119,8 @@ TEST_CASE("refracted connections obey Snell's law and their Jacobian matches fin
                             const Vec3 t = col == 0 ? b1 : b2;
                             Vec3 plus, minus;
                             REQUIRE(integrator.along(scene, chain, c->prim, p,
-                                                     (c->direction + step * t).normalized(), &plus));
+                                                     (c->direction + step * t).normalized(),
+                                                     &plus));
                             REQUIRE(integrator.along(scene, chain, c->prim, p,
                                                      (c->direction - step * t).normalized(),
                                                      &minus));
@@ -303,26 +305,50 @@ TEST_CASE("the sphere model's refraction by Newton from a guess ends where the w
         SphereRefraction(Vec3(0, 0, 12), Vec3(0, 0, 1), R, eta).newton(-Vec3::UnitZ(), 1e-9));
 }
 
-TEST_CASE("through the inner surface, next-event estimation with MIS agrees with BSDF "
-          "sampling alone",
-          "[render][path]") {
+namespace {
+
+/// Next-event estimation with MIS against BSDF sampling alone on `frame` along each camera
+/// direction: within 4 standard errors, and those below 1.5 % of the value, so that a bias of
+/// 6 % shows.
+void check_mis_agrees(const SensorFrame& frame, const std::vector<Vec3>& directions, int mis_paths,
+                      int bsdf_paths) {
     EmbreeScene scene;
-    scene.set_frame(clear_dome(48, 192, 48, 192));
+    scene.set_frame(frame);
     const ShadingModel shading(OpticsParams{});
     const PathIntegrator mis(shading), bsdf(shading, false);
     const auto lanes = rgb_lanes(RgbLanes(0.85, 0.6, 0.3, 0.0));
-    for (const Vec3& direction : {Vec3(0, 0, 1), Vec3(unit_from_angles(45.0, 10.0))}) {
-        const Estimate ea = mean_radiance(mis, scene, direction, lanes, 30000, 3);
-        const Estimate eb = mean_radiance(bsdf, scene, direction, lanes, 300000, 5);
+    for (const Vec3& direction : directions) {
+        const Estimate ea = mean_radiance(mis, scene, direction, lanes, mis_paths, 3);
+        const Estimate eb = mean_radiance(bsdf, scene, direction, lanes, bsdf_paths, 5);
         const RgbLanes &a = ea.mean, &b = eb.mean;
         for (int c = 0; c < 3; ++c) {
             INFO("direction " << direction.transpose() << " lane " << c << ": MIS " << a[c]
                               << " +- " << ea.standard_error[c] << ", BSDF " << b[c] << " +- "
                               << eb.standard_error[c]);
-            // Within 4 standard errors, and those small enough to see a 6 % bias.
             const double sigma = std::hypot(ea.standard_error[c], eb.standard_error[c]);
             CHECK(sigma < 0.015 * b[c]);
             CHECK(std::abs(a[c] - b[c]) < 4.0 * sigma);
         }
     }
+}
+
+} // namespace
+
+TEST_CASE("through the inner surface, next-event estimation with MIS agrees with BSDF "
+          "sampling alone",
+          "[render][path]") {
+    check_mis_agrees(clear_dome(48, 192, 48, 192),
+                     {Vec3(0, 0, 1), Vec3(unit_from_angles(45.0, 10.0))}, 30000, 300000);
+}
+
+TEST_CASE("through a pressed inner surface, next-event estimation with MIS agrees with BSDF "
+          "sampling alone",
+          "[render][path]") {
+    // The dent tilts the surface, so that a point's light reaches it along paths that no start
+    // of the sphere model leads Newton to: BSDF sampling must keep their weight (MIS that
+    // trusted the starts lost 12 to 15 % at 20 deg).
+    check_mis_agrees(
+        pressed_smooth(clear_dome(48, 192, 48, 192)),
+        {Vec3(0, 0, 1), Vec3(unit_from_angles(20.0, 0.0)), Vec3(unit_from_angles(30.0, 30.0))},
+        60000, 400000);
 }
