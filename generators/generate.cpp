@@ -264,6 +264,18 @@ Spec::Object posed_object(const Spec::Object& object, const FingerSetup& finger)
     return posed;
 }
 
+LightCacheOutcome prepare_renderer(render::Renderer& renderer, const Spec& spec,
+                                   const render::SensorFrame& rest,
+                                   const render::OpticsParams& optics,
+                                   const std::filesystem::path& cache_dir) {
+    if (spec.render.integrator == "direct") return {};
+    // The path integrator's auto exposure: its own undeformed apex (render/renderer.hpp). The
+    // fast integrator uses the same, and its light cache (once per sensor).
+    renderer.set_exposure_reference(rest);
+    if (spec.render.integrator != "fast") return {};
+    return provide_light_cache(renderer, rest, optics, light_cache_settings(spec), cache_dir);
+}
+
 void log_dome_model(const Spec& spec, const mechanics::DomeModel& model, double precompute_s,
                     const std::filesystem::path& cache_dir, std::ostream& log) {
     const auto& st = model.stats();
@@ -347,19 +359,11 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
     std::string light_cache_note;
     if (render_stage) {
         renderer = std::make_unique<render::Renderer>(camera_params(spec), *optics);
-        // The path integrator's auto exposure: its own undeformed apex (render/renderer.hpp).
-        // The fast integrator uses the same, and its light cache (once per sensor).
-        if (spec.render.integrator != "direct") {
-            const render::SensorFrame rest = undeformed_sensor_frame(model);
-            renderer->set_exposure_reference(rest);
-            if (spec.render.integrator == "fast") {
-                const LightCacheOutcome cache = provide_light_cache(
-                    *renderer, rest, *optics, light_cache_settings(spec), options.cache_dir);
-                report.light_cache_s = cache.seconds;
-                report.light_cache_from_file = cache.from_file;
-                light_cache_note = cache.note;
-            }
-        }
+        const LightCacheOutcome cache = prepare_renderer(
+            *renderer, spec, undeformed_sensor_frame(model), *optics, options.cache_dir);
+        report.light_cache_s = cache.seconds;
+        report.light_cache_from_file = cache.from_file;
+        light_cache_note = cache.note;
     }
     // The camera sensor turns the PNG's pixels into a recording; the EXR stays noise-free.
     std::optional<render::SensorModel> sensor;

@@ -1,9 +1,11 @@
 #pragma once
 /// The main job: spec -> plan -> mechanics -> render -> writers.
 #include "generators/dataset_writer.hpp"
+#include "generators/light_cache_store.hpp"
 #include "generators/plan.hpp"
 #include "generators/spec.hpp"
 #include "mechanics/dome_model.hpp"
+#include "render/renderer.hpp"
 
 #include <filesystem>
 #include <iosfwd>
@@ -63,6 +65,15 @@ LabelRow label_row(const FramePlan& f, const FingerLoad& load, const mechanics::
 
 /// `object` as finger `finger` of `trial` sees it: its offset and yaw (mirror, jitter).
 Spec::Object posed_object(const Spec::Object& object, const FingerSetup& finger);
+
+/// Gives `renderer` what the spec's integrator needs before its first frame: the path and fast
+/// integrators' auto exposure on `rest` (the undeformed sensor) and the fast integrator's light
+/// cache (read from or saved to `cache_dir`). Returns the light cache's outcome (empty for the
+/// direct and path integrators).
+LightCacheOutcome prepare_renderer(render::Renderer& renderer, const Spec& spec,
+                                   const render::SensorFrame& rest,
+                                   const render::OpticsParams& optics,
+                                   const std::filesystem::path& cache_dir);
 
 /// Logs the dome mesh's size, the precompute time and the cache state of `model` (one line,
 /// plus a line with the cache note if there is one).

@@ -2,7 +2,6 @@
 
 #include "generators/csv_rows.hpp"
 #include "generators/generate.hpp"
-#include "generators/light_cache_store.hpp"
 #include "generators/sensor_bridge.hpp"
 #include "generators/spec_schema.hpp"
 #include "mechanics/dome_geometry.hpp"
@@ -109,11 +108,7 @@ render::Image render_rest(const Spec& spec, const fs::path& cache_dir) {
     const render::OpticsParams optics = optics_params(spec);
     render::Renderer renderer(camera_params(spec), optics);
     const render::SensorFrame rest = undeformed_sensor_frame(model);
-    if (spec.render.integrator != "direct") {
-        renderer.set_exposure_reference(rest);
-        if (spec.render.integrator == "fast")
-            provide_light_cache(renderer, rest, optics, light_cache_settings(spec), cache_dir);
-    }
+    prepare_renderer(renderer, spec, rest, optics, cache_dir);
     renderer.set_frame(rest);
     return renderer.render(render_settings(spec));
 }
@@ -122,9 +117,10 @@ render::Image render_rest(const Spec& spec, const fs::path& cache_dir) {
 /// the 50 % saturation rule: its markers are too pale (or absent) for the papers' method.
 void check_rest_blobs(const Spec& spec, const SensorVerifyOptions& o, const Image8& rest) {
     const render::FisheyeCamera camera(camera_params(spec));
+    const mechanics::DomeParams dome = dome_options(spec).dome;
     int in_view = 0;
-    for (const Eigen::Vector3d& d : mechanics::marker_directions(dome_options(spec).dome))
-        in_view += camera.project(12.0 * d).has_value();
+    for (const Eigen::Vector3d& d : mechanics::marker_directions(dome))
+        in_view += camera.project(dome.radii_mm[2] * d).has_value();
     const auto blobs = find_blobs(rest, 0.5, 3);
     if (2 * int(blobs.size()) >= in_view) return;
     throw SpecError(
