@@ -81,6 +81,9 @@ void check_options(const Spec& spec, const SensorVerifyOptions& o) {
         throw SpecError(where + ": sensor.optics.inner_marker_absorption_per_mm and "
                                 "sensor.optics.outer_marker_absorption_per_mm are both 0: the "
                                 "markers are invisible; verify sensor needs coloured markers");
+    if (o.size_px < 16 || o.size_px > 4096)
+        throw SpecError("--size-px " + std::to_string(o.size_px) +
+                        ": out of range; allowed: integer in [16, 4096] (render.width_px's)");
     const double span = marker_span_px(spec);
     if (span < kMinMarkerSpanPx)
         throw SpecError(

@@ -407,6 +407,7 @@ int main(int argc, char** argv) {
                             "spec whose sensor and render sections to verify (default: the "
                             "default sensor, fast integrator, 2 spp)");
     verify_sens->add_option("--size-px", sensor_verify.size_px, "image side (px)")
+        ->check(CLI::Range(16, 4096))
         ->capture_default_str();
     verify_sens->add_option("--json", sensor_json, "also write the results to this JSON file");
     verify_sens->add_option("--picture", sensor_picture,

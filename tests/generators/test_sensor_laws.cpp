@@ -130,6 +130,8 @@ TEST_CASE("verify sensor refuses an image too small for the metrics and invisibl
     std::ostringstream log;
     CHECK_THROWS_WITH(verify_sensor(o, log),
                       Contains("--size-px 224: a marker spans") && Contains("at least 10"));
+    o.size_px = 5000;
+    CHECK_THROWS_WITH(verify_sensor(o, log), Contains("--size-px 5000: out of range"));
     o.size_px = 448;
     o.spec_file = dir.write("clear.yaml", "name: clear\nrender: {spectral: false}\n"
                                           "sensor:\n  optics:\n"
