@@ -253,9 +253,7 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
     render::OpticsParams spectral;
     spectral.spectra = render::load_sensor_spectra(
         render::SensorSpectraFiles::in_directory(spectra_directory(Spec{})));
-    std::vector<double> thickness = model.markers().thickness_mm;
-    std::sort(thickness.begin(), thickness.end());
-    const double path_mm = thickness[thickness.size() / 2];
+    const double path_mm = median_marker_thickness_mm(model);
     const render::OpticsParams rgb = rgb_optics(spectral, path_mm);
 
     const render::CameraParams camera{o.size_px, o.size_px, 84.0};

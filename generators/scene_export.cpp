@@ -337,10 +337,8 @@ SceneExportReport export_scene(const Spec& spec, const SceneSelection& which,
                          spec.sensor.marker_thickness_mm, frame_extras(spec, report)};
     // glTF colours are RGB: with spectra, the colours the camera sees (the markers'
     // absorption at their median thickness, as bench render's RGB mode).
-    std::vector<double> thickness = model.markers().thickness_mm;
-    std::nth_element(thickness.begin(), thickness.begin() + thickness.size() / 2, thickness.end());
     const render::OpticsParams optics =
-        rgb_optics(spectral_or_rgb, thickness[thickness.size() / 2]);
+        rgb_optics(spectral_or_rgb, median_marker_thickness_mm(model));
     write_gltf_scene(out, make_gltf_scene(sensor, camera, optics, info));
     report.total_s = mechanics::seconds_since(t_start);
     return report;

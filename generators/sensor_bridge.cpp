@@ -3,7 +3,9 @@
 #include "generators/gltf_io.hpp"
 #include "render/fisheye_camera.hpp"
 
+#include <algorithm>
 #include <stdexcept>
+#include <vector>
 
 namespace chromasim::generators {
 
@@ -165,6 +167,13 @@ render::OpticsParams rgb_optics(const render::OpticsParams& optics, double path_
         render::rgb_absorption_per_mm(sp.camera, sp.outer_marker_absorption_per_mm, path_mm)
             .matrix();
     return rgb;
+}
+
+double median_marker_thickness_mm(const mechanics::DomeModel& model) {
+    std::vector<double> thickness = model.markers().thickness_mm;
+    const auto middle = thickness.begin() + std::ptrdiff_t(thickness.size() / 2);
+    std::nth_element(thickness.begin(), middle, thickness.end());
+    return *middle;
 }
 
 render::RenderSettings render_settings(const Spec& spec) {

@@ -22,6 +22,9 @@ render::OpticsParams optics_params(const Spec& spec);
 /// the LEDs (albedos, and the markers' absorption over a path of `marker_path_mm`, the
 /// markers' median thickness), the spectra dropped; without, `optics` unchanged.
 render::OpticsParams rgb_optics(const render::OpticsParams& optics, double marker_path_mm);
+/// The median face-to-face thickness of `model`'s marker discs as built (mm): the path at which
+/// rgb_optics reduces the markers' absorption spectra.
+double median_marker_thickness_mm(const mechanics::DomeModel& model);
 /// samples per pixel, seed, extra channels and integrator of the spec.
 render::RenderSettings render_settings(const Spec& spec);
 /// The fast integrator's light cache settings (render.fast.*).
