@@ -250,9 +250,7 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
     // Spectral: the shipped spectra. RGB: the same sensor reduced to camera RGB (albedos as
     // seen under the LED, absorption coefficients at the markers' median thickness), so the
     // difference is the RGB approximation itself, not a different parameter set.
-    render::OpticsParams spectral;
-    spectral.spectra = render::load_sensor_spectra(
-        render::SensorSpectraFiles::in_directory(spectra_directory(Spec{})));
+    const render::OpticsParams spectral = optics_params(Spec{}); // the default sensor
     const double path_mm = median_marker_thickness_mm(model);
     const render::OpticsParams rgb = rgb_optics(spectral, path_mm);
 

@@ -85,6 +85,7 @@ std::uint64_t light_cache_key(const render::SensorFrame& rest, const render::Opt
     k.value(o.led_width_mm);
     k.value(o.led_height_mm);
     k.value(o.frame_inner_radius_mm);
+    k.value(o.lens_radius_mm);
     k.value(o.refractive_index);
     k.vec(o.led_rgb);
     k.value(o.spectra.has_value());

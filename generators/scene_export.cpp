@@ -27,6 +27,8 @@ constexpr double kStandInYfov_deg = 120.0;
 /// Outer radius of the black frame plane exported at z = 0 (the renderer's plane has none).
 constexpr double kFrameOuterRadius_mm = 40.0;
 constexpr int kFrameSegments = 96;
+/// The lens barrel's top face below the rim plane, where the camera sits, mm.
+constexpr double kBarrelTopGap_mm = 0.01;
 /// Distance over which the marker volumes' attenuationColor is the transmittance, mm.
 constexpr double kAttenuationDistance_mm = 1.0;
 
@@ -125,6 +127,37 @@ GltfMesh frame_plane(const render::OpticsParams& o) {
         s.F.row(2 * k + 1) << i, j + 1, j;
     }
     GltfMesh m = mesh("frame", s, false);
+    m.material.base_color = {0.0, 0.0, 0.0, 1.0};
+    m.material.roughness = 1.0;
+    m.material.double_sided = true;
+    m.material.extras = {{"chromasim_optics", std::string("black absorber")}};
+    return m;
+}
+
+/// The camera's lens barrel: a black closed cylinder about the z axis of radius
+/// lens_radius_mm, from just below the rim plane (the camera sits on it) to 3 mm below the
+/// LEDs; the renderer's barrel runs on down, where no light goes.
+GltfMesh lens_barrel(const render::OpticsParams& o) {
+    const double top = -kBarrelTopGap_mm, bottom = std::min(o.led_z_mm, 0.0) - 3.0;
+    const double R = o.lens_radius_mm;
+    render::SurfaceMesh s;
+    s.V.resize(2 * kFrameSegments + 2, 3);
+    s.F.resize(4 * kFrameSegments, 3);
+    const int top_centre = 2 * kFrameSegments, bottom_centre = top_centre + 1;
+    s.V.row(top_centre) << 0.0f, 0.0f, float(top);
+    s.V.row(bottom_centre) << 0.0f, 0.0f, float(bottom);
+    for (int k = 0; k < kFrameSegments; ++k) {
+        const double phi = 2.0 * std::numbers::pi * k / kFrameSegments;
+        s.V.row(2 * k) << float(R * std::cos(phi)), float(R * std::sin(phi)), float(top);
+        s.V.row(2 * k + 1) << float(R * std::cos(phi)), float(R * std::sin(phi)), float(bottom);
+        const auto i = std::uint32_t(2 * k), j = std::uint32_t(2 * ((k + 1) % kFrameSegments));
+        const auto tc = std::uint32_t(top_centre), bc = std::uint32_t(bottom_centre);
+        s.F.row(4 * k) << i, i + 1, j + 1; // outward normals
+        s.F.row(4 * k + 1) << i, j + 1, j;
+        s.F.row(4 * k + 2) << tc, i, j;
+        s.F.row(4 * k + 3) << bc, j + 1, i + 1;
+    }
+    GltfMesh m = mesh("lens_barrel", s, false);
     m.material.base_color = {0.0, 0.0, 0.0, 1.0};
     m.material.roughness = 1.0;
     m.material.double_sided = true;
@@ -257,6 +290,7 @@ GltfScene make_gltf_scene(const render::SensorFrame& frame, const render::Camera
     scene.meshes.push_back(std::move(cyan));
     scene.meshes.push_back(led_rectangles(optics));
     scene.meshes.push_back(frame_plane(optics));
+    if (optics.lens_radius_mm > 0.0) scene.meshes.push_back(lens_barrel(optics));
     scene.camera = stand_in_camera(camera);
     return scene;
 }

@@ -144,6 +144,7 @@ render::OpticsParams optics_params(const Spec& spec) {
     o.led_height_mm = spec.sensor.led_height_mm;
     o.refractive_index = spec.sensor.refractive_index;
     o.frame_inner_radius_mm = mechanics::DomeParams{}.radii_mm[0];
+    o.lens_radius_mm = spec.sensor.lens_radius_mm;
     o.led_rgb = vec(spec.sensor.led_rgb);
     o.exposure = spec.render.exposure;
     if (spec.render.spectral)

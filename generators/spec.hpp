@@ -60,9 +60,10 @@ struct Spec {
         double camera_k1 = 0, camera_k2 = 0, camera_k3 = 0, camera_k4 = 0;
         std::array<double, 3> camera_position_mm{0.0, 0.0, 0.0}; ///< in the dome frame
         double camera_roll_deg = 0, camera_pitch_deg = 0, camera_yaw_deg = 0;
+        double lens_radius_mm = 8.0; ///< the lens barrel below the rim plane (0: none)
         int led_count = 6;
         double led_ring_radius_mm = 10.0;
-        double led_z_mm = -1.0;
+        double led_z_mm = -13.8;
         double led_width_mm = 3.5, led_height_mm = 2.8;
         Rgb led_rgb{1.0, 1.0, 1.0};
         double refractive_index = 1.4;
@@ -140,7 +141,7 @@ struct Spec {
         int samples_per_pixel = 4;
         double exposure = 1.0;
         bool spectral = true; ///< hero-wavelength spectral mode; false: RGB approximation
-        std::string integrator = "direct"; ///< direct | path | fast
+        std::string integrator = "fast"; ///< direct | path | fast
         /// The fast integrator's light cache (render::LightCacheSettings).
         struct Fast {
             int paths_per_vertex = 1024;

@@ -268,14 +268,19 @@ void add_sensor_optics(std::vector<SchemaEntry>& out) {
                          "(equidistant) or of the imaged field (kannala_brandt).",
                          CHROMASIM_FIELD(sensor.camera_half_fov_deg)));
     add_camera_model(out);
+    out.push_back(number("sensor.camera.lens_radius_mm", 8, closed(0, 10.5), "mm",
+                         "Radius of the camera's lens barrel, a black cylinder from the rim plane "
+                         "down (FUSE CAD [K]; 0: none); it hides LEDs below the rim from most of the dome.",
+                         CHROMASIM_FIELD(sensor.lens_radius_mm)));
     out.push_back(integer("sensor.led.count", 6, closed(1, 64), "",
                           "Number of LEDs on the ring (6 on the real board).",
                           CHROMASIM_FIELD(sensor.led_count)));
     out.push_back(number("sensor.led.ring_radius_mm", 10, closed(0, 13), "mm",
-                         "Radius of the LED ring around the lens (board: 17 to 23 mm across).",
+                         "Radius of the LED ring around the lens (FUSE CAD [K]: 10.0 to 10.2 mm).",
                          CHROMASIM_FIELD(sensor.led_ring_radius_mm)));
-    out.push_back(number("sensor.led.z_mm", -1, closed(-10, 10), "mm",
-                         "Height of the LED ring; the dome rim plane is z = 0 [G].",
+    out.push_back(number("sensor.led.z_mm", -13.8, closed(-20, 10), "mm",
+                         "Height of the LEDs' emitting faces; the dome rim plane is z = 0 (FUSE "
+                         "CAD [K]: 13.8 mm below it).",
                          CHROMASIM_FIELD(sensor.led_z_mm)));
     out.push_back(number("sensor.led.width_mm", 3.5, closed(0.01, 10), "mm",
                          "Side of each LED's emitting rectangle along the ring (SMD 3528 package "
@@ -568,22 +573,12 @@ void add_render_and_outputs(std::vector<SchemaEntry>& out) {
                 "mixing per wavelength, the spectra of sensor.optics.spectra_dir); false: "
                 "the RGB approximation with the sensor.optics RGB values.",
                 CHROMASIM_FIELD(render.spectral)));
-    out.push_back(choice("render.integrator", "direct", {"direct", "path", "fast"},
-                         "Light transport. direct: LED light straight to the coating and the "
-                         "markers, one bounce, no refraction (no light cache to build, but 44 % "
-                         "RMS of the white level off the path reference). "
-                         "path: unbiased path tracing with refraction and Fresnel at the inner "
-                         "surface, diffuse interreflection and area LEDs (the reference). "
-                         "fast: the path integrator's light with the smooth indirect light and "
-                         "the LEDs' unshadowed light cached once per sensor on the coating "
-                         "(render.fast.*); marker transmittance and coloured shadows traced "
-                         "per frame: about 1.7 % RMS off the path reference at rest, 2.1 % "
-                         "at 1.5 N + 0.6 N and 2.1 % at 5 N at "
-                         "the cost per sample of direct, plus about 14 s once per sensor for "
-                         "the cache, "
-                         "which --cache-dir keeps between runs (the shipped dataset specs "
-                         "use it). docs/VALIDATION.md has each one's "
-                         "error and cost.",
+    out.push_back(choice("render.integrator", "fast", {"direct", "path", "fast"},
+                         "Light transport: fast (the path integrator's light with its smooth "
+                         "part cached once per sensor, render.fast.*), path (unbiased path "
+                         "tracing, the reference) or direct (LED light straight to the coating, "
+                         "no refraction or interreflection: a quick preview, far off path). "
+                         "docs/VALIDATION.md has each one's error and cost.",
                          CHROMASIM_FIELD(render.integrator)));
     out.push_back(integer("render.fast.paths_per_vertex", 1024, closed(1, 65536), "",
                           "Fast integrator: paths traced per coating vertex (at the coating "

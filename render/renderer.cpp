@@ -39,7 +39,8 @@
 // radiance of the Lambertian coating at the apex (0, 0, kCoatingInnerRadius_mm) facing the
 // camera, lit by all LEDs with no markers, L_ref = max over channels of
 // albedo_coat / pi * E(apex). Image = radiance * exposure * 0.8 / L_ref, the same scale for
-// every frame so that frames of a sequence stay comparable.
+// every frame so that frames of a sequence stay comparable. The path and fast integrators
+// use Renderer::set_exposure_reference instead: the brightest of the bare dome's directions.
 #include "render/renderer.hpp"
 
 #include "render/embree_scene.hpp"
@@ -78,7 +79,7 @@ namespace {
 /// Inner radius of the white coating, mm [K] (SENSOR.md section 1): the undeformed surface
 /// the camera sees, so the apex used for auto exposure is (0, 0, 12.7).
 constexpr double kCoatingInnerRadius_mm = 12.7;
-/// Image value of the undeformed apex at exposure 1, headroom for brighter spots.
+/// Image value of the exposure reference at exposure 1, headroom for brighter spots.
 constexpr double kApexImageValue = 0.8;
 
 /// exposure * 0.8 / L_ref (see the model at the top of this file).
@@ -913,31 +914,43 @@ Renderer::Renderer(const CameraParams& camera, const OpticsParams& optics)
 Renderer::~Renderer() = default;
 
 void Renderer::set_exposure_reference(const SensorFrame& undeformed) {
-    // The apex seen through the bare dome: coating and inner surface, no markers.
+    // The bare dome: coating and inner surface, no markers.
     SensorFrame bare;
     bare.coating = undeformed.coating;
     bare.inner_surface = undeformed.inner_surface;
     detail::EmbreeScene apex;
     apex.set_frame(bare);
-    // Fixed blocks, each with its own stream, summed in order: the same value on any threads.
-    constexpr int kBlocks = 64, kPathsPerBlock = 512;
-    std::vector<detail::Rgb> partial(kBlocks, detail::Rgb::Zero());
+    // Directions along polar angles 0, 10, ..., 70 deg at azimuth 0 (towards the first LED)
+    // and half an LED spacing; fixed blocks per direction, each with its own stream, summed in
+    // order: the same value on any threads.
+    constexpr int kPolar = 8, kAzimuths = 2, kBlocks = 16, kPathsPerBlock = 1024;
+    constexpr int kDirections = kPolar * kAzimuths;
     const Impl& m = *m_impl;
-    const Vec3 origin = Vec3::Zero(), up(0.0, 0.0, 1.0);
-    tbb::parallel_for(0, kBlocks, [&](int b) {
-        detail::PixelRng rng(0xA9E7, std::uint64_t(b));
+    std::vector<detail::Rgb> partial(std::size_t(kDirections * kBlocks), detail::Rgb::Zero());
+    const Vec3 origin = Vec3::Zero();
+    const double spacing = 2.0 * std::numbers::pi / m.shading.optics().led_count;
+    tbb::parallel_for(0, kDirections * kBlocks, [&](int job) {
+        const int dir = job / kBlocks;
+        const double theta = (dir % kPolar) * 10.0 * std::numbers::pi / 180.0;
+        const double phi = (dir / kPolar) * 0.5 * spacing;
+        const Vec3 w(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi),
+                     std::cos(theta));
+        detail::PixelRng rng(0xA9E7, std::uint64_t(job));
         for (int i = 0; i < kPathsPerBlock; ++i) {
             const double u_lambda = m.wavelengths ? (i + rng.uniform()) / kPathsPerBlock : 0.0;
-            partial[b] += m.sample_rgb(apex, origin, up, Integrator::path, u_lambda, rng);
+            partial[std::size_t(job)] += m.sample_rgb(apex, origin, w, Integrator::path, u_lambda, rng);
         }
     });
-    detail::Rgb sum = detail::Rgb::Zero();
-    for (const detail::Rgb& p : partial)
-        sum += p;
-    const double reference = (sum / (kBlocks * kPathsPerBlock)).maxCoeff();
+    double reference = 0.0;
+    for (int dir = 0; dir < kDirections; ++dir) {
+        detail::Rgb sum = detail::Rgb::Zero();
+        for (int b = 0; b < kBlocks; ++b)
+            sum += partial[std::size_t(dir * kBlocks + b)];
+        reference = std::max(reference, (sum / (kBlocks * kPathsPerBlock)).maxCoeff());
+    }
     if (!(reference > 0.0)) {
         throw std::invalid_argument(
-            "Renderer::set_exposure_reference: the path-traced undeformed apex is dark, so auto "
+            "Renderer::set_exposure_reference: the path-traced undeformed dome is dark, so auto "
             "exposure is undefined; allowed: a frame whose coating the LEDs light");
     }
     m_impl->path_scale = m.shading.optics().exposure * detail::kApexImageValue / reference;

@@ -21,11 +21,12 @@ public:
     /// Loads (first call, or changed topology) or refits (same topology) the scene.
     void set_frame(const SensorFrame& frame);
 
-    /// Auto exposure of the path integrator: path-traces the apex of `undeformed` (its
-    /// coating and inner surface, no markers) along the camera axis at the dome centre and
-    /// scales path images so that it maps to 0.8 (times OpticsParams::exposure), as the direct
-    /// integrator's analytic exposure does for its own model. Deterministic (fixed seed and
-    /// blocks). Without it, path images use the direct model's analytic scale.
+    /// Auto exposure of the path and fast integrators: path-traces `undeformed`'s bare dome (its
+    /// coating and inner surface, no markers) from the dome centre along polar angles 0 to
+    /// 70 deg, towards an LED and between two, and scales images so that the brightest of those
+    /// maps to 0.8 (times OpticsParams::exposure), headroom for brighter spots under a press.
+    /// Deterministic (fixed seeds and blocks). Without it, images use the direct integrator's
+    /// analytic scale.
     void set_exposure_reference(const SensorFrame& undeformed);
 
     /// The fast integrator's light cache (render/fast_integrator.hpp), built on `undeformed`

@@ -87,7 +87,9 @@ struct CameraParams {
     double roll_deg = 0.0, pitch_deg = 0.0, yaw_deg = 0.0;
 };
 
-/// Linear-RGB optical properties. Values are [G] defaults documented in the spec schema.
+/// Linear-RGB optical properties. The defaults are a simple test geometry, LEDs 1 mm under the
+/// rim that light the dome directly and no lens barrel; a spec's defaults are the FUSE
+/// sensor's (generators/spec.hpp, docs/SPEC.md).
 struct OpticsParams {
     Vec3 coating_albedo{0.85, 0.85, 0.85};              ///< Lambertian white coating
     Vec3 inner_marker_absorption_per_mm{0.2, 3.0, 0.3}; ///< magenta filter (absorbs green)
@@ -96,7 +98,7 @@ struct OpticsParams {
     double outer_marker_scatter_fraction = 0.5; ///< share of light an outer marker scatters back
     int led_count = 6;                          ///< point LEDs evenly on a ring
     double led_ring_radius_mm = 10.0;
-    double led_z_mm = -1.0; ///< ring height; the dome rim is the plane z = 0
+    double led_z_mm = -1.0; ///< the LEDs' emitting faces; the dome rim is the plane z = 0
     /// The path integrator's LEDs: Lambertian rectangles facing +z centred on the ring points,
     /// `led_width_mm` along the ring's tangent, `led_height_mm` along its radius (SMD 3528),
     /// radiance led / area so that far away each matches the direct model's point LED.
@@ -106,6 +108,9 @@ struct OpticsParams {
     /// (the dome's inner radius): light crossing the plane there is absorbed, so LED light
     /// enters the dome only through the opening, and light in the layers does not leak out.
     double frame_inner_radius_mm = 10.5;
+    /// The camera's lens barrel: a black cylinder about the z axis, of this radius, from the
+    /// rim plane down (0: none). Light from LEDs below the rim passes beside it.
+    double lens_radius_mm = 0.0;
     /// Refractive index of the clear layers at the inner surface (air / silicone boundary);
     /// the layers are index-matched among themselves (no other boundary refracts).
     double refractive_index = 1.4;

@@ -2,6 +2,7 @@
 
 #include "render/sampling.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -58,6 +59,7 @@ const OpticsParams& validated(const OpticsParams& o) {
                "finite, > 0 (mm)");
     require_in("refractive_index", o.refractive_index, 1.0, 4.0, "[1, 4]");
     require_in("frame_inner_radius_mm", o.frame_inner_radius_mm, 0.0, big, "finite, >= 0 (mm)");
+    require_in("lens_radius_mm", o.lens_radius_mm, 0.0, big, "finite, >= 0 (mm)");
     require_in("exposure", o.exposure, std::numeric_limits<double>::min(), big, "finite, > 0");
     return o;
 }
@@ -94,6 +96,22 @@ LanesN<N> ShadingModel::marker_absorption(const LaneOptics<N>& lanes, bool outer
                                           double path_mm) const {
     return (-(outer ? lanes.outer_absorption_per_mm : lanes.inner_absorption_per_mm) * path_mm)
         .exp();
+}
+
+bool ShadingModel::crosses_lens(const Vec3& origin_mm, const Vec3& direction, double t0,
+                                double t1) const {
+    const double R = m_optics.lens_radius_mm;
+    if (!(R > 0.0)) return false;
+    // The part of the segment below the rim plane...
+    if (direction.z() > 0.0) t1 = std::min(t1, -origin_mm.z() / direction.z());
+    else if (direction.z() < 0.0) t0 = std::max(t0, -origin_mm.z() / direction.z());
+    else if (!(origin_mm.z() < 0.0)) return false;
+    if (!(t0 < t1)) return false;
+    // ...comes closest to the axis at t, within [t0, t1].
+    const Eigen::Vector2d o = origin_mm.head<2>(), d = direction.head<2>();
+    const double dd = d.squaredNorm();
+    const double t = dd > 0.0 ? std::clamp(-o.dot(d) / dd, t0, t1) : t0;
+    return (o + t * d).squaredNorm() < R * R;
 }
 
 double ShadingModel::led_geometry(const Vec3& led_mm, const Vec3& p_mm, const Vec3& normal) const {

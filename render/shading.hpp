@@ -155,17 +155,15 @@ public:
     template <int N>
     LanesN<N> marker_absorption(const LaneOptics<N>& lanes, bool outer, double path_mm) const;
 
-    /// True if the segment origin + t * direction, t in (t0, t1), crosses the rim plane z = 0
-    /// on the frame (at a radius >= frame_inner_radius_mm). A segment that starts on or below
-    /// the plane and goes down does not cross it: the light cache's paths from the coating's
-    /// rim vertices (z = -4e-5 mm) reach the LEDs under the frame that way (docs/VALIDATION.md,
-    /// session 28, for why this stays for now).
+    /// True if the segment origin + t * direction, t in (t0, t1), is blocked by the mount:
+    /// it crosses the rim plane z = 0 on the frame (at a radius >= frame_inner_radius_mm), or
+    /// it enters the lens barrel (below the plane, within lens_radius_mm of the axis). A
+    /// segment that starts on or below the plane and goes down does not cross the plane: the
+    /// light cache's paths from the coating's rim vertices (z = -4e-5 mm) reach the LEDs under
+    /// the frame that way.
     bool crosses_frame(const Vec3& origin_mm, const Vec3& direction, double t0, double t1) const {
-        if (direction.z() == 0.0) return false;
-        const double t = -origin_mm.z() / direction.z();
-        if (!(t > t0 && t < t1)) return false;
-        return (origin_mm + t * direction).head<2>().squaredNorm() >=
-               m_optics.frame_inner_radius_mm * m_optics.frame_inner_radius_mm;
+        return crosses_rim_plane(origin_mm, direction, t0, t1) ||
+               crosses_lens(origin_mm, direction, t0, t1);
     }
 
     /// LED positions, mm: led_count points on the ring, the first on the +x axis.
@@ -173,6 +171,15 @@ public:
     const OpticsParams& optics() const { return m_optics; }
 
 private:
+    bool crosses_rim_plane(const Vec3& origin_mm, const Vec3& direction, double t0,
+                           double t1) const {
+        if (direction.z() == 0.0) return false;
+        const double t = -origin_mm.z() / direction.z();
+        if (!(t > t0 && t < t1)) return false;
+        return (origin_mm + t * direction).head<2>().squaredNorm() >=
+               m_optics.frame_inner_radius_mm * m_optics.frame_inner_radius_mm;
+    }
+    bool crosses_lens(const Vec3& origin_mm, const Vec3& direction, double t0, double t1) const;
     /// cos_emit cos_surface / d^2 of one LED before any occlusion, or zero if it faces away.
     double led_geometry(const Vec3& led_mm, const Vec3& p_mm, const Vec3& normal) const;
 

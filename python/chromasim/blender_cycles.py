@@ -12,7 +12,7 @@ model, not the importer's PBR approximation of it:
   Absorption, from attenuationColor over attenuationDistance); the outer markers scatter back
   diffusely on entry (front faces) with probability `scatter_fraction`;
 - LEDs: Lambertian emitters on their front (+z) face, black behind;
-- frame: black.
+- frame and lens barrel: black.
 The camera becomes Cycles' equidistant fisheye with the field of the camera's extras
 (2 x half_fov_deg). Output: linear RGB OpenEXR (Standard view transform, no denoising, no
 clamping, no glossy blur), box pixel filter.

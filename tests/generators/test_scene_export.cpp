@@ -105,6 +105,7 @@ TEST_CASE("a hand-made sensor frame written as .gltf and .glb reads back in metr
     optics.led_ring_radius_mm = 9.0;
     optics.led_z_mm = -2.0;
     optics.led_rgb = {0.5, 2.0, 0.25};
+    optics.lens_radius_mm = 7.0;
     const generators::SceneInfo info{"hand", 0.4, {{"frame", 7.0}, {"spec_hash", "abc"}}};
     const generators::GltfScene scene = generators::make_gltf_scene(frame, camera, optics, info);
 
@@ -132,7 +133,7 @@ TEST_CASE("a hand-made sensor frame written as .gltf and .glb reads back in metr
 
         // Meshes: names, counts, positions (mm -> m, z up -> y up), normals.
         const auto& meshes = back.scene.meshes;
-        REQUIRE(meshes.size() == 6);
+        REQUIRE(meshes.size() == 7);
         CHECK(meshes[0].name == "coating");
         CHECK(meshes[1].name == "inner_surface");
         CHECK(meshes[2].name == "inner_markers");
@@ -212,6 +213,21 @@ TEST_CASE("a hand-made sensor frame written as .gltf and .glb reads back in metr
             CHECK(std::abs(x.y()) < 1e-9);
             CHECK(std::hypot(x.x(), x.z()) >= optics.frame_inner_radius_mm - 1e-4);
         }
+        // The lens barrel: black, on the axis, of the lens radius, from just under the rim
+        // plane to below the LEDs.
+        const auto& barrel = meshes[6];
+        CHECK(barrel.name == "lens_barrel");
+        CHECK(barrel.material.base_color.head<3>().isZero());
+        double top = -1e9, bottom = 1e9;
+        for (Eigen::Index v = 0; v < barrel.surface.V.rows(); ++v) {
+            const Eigen::Vector3d x = barrel.surface.V.row(v).cast<double>().transpose();
+            const double r = std::hypot(x.x(), x.z());
+            CHECK((r < 1e-9 || r == Approx(optics.lens_radius_mm).epsilon(1e-6)));
+            top = std::max(top, x.y()), bottom = std::min(bottom, x.y());
+        }
+        CHECK(top < 0.0);
+        CHECK(top > -0.1);
+        CHECK(bottom < optics.led_z_mm);
 
         // Camera: the fisheye's pose, a 120 deg stand-in, the true intrinsics in its extras.
         REQUIRE(back.scene.camera.has_value());

@@ -136,7 +136,7 @@ TEST_CASE("a minimal spec gets the documented defaults", "[generators][spec]") {
     CHECK(spec.sensor.camera_half_fov_deg == 84.0);
     CHECK(spec.sensor.led_count == 6);
     CHECK(spec.sensor.led_ring_radius_mm == 10.0);
-    CHECK(spec.sensor.led_z_mm == -1.0);
+    CHECK(spec.sensor.led_z_mm == -13.8);
     CHECK(spec.sensor.coating_albedo == Rgb{0.85, 0.85, 0.85});
     CHECK(spec.sensor.inner_marker_absorption_per_mm == Rgb{0.2, 3.0, 0.3});
     CHECK(spec.sensor.outer_marker_absorption_per_mm == Rgb{3.0, 0.3, 0.2});
