@@ -337,10 +337,10 @@ void bench_render(const RenderBenchOptions& o, std::ostream& out) {
     for (float v : ref.variance)
         ref_var += v;
     if (!ref.variance.empty()) ref_var /= double(ref.variance.size());
-    constexpr double kWhite = 0.8; // the undeformed apex's image value
+    constexpr double kWhite = 0.8; // the exposure reference's image value
     out << "render " << o.size_px << " x " << o.size_px << ", " << frame_name << ", error against "
         << reference_source << ", in % of the white level "
-        << "(0.8, the undeformed apex); RGB mode: the spectra "
+        << "(0.8, the exposure reference); RGB mode: the spectra "
         << "reduced to camera RGB (absorption at " << path_mm << " mm); times are medians of "
         << o.repeats << "; 'less ref noise': sqrt(RMS^2 - the reference's mean variance), the "
         << "error against the converged image (reference noise " << std::setprecision(2)

@@ -269,8 +269,8 @@ LightCacheOutcome prepare_renderer(render::Renderer& renderer, const Spec& spec,
                                    const render::OpticsParams& optics,
                                    const std::filesystem::path& cache_dir) {
     if (spec.render.integrator == "direct") return {};
-    // The path integrator's auto exposure: its own undeformed apex (render/renderer.hpp). The
-    // fast integrator uses the same, and its light cache (once per sensor).
+    // Auto exposure of the path and fast integrators: the path-traced bare dome at rest
+    // (render/renderer.hpp); the fast integrator also needs its light cache (once per sensor).
     renderer.set_exposure_reference(rest);
     if (spec.render.integrator != "fast") return {};
     return provide_light_cache(renderer, rest, optics, light_cache_settings(spec), cache_dir);

@@ -822,6 +822,21 @@ SchemaRule split_sum() {
     return r;
 }
 
+/// LEDs under the rim plane must lie beside the lens barrel, or it would hide them entirely.
+SchemaRule led_beside_lens() {
+    SchemaRule r;
+    r.key = "sensor.camera.lens_radius_mm";
+    r.holds = [](const Spec& s, std::size_t) {
+        const auto& c = s.sensor;
+        return !(c.led_z_mm < 0.0) || c.led_ring_radius_mm - 0.5 * c.led_height_mm > c.lens_radius_mm;
+    };
+    r.problem = "puts the lens barrel over the LEDs (below the rim plane, the barrel covers "
+                "the LEDs' rectangles)";
+    r.allowed = "lens_radius_mm below sensor.led.ring_radius_mm - sensor.led.height_mm / 2, or "
+                "sensor.led.z_mm >= 0";
+    return r;
+}
+
 /// The most frames a trial of `spec` can plan (the longest load ramp: the largest target at
 /// the smallest rate).
 double max_frames_per_trial(const Spec& s) {
@@ -977,6 +992,7 @@ std::vector<SchemaRule> build_rules() {
     for (const char* list : {"objects", "friction", "splits"})
         rules.push_back(unique_name(list));
     rules.push_back(split_sum());
+    rules.push_back(led_beside_lens());
     rules.push_back(slide_travel());
     rules.push_back(trial_length());
     return rules;

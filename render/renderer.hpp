@@ -47,8 +47,9 @@ public:
     /// The light cache in use, or nullptr.
     const LightCache* light_cache() const;
 
-    /// Renders the current frame. Linear RGB, auto-exposed so that the undeformed apex of a
-    /// white coating maps to about 0.8 (times OpticsParams::exposure).
+    /// Renders the current frame. Linear RGB, auto-exposed so that the undeformed dome's
+    /// brightest direction (set_exposure_reference; the direct integrator: its apex) maps to
+    /// about 0.8 (times OpticsParams::exposure).
     Image render(const RenderSettings& settings) const;
 
     /// Projects a 3D point (mm, camera frame) to pixel coordinates; nullopt if outside the

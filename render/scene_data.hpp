@@ -115,7 +115,7 @@ struct OpticsParams {
     /// the layers are index-matched among themselves (no other boundary refracts).
     double refractive_index = 1.4;
     Vec3 led_rgb{1.0, 1.0, 1.0}; ///< relative emission per LED (white)
-    double exposure = 1.0;       ///< multiplies the auto exposure (undeformed apex -> 0.8)
+    double exposure = 1.0;       ///< multiplies the auto exposure (the reference -> 0.8)
     /// Spectral mode when set: every camera sample carries 16 hero wavelengths (the fast
     /// integrator RenderSettings::fast_wavelengths); the coating,
     /// marker and LED spectra replace the RGB values above (the LED's relative intensity is

@@ -1,6 +1,6 @@
 #pragma once
 /// The camera sensor: turns the renderer's noise-free linear RGB (relative radiance, the
-/// undeformed apex at about 0.8) into what a camera records, linear values on the ADC's code
+/// exposure reference at about 0.8) into what a camera records, linear values on the ADC's code
 /// grid in [0, 1]. Optional (render.sensor.enabled); the sRGB encoding of the PNG stays in the
 /// PNG writer (generators/image_io.cpp), the one place of the sRGB curve.
 ///

@@ -137,7 +137,7 @@ TEST_CASE("export-scene writes any frame as glTF, reuses the cache, and refuses 
     for (const auto& m : scene.meshes)
         names.push_back(m.name);
     CHECK(names == std::vector<std::string>{"coating", "inner_surface", "inner_markers",
-                                            "outer_markers", "leds", "frame"});
+                                            "outer_markers", "leds", "frame", "lens_barrel"});
     CHECK(scene.meshes[0].surface.V.rows() > 100);
     CHECK(scene.meshes[2].surface.F.rows() == 82 * 48); // 82 prisms of 48 triangles per layer
     CHECK(scene.meshes[3].surface.F.rows() == 82 * 48);

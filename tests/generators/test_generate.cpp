@@ -378,7 +378,7 @@ TEST_CASE("EXR output: linear RGB like the PNG, marker ids and variance channels
     const fs::path spec_file = dir / "exr.yaml";
     {
         std::ofstream f(spec_file);
-        f << "name: exr\nrender:\n  width_px: 64\n  height_px: 64\n  samples_per_pixel: 2\n"
+        f << "name: exr\nrender:\n  width_px: 64\n  height_px: 64\n  samples_per_pixel: 2\n  integrator: direct\n"
           << press_only(1)
           << "outputs:\n  exr: true\n  marker_ids: true\n  variance: true\n  markers: false\n";
     }
@@ -424,7 +424,7 @@ TEST_CASE("EXR output: linear RGB like the PNG, marker ids and variance channels
     // The EXR alone: no PNG, and the images folder still made for it.
     {
         std::ofstream f(spec_file);
-        f << "name: exr_only\nrender:\n  width_px: 32\n  height_px: 32\n  samples_per_pixel: 1\n"
+        f << "name: exr_only\nrender:\n  width_px: 32\n  height_px: 32\n  samples_per_pixel: 1\n  integrator: direct\n"
           << press_only(1) << "outputs:\n  images: false\n  exr: true\n  markers: false\n";
     }
     options.out_dir = dir / "exr_only";
@@ -444,7 +444,7 @@ TEST_CASE("render.sensor: the PNG is the sensor's recording, the EXR stays the n
     auto run = [&](const std::string& name, const std::string& sensor) {
         const fs::path spec_file = dir / (name + ".yaml");
         std::ofstream(spec_file)
-            << "name: sensor\nrender:\n  width_px: 48\n  height_px: 48\n  samples_per_pixel: 1\n"
+            << "name: sensor\nrender:\n  width_px: 48\n  height_px: 48\n  samples_per_pixel: 1\n  integrator: direct\n"
             << sensor << press_only(2) << "outputs:\n  exr: true\n  markers: false\n";
         options.out_dir = dir / name;
         std::ostringstream log;

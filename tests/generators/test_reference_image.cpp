@@ -20,7 +20,7 @@ TEST_CASE("the undeformed dome, path-traced afresh, matches the committed refere
                                         "data" / "reference_dome_path.exr");
     REQUIRE(ref.width == kReferenceDomeSize_px);
     REQUIRE(ref.height == kReferenceDomeSize_px);
-    const render::Image img = render_reference_dome(64, 2);
+    const render::Image img = render_reference_dome(192, 2);
     const char* channel[3] = {"R", "G", "B"};
     for (int c = 0; c < 3; ++c) {
         // Per channel over the image: the mean difference against its standard error, and the
