@@ -111,6 +111,15 @@ GltfMesh led_rectangles(const render::OpticsParams& o) {
     return m;
 }
 
+/// A mesh of the mount: black, matte, seen from both sides.
+GltfMesh black_absorber(GltfMesh m) {
+    m.material.base_color = {0.0, 0.0, 0.0, 1.0};
+    m.material.roughness = 1.0;
+    m.material.double_sided = true;
+    m.material.extras = {{"chromasim_optics", std::string("black absorber")}};
+    return m;
+}
+
 /// The rigid frame that clamps the dome: black, in the rim plane z = 0, from the renderer's
 /// frame_inner_radius_mm outwards.
 GltfMesh frame_plane(const render::OpticsParams& o) {
@@ -126,12 +135,7 @@ GltfMesh frame_plane(const render::OpticsParams& o) {
         s.F.row(2 * k) << i, i + 1, j + 1; // counter-clockwise seen from +z
         s.F.row(2 * k + 1) << i, j + 1, j;
     }
-    GltfMesh m = mesh("frame", s, false);
-    m.material.base_color = {0.0, 0.0, 0.0, 1.0};
-    m.material.roughness = 1.0;
-    m.material.double_sided = true;
-    m.material.extras = {{"chromasim_optics", std::string("black absorber")}};
-    return m;
+    return black_absorber(mesh("frame", s, false));
 }
 
 /// The camera's lens barrel: a black closed cylinder about the z axis of radius
@@ -157,12 +161,7 @@ GltfMesh lens_barrel(const render::OpticsParams& o) {
         s.F.row(4 * k + 2) << tc, i, j;
         s.F.row(4 * k + 3) << bc, j + 1, i + 1;
     }
-    GltfMesh m = mesh("lens_barrel", s, false);
-    m.material.base_color = {0.0, 0.0, 0.0, 1.0};
-    m.material.roughness = 1.0;
-    m.material.double_sided = true;
-    m.material.extras = {{"chromasim_optics", std::string("black absorber")}};
-    return m;
+    return black_absorber(mesh("lens_barrel", s, false));
 }
 
 /// The fisheye's intrinsics in OpenCV's cv::fisheye convention (the equidistant camera's

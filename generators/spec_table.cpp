@@ -268,10 +268,11 @@ void add_sensor_optics(std::vector<SchemaEntry>& out) {
                          "(equidistant) or of the imaged field (kannala_brandt).",
                          CHROMASIM_FIELD(sensor.camera_half_fov_deg)));
     add_camera_model(out);
-    out.push_back(number("sensor.camera.lens_radius_mm", 8, closed(0, 10.5), "mm",
-                         "Radius of the camera's lens barrel, a black cylinder from the rim plane "
-                         "down (FUSE CAD [K]; 0: none); it hides LEDs below the rim from most of the dome.",
-                         CHROMASIM_FIELD(sensor.lens_radius_mm)));
+    out.push_back(
+        number("sensor.camera.lens_radius_mm", 8, closed(0, 10.5), "mm",
+               "Radius of the camera's lens barrel, a black cylinder from the rim plane "
+               "down (FUSE CAD [K]; 0: none); it hides LEDs below the rim from most of the dome.",
+               CHROMASIM_FIELD(sensor.lens_radius_mm)));
     out.push_back(integer("sensor.led.count", 6, closed(1, 64), "",
                           "Number of LEDs on the ring (6 on the real board).",
                           CHROMASIM_FIELD(sensor.led_count)));
@@ -828,7 +829,8 @@ SchemaRule led_beside_lens() {
     r.key = "sensor.camera.lens_radius_mm";
     r.holds = [](const Spec& s, std::size_t) {
         const auto& c = s.sensor;
-        return !(c.led_z_mm < 0.0) || c.led_ring_radius_mm - 0.5 * c.led_height_mm > c.lens_radius_mm;
+        return !(c.led_z_mm < 0.0) ||
+               c.led_ring_radius_mm - 0.5 * c.led_height_mm > c.lens_radius_mm;
     };
     r.problem = "puts the lens barrel over the LEDs (below the rim plane, the barrel covers "
                 "the LEDs' rectangles)";

@@ -938,7 +938,8 @@ void Renderer::set_exposure_reference(const SensorFrame& undeformed) {
         detail::PixelRng rng(0xA9E7, std::uint64_t(job));
         for (int i = 0; i < kPathsPerBlock; ++i) {
             const double u_lambda = m.wavelengths ? (i + rng.uniform()) / kPathsPerBlock : 0.0;
-            partial[std::size_t(job)] += m.sample_rgb(apex, origin, w, Integrator::path, u_lambda, rng);
+            partial[std::size_t(job)] +=
+                m.sample_rgb(apex, origin, w, Integrator::path, u_lambda, rng);
         }
     });
     double reference = 0.0;

@@ -103,9 +103,12 @@ bool ShadingModel::crosses_lens(const Vec3& origin_mm, const Vec3& direction, do
     const double R = m_optics.lens_radius_mm;
     if (!(R > 0.0)) return false;
     // The part of the segment below the rim plane...
-    if (direction.z() > 0.0) t1 = std::min(t1, -origin_mm.z() / direction.z());
-    else if (direction.z() < 0.0) t0 = std::max(t0, -origin_mm.z() / direction.z());
-    else if (!(origin_mm.z() < 0.0)) return false;
+    if (direction.z() > 0.0)
+        t1 = std::min(t1, -origin_mm.z() / direction.z());
+    else if (direction.z() < 0.0)
+        t0 = std::max(t0, -origin_mm.z() / direction.z());
+    else if (!(origin_mm.z() < 0.0))
+        return false;
     if (!(t0 < t1)) return false;
     // ...comes closest to the axis at t, within [t0, t1].
     const Eigen::Vector2d o = origin_mm.head<2>(), d = direction.head<2>();

@@ -674,8 +674,8 @@ TEST_CASE("cross-key rules of the trial keys", "[generators][spec]") {
     CHECK_THAT(error_of("sensor:\n  camera: {lens_radius_mm: 9}\n"),
                StartsWith("bad.yaml:2:12: sensor.camera.lens_radius_mm: value '9.0' puts the lens "
                           "barrel over the LEDs"));
-    CHECK_NOTHROW(parse_spec("sensor:\n  camera: {lens_radius_mm: 9}\n  led: {z_mm: 1}\n",
-                             "ok.yaml"));
+    CHECK_NOTHROW(
+        parse_spec("sensor:\n  camera: {lens_radius_mm: 9}\n  led: {z_mm: 1}\n", "ok.yaml"));
     CHECK(error_of("fingers: {count: 3}\n") ==
           "bad.yaml:1:18: fingers.count: value '3' is out of range; allowed: integer in [1, 2]");
     CHECK(error_of("sampling: {method: grid}\n") ==

@@ -396,3 +396,15 @@ TEST_CASE("the mount blocks a segment exactly where it crosses the frame or ente
     CHECK(blocked(with, Vec3(11, 0, -1), Vec3(11, 0, 1)));
     CHECK(blocked(without, Vec3(11, 0, -1), Vec3(11, 0, 1)));
 }
+
+TEST_CASE("with the LEDs deep under the rim, through a pressed inner surface, next-event "
+          "estimation with MIS agrees with BSDF sampling alone",
+          "[render][path]") {
+    OpticsParams fuse;
+    fuse.led_z_mm = -13.8;
+    fuse.lens_radius_mm = 8.0;
+    check_mis_agrees(
+        pressed_smooth(clear_dome(48, 192, 48, 192)),
+        {Vec3(0, 0, 1), Vec3(unit_from_angles(20.0, 0.0)), Vec3(unit_from_angles(60.0, 30.0))},
+        30000, 1200000, fuse, 0.025);
+}
