@@ -561,7 +561,7 @@ float FastIntegrator::frame_share(const Vec3& p, double radius_mm, Exit&& exit_t
             if (!exit) continue;
             const Vec3 segment = p - *exit;
             const double length = segment.norm();
-            blocked += m_shading.crosses_frame(*exit, segment / length, kHitGap_mm,
+            blocked += m_shading.crosses_mount(*exit, segment / length, kHitGap_mm,
                                                length - kHitGap_mm);
         }
     return float(blocked) / float(kFrameShareGrid * kFrameShareGrid);
@@ -1116,7 +1116,7 @@ LanesN<N> FastIntegrator::shadow_transmittance(const EmbreeScene& scene, const V
     // This also tests the frame's plane. Near the rim the sphere model's exit lies below
     // z = 0, where no real connection goes, so it blocks light the cache counts as unshadowed
     // (and is the noise of the field's outer ring); it happens to offset the light the cache's
-    // rim vertices gather from under the frame (ShadingModel::crosses_frame). Why neither is
+    // rim vertices gather from under the frame (ShadingModel::crosses_mount). Why neither is
     // removed alone: docs/VALIDATION.md, session 28.
     // Where the frame's share is taken off G_k (LightCacheSettings::frame_share), not again.
     return m_shading.transmittance(scene, *exit, p, lanes, kHitGap_mm, !frame_apart);
@@ -1310,7 +1310,7 @@ FastIntegrator::Level FastIntegrator::classify(const Vec3& o, const Vec3& d, dou
     const double eta = m_shading.optics().refractive_index;
     Level level;
     const double tfar = hit.hit() ? hit.t_mm : inf;
-    if (m_shading.crosses_frame(o, d, tnear, tfar)) return level;
+    if (m_shading.crosses_mount(o, d, tnear, tfar)) return level;
     if (const auto led = m_path.led_hit(o, d, tnear, tfar)) {
         if (led->second) level.then = Then::led;
         return level;

@@ -377,7 +377,7 @@ private:
     /// The frame's share of an LED's light at p (the sphere model's radius below it
     /// `radius_mm`): of kFrameShareGrid^2 points (u1, u2) of the LED (their cells' centres),
     /// the fraction whose shadow path from where it leaves the layers, exit_towards(u1, u2)
-    /// (none: no path), to p crosses the frame's plane (ShadingModel::crosses_frame).
+    /// (none: no path), to p crosses the frame's plane (ShadingModel::crosses_mount).
     template <class Exit>
     float frame_share(const Vec3& p, double radius_mm, Exit&& exit_towards) const;
     /// Per frame (after the frame's radii, corrections and guesses): the shares at the

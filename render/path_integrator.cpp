@@ -541,7 +541,7 @@ std::optional<double> PathIntegrator::arriving_cosine(const EmbreeScene& scene,
         const Vec3 seg = to - from;
         const double len = seg.norm();
         if (len > 2.0 * kHitGap_mm &&
-            (m_shading.crosses_frame(from, seg / len, 0.0, len) ||
+            (m_shading.crosses_mount(from, seg / len, 0.0, len) ||
              scene.closest_hit(from, seg / len, kHitGap_mm, len - kHitGap_mm).hit()))
             return std::nullopt;
     }
@@ -592,7 +592,7 @@ Vec3 PathIntegrator::led_flux_sample(const EmbreeScene& scene, const Vec3& p, co
         const Vec3 w = to_led / std::sqrt(d2);
         const double cos_p = n.dot(w), cos_l = -w.z();
         if (!(cos_p > 0.0 && cos_l > 0.0)) return Vec3::Zero();
-        if (m_shading.crosses_frame(p, w, 0.0, std::sqrt(d2)) ||
+        if (m_shading.crosses_mount(p, w, 0.0, std::sqrt(d2)) ||
             scene.closest_hit(p, w, kHitGap_mm, std::sqrt(d2) - kHitGap_mm).hit())
             return Vec3::Zero();
         return (cos_l / d2) * w;
@@ -749,7 +749,7 @@ LanesN<N> PathIntegrator::trace(const EmbreeScene& scene, const Vec3& origin, co
         if (!hits) hits.emplace(scene, o, d, tnear, inf);
         const RayHit hit = hits->next(tnear);
         const double tfar = hit.hit() ? hit.t_mm : inf;
-        if (m_shading.crosses_frame(o, d, tnear, tfar)) break; // absorbed by the black frame
+        if (m_shading.crosses_mount(o, d, tnear, tfar)) break; // absorbed by the black frame
         if (const auto led = led_hit(o, d, tnear, tfar)) {
             if (!led->second) break; // the black back of an LED
             double weight = 1.0;

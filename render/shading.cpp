@@ -163,7 +163,7 @@ LanesN<N> ShadingModel::transmittance(const EmbreeScene& scene, const Vec3& from
     const double tfar_mm = length_mm - kHitGap_mm;
     if (!(tfar_mm > tnear_mm)) return LanesN<N>::Ones();
     const Vec3 w = segment / length_mm;
-    if (frame && crosses_frame(from_mm, w, tnear_mm, tfar_mm)) return LanesN<N>::Zero();
+    if (frame && crosses_mount(from_mm, w, tnear_mm, tfar_mm)) return LanesN<N>::Zero();
     LanesN<N> result = LanesN<N>::Ones();
     MarkerPath path(tnear_mm);
     RayHits hits(scene, from_mm, w, tnear_mm, tfar_mm, kSeenThroughInterface);

@@ -142,7 +142,7 @@ public:
     /// coating is in the way.
     /// `tnear_mm` > 0 skips the start of the segment (a start on a surface). The inner surface
     /// (the air / clear-layer interface) does not attenuate: callers that refract handle it.
-    /// A segment across the frame (crosses_frame) is blocked, unless `frame` is false (the
+    /// A segment across the frame (crosses_mount) is blocked, unless `frame` is false (the
     /// fast integrator's shadow rays where it takes the frame's share off apart).
     template <int N>
     LanesN<N> transmittance(const EmbreeScene& scene, const Vec3& from_mm, const Vec3& to_mm,
@@ -161,7 +161,7 @@ public:
     /// segment that starts on or below the plane and goes down does not cross the plane: the
     /// light cache's paths from the coating's rim vertices (z = -4e-5 mm) reach the LEDs under
     /// the frame that way.
-    bool crosses_frame(const Vec3& origin_mm, const Vec3& direction, double t0, double t1) const {
+    bool crosses_mount(const Vec3& origin_mm, const Vec3& direction, double t0, double t1) const {
         return crosses_rim_plane(origin_mm, direction, t0, t1) ||
                crosses_lens(origin_mm, direction, t0, t1);
     }

@@ -384,7 +384,7 @@ TEST_CASE("the mount blocks a segment exactly where it crosses the frame or ente
     const ShadingModel with(optics), without(OpticsParams{});
     const auto blocked = [](const ShadingModel& s, const Vec3& a, const Vec3& b) {
         const Vec3 d = b - a;
-        return s.crosses_frame(a, d.normalized(), 0.0, d.norm());
+        return s.crosses_mount(a, d.normalized(), 0.0, d.norm());
     };
     const Vec3 led(10.0, 0.0, -13.8);
     // From an LED to the apex: across the axis below the rim, inside the barrel.
