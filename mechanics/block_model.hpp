@@ -15,7 +15,7 @@ namespace chromasim::mechanics {
 
 struct BlockParams {
     /// The block is [-w, w]^2 x [-depth, 0]. With the far field on its boundary, 20 mm (8 to
-    /// 11 contact radii) gives the same approach as 40 mm within 0.05 % (VALIDATION.md).
+    /// 11 contact radii) gives the same approach as 40 mm within 0.05 %.
     double half_width_mm = 20.0;
     double depth_mm = 20.0;
     Material material{1.0, 0.49};

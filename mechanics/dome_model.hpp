@@ -34,7 +34,7 @@ struct DomeModelOptions {
     /// nearly incompressible layers.
     Volumetric volumetric = Volumetric::nodal_average;
     /// The library's default is the small-strain model, the building block its tests check
-    /// against analytic answers; a spec's default is neo_hookean (generators/spec_table.cpp).
+    /// against analytic answers; a spec's default is neo_hookean (generators/spec/spec_table.cpp).
     MaterialModel material = MaterialModel::linear;
     HyperelasticOptions hyperelastic;
     /// Folder of the on-disk cache of mesh and responses (empty: no cache). Entries are keyed

@@ -50,7 +50,8 @@ enum class SceneUpdate : std::uint8_t {
     refitted, ///< same topology everywhere: vertices copied in place, BVHs refitted
 };
 
-/// Embree device + scene with the coating, inner-marker and outer-marker triangle meshes.
+/// Embree device + scene with the coating, inner-marker, outer-marker and inner-surface
+/// triangle meshes.
 /// Vertex and index arrays are owned here (Eigen, row-major, the vertex array padded by one
 /// row as Embree requires) and shared with Embree without further copies. Ray queries are
 /// thread-safe once `set_frame` has returned; `set_frame` itself must not run concurrently
@@ -136,9 +137,9 @@ private:
 };
 
 /// A ray's hits in order of distance, as successive EmbreeScene::closest_hit calls with
-/// growing tnear would give them, from one traversal (markers_then_hit) while they can: a
-/// shadow ray through a marker was three traversals (entry, exit, nothing), the camera ray's
-/// path through the layers one per marker face plus the coating.
+/// growing tnear would give them, from one traversal (markers_then_hit) while they can, where
+/// successive closest_hit calls take three traversals for a shadow ray through a marker
+/// (entry, exit, nothing) and one per marker face plus the coating for a camera ray.
 class RayHits {
 public:
     RayHits(const EmbreeScene& scene, const Vec3& origin_mm, const Vec3& direction, double tnear_mm,

@@ -1,7 +1,8 @@
 #pragma once
 /// The fast integrator: the path integrator's light transport with the light that barely
 /// changes between frames computed once per sensor (the light cache) and rays spent only on
-/// what moves.
+/// what moves. The code: fast_light_cache.cpp (the light cache), fast_frame.cpp (a frame's
+/// update and shadow-ray culling), fast_integrator.cpp (the samples), fast_common.hpp.
 ///
 /// Split. The radiance a camera ray brings back from the coating point x (or from an outer
 /// marker it enters) is albedo / pi times the irradiance there, and that irradiance is
@@ -19,8 +20,8 @@
 ///     ratio, kCacheBsdfPerNee), and the same for a point LED at the LED's centre
 ///     (PathIntegrator::led_flux_point, deterministic); and per coating edge, V_k at its
 ///     midpoint less the mean of its ends' (the quadratic term: near the rim the LEDs are
-///     close and G_k curves within a 1.2 mm triangle; linear interpolation left the rim 2 %
-///     dark at rest, 1.3 % with this term);
+///     close and G_k curves within a 1.2 mm triangle, so linear interpolation alone leaves
+///     the rim about 2 % dark at rest);
 ///   - the indirect irradiance / pi by path tracing on the dome with its markers
 ///     (PathIntegrator::indirect, `paths_per_vertex` paths) at two levels: at the coating, and
 ///     above the outer marker layer (where the markers' inner faces are). A vertex an outer
@@ -36,53 +37,53 @@
 /// Per frame (set_frame): the cache moves with the coating's vertices (the same material
 /// points). V_k is the cached (area LED) V_k at rest turned and scaled as the point LED's
 /// vector irradiance changed from rest to this frame's inner surface (the deformation changes
-/// the refraction a lot near the rim: a straight-line correction left 5 % RMS in G_k there),
-/// one Newton solve per LED, Chain and vertex. (Taking the point LED's direction with the area
-/// LED's length instead left G_k 1 % low at the apex and 3 to 5 % low near the LEDs at rest:
-/// the area LED's vector is weighted by MIS between the Chains, the point LED's is not, so
-/// they point differently.) Also per frame: the radius of the inner surface below each vertex
-/// (one ray); per vertex and LED, the refracted solve's direction less the sphere model's
-/// (the shadow rays' correction). The indirect light is the cache's times one factor per
-/// frame: the LEDs' unshadowed flux onto the coating (the frame's G_k on its normals times
-/// its vertices' areas) over the same at rest. In a cavity whose losses are mostly its fixed
-/// black base, the interreflected light follows the light put in: a 5 N press takes 7.5 % of
-/// it off, and the rest cache then left the image 3.5 % of white too bright on average; the
-/// factor takes the bias at 5 N from 4.3 to 3.0 % RMS with 256 cache paths (docs/VALIDATION.md).
-/// Where the point LED's light at a vertex changed by more than `refresh_threshold` of its rest
-/// value (near a contact), the rest relation is stale (at 5 N the rest ratio left 4.4 % RMS of
-/// the 5.8 % bias against the path integrator): the vertex's light from that LED is estimated anew
-/// as the cache does (`direct_samples` points, the same MIS weights, a fixed stream per vertex and
-/// LED).
+/// the refraction a lot near the rim, which a straight-line model misses), one
+/// Newton solve per LED, Chain and vertex. (Only the change comes from the point LED: the area
+/// LED's vector is weighted by MIS between the Chains, the point LED's is not, so they point
+/// differently.) Also per frame: the radius of the inner surface below each vertex (one ray);
+/// per vertex and LED, the refracted solve's direction less the sphere model's (the shadow
+/// rays' correction). The indirect light is the cache's, or with
+/// LightCacheSettings::scale_indirect (off by default) the cache's times one factor per frame:
+/// the LEDs' unshadowed flux onto the coating (the frame's G_k on its normals times its
+/// vertices' areas) over the same at rest (in a cavity whose losses are mostly its fixed black
+/// base, the interreflected light follows the light put in). With
+/// LightCacheSettings::refresh_direct, where the point LED's light at a vertex changed by more
+/// than `refresh_threshold` of its rest value (near a contact), the rest relation is stale:
+/// the vertex's light from that LED is estimated anew as the cache does (`direct_samples`
+/// points, the same MIS weights, a fixed stream per vertex and LED).
 ///
 /// Per camera sample: the camera ray meets the inner surface and splits deterministically:
 /// (1 - F) refracts into the layers, F reflects into the cavity and is followed to the LED it
 /// may hit or the dome wall it meets (which it enters with (1 - F') and is shaded like a
-/// refracted ray; the further reflection F F' is left out). In the layers the ray crosses the
+/// refracted ray; the further reflection F F' is left out; with
+/// LightCacheSettings::unshadowed_reflections a reflection whose share is below
+/// kUnshadowedReflection is shaded without shadow rays). In the layers the ray crosses the
 /// markers (Beer-Lambert; an outer marker scatters the share `outer_marker_scatter_fraction`
 /// of what enters it, shaded with the light above the marker layer) to the coating, where the
 /// cache is interpolated with the hit's barycentric coordinates (V_k quadratically: the
 /// corners' values linearly plus each edge's term times its bubble 4 w_i w_j, scaled per
 /// frame by the change of the edge's ends) and G_k taken on the hit triangle's normal. Below an
 /// outer marker the indirect term is the light above it times (1 - scatter fraction) times the
-/// marker's diffuse transmittance 2 E_3(a t), t its thickness along the normal. T_k: one shadow ray
-/// to a random point on one LED drawn with probability G_k / sum G, along the sphere model's
-/// refraction through the inner surface below the point (PathIntegrator::refracted_direction) plus
-/// the frame's correction, interpolated over the hit triangle: the sphere model alone is 0.08 rad
-/// off near a flattened contact, 0.008 rad with the correction (tests/render/test_fast.cpp).
+/// marker's diffuse transmittance 2 E_3(a t), t its thickness along the normal. T_k: the mean
+/// of the sample's shadow rays (ShadowDraw), each to a point on one LED drawn with probability
+/// G_k / sum G, along the sphere model's refraction through the inner surface below the point
+/// (SphereRefraction: by Newton from the frame's per-vertex guess with
+/// LightCacheSettings::cull_shadows, else over the whole bracket) plus the frame's correction,
+/// interpolated over the hit triangle: the sphere model alone is 0.08 rad off near a flattened
+/// contact, 0.008 rad with the correction (tests/render/test_fast.cpp).
 /// Near the rim the sphere model's shadow paths leave the layers below the rim plane, and the
-/// frame's plane blocks some (docs/VALIDATION.md, session 28: an artefact that offsets the
-/// cache's light from under the frame). With LightCacheSettings::frame_share, the share of
-/// LED k's light so blocked is taken per frame at the corners and edge midpoints of the
-/// triangles that had one at rest (8 x 8 LED points each, the shadow rays' own paths),
-/// interpolated as G_k and taken off it; the shadow rays to LED k from those triangles leave
-/// the plane out. The same mean without that binary noise: at 224 px it was a fifth of the
-/// image's squared error, in the field's outer ring (session 31).
+/// frame's plane blocks some (an artefact that offsets the cache's light from under the
+/// frame). With LightCacheSettings::frame_share, the share of LED k's light so blocked is
+/// taken per frame at the corners and edge midpoints of the triangles that had one at rest
+/// (8 x 8 LED points each, the shadow rays' own paths), interpolated as G_k and taken off it;
+/// the shadow rays to LED k from those triangles leave the plane out: the same mean without
+/// the binary noise those rays make in the field's outer ring.
 ///
-/// What it leaves out or approximates, each part of its measured error against the path
-/// integrator (docs/VALIDATION.md): the indirect light's change with the deformation beyond the
-/// one factor (at 5 N the contact stays about 5 % of white too bright) and with the markers'
-/// motion; the finite LED's change under deformation beyond the point LED's; the
-/// shadow of the LED seen by reflection in the cavity wall (taken as the refracted one's); the
+/// What it leaves out or approximates, each part of its error against the path integrator:
+/// the indirect light's change with the deformation (the contact under a hard press stays a
+/// few % of white too bright) and with the markers' motion; the finite LED's change under
+/// deformation beyond the point LED's; the shadow of the LED seen by reflection in the
+/// cavity wall (taken as the refracted one's); the
 /// cache's resolution (the coating mesh's vertices, about 1.2 mm apart on the coarse mesh,
 /// against 1 mm markers) and smoothing; F F' and higher cavity reflections of camera rays.
 #include "render/path_integrator.hpp"
@@ -120,12 +121,11 @@ template <int N> struct CacheLambdas {
 /// The ratio of indirect paths to LED points per vertex that the light cache's MIS weights
 /// between the two assume: 4, whatever the sample counts. Any fixed ratio keeps the weights a
 /// partition of unity (the sum stays unbiased); a fixed one keeps the split between the direct
-/// light, which each frame updates vertex by vertex, and the indirect light, which it only
-/// scales, where it is. With the actual counts, 4096 paths moved so much of the LEDs' light
-/// into the indirect term that the bias at 5 N went from 3.0 to 4.4 %. And a low ratio leaves
-/// the light near the LEDs to the direct term (interpolated quadratically, not smoothed): at
-/// 1024 paths, ratios 1, 2, 4 and 16 left 1.76, 1.74, 1.71 and 1.89 % at rest and 2.15, 2.15,
-/// 2.14 and 2.37 % at 5 N (docs/VALIDATION.md).
+/// light, which each frame updates vertex by vertex, and the indirect light, which it at most
+/// scales, where it is: with the actual counts, many paths would move much of the LEDs' light
+/// into the indirect term and raise the bias under a press. A low ratio leaves the light near
+/// the LEDs to the direct term (interpolated quadratically, not smoothed); 4 is about the
+/// best of 1, 2, 4 and 16 at rest and at 5 N.
 inline constexpr double kCacheBsdfPerNee = 4.0;
 
 /// The most shadow rays one camera sample traces from its coating hit (ShadowDraw::rays).
@@ -152,7 +152,7 @@ struct ShadowDraw {
 
 /// The shadow filter (RenderSettings::shadow_filter_px, render/shadow_filter.hpp) takes the
 /// fraction of the LEDs' light that gets through the shadows per group of LEDs, from the
-/// samples whose shadow ray went to that group: LED k of n in group k g / n, g = min(n,
+/// shadow rays that went to that group: LED k of n in group k g / n, g = min(n,
 /// kMaxShadowGroups) groups (one per LED on the real board's 6).
 inline int shadow_group(int k, int leds, int groups) {
     return leds == groups ? k : k * groups / leds; // no division with up to 8 LEDs
@@ -210,7 +210,7 @@ public:
     /// (a stream per vertex).
     void build_cache(const SensorFrame& undeformed, const render::LightCacheSettings& settings,
                      const SensorSpectra* spectra, double led_scale);
-    /// Uses a cache built before (read from disk: generators/light_cache_store.hpp) instead
+    /// Uses a cache built before (read from disk: generators/pipeline/light_cache_store.hpp) instead
     /// of building one; frames must then match its coating (check_topology).
     /// `settings`: those it was built with, and the per-frame refresh. `undeformed`: the
     /// sensor at rest it was built on, where the point LEDs' connections are found again
@@ -276,7 +276,9 @@ public:
 
     /// The shadow ray's direction from `p_mm`, the point of coating triangle `prim` at
     /// barycentric coordinates (u, v), towards `led_point_mm` on LED k, as the samples take it
-    /// (for tests and diagnostics). Pre-condition: set_frame with an inner surface.
+    /// but with the sphere model solved over the whole bracket (the samples' Newton start,
+    /// with the culling, stops about 1e-5 rad from it on average), for tests and diagnostics.
+    /// Pre-condition: set_frame with an inner surface.
     Vec3 shadow_direction(std::uint32_t prim, double u, double v, const Vec3& p_mm, int k,
                           const Vec3& led_point_mm) const;
 
@@ -423,7 +425,7 @@ private:
     /// the LED's centre (the Newton solve on the deformed inner surface) less the sphere
     /// model's direction from the same point; zero where the solve found none.
     std::vector<float> m_shadow;
-    /// Shadow-ray culling (LightCacheSettings::cull_shadows; docs/VALIDATION.md). Per vertex
+    /// Shadow-ray culling (LightCacheSettings::cull_shadows). Per vertex
     /// and LED k, [(vertex * leds + k) * 9]: the sphere model's direction from the vertex to
     /// the LED's centre and its change across the LED's width and height (per unit of the
     /// sample's u1, u2), interpolated over the hit triangle: the start of each shadow ray's

@@ -18,8 +18,8 @@ namespace {
 
 constexpr double kDeg = std::numbers::pi / 180.0;
 
-/// half_fov_deg in radians, rounded as the equidistant camera always has (images stay bit for
-/// bit the same).
+/// half_fov_deg in radians, rounded as the equidistant camera rounds it (the same images bit
+/// for bit).
 double half_fov_rad_of(const CameraParams& p) {
     return p.half_fov_deg * std::numbers::pi / 180.0;
 }

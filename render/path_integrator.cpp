@@ -21,10 +21,8 @@ constexpr double kInvPi = 1.0 / std::numbers::pi;
 constexpr double kConnectTolerance_mm = 1e-6;
 constexpr int kConnectIterations = 24;
 /// Newton iterates in a row no closer to the LED point than the best before them, after which
-/// a connection's solve gives up. In a frame update at 1.5 N + 0.6 N, 161 of its 12887 solves
-/// used to run all 24 iterations (and 286 more end in a step no halving could take), a
-/// quarter of its evaluations; 3 in a row moved the image's distance to the reference from
-/// 0.880 to 0.886 % of white, 4 kept it at 0.881 % (docs/VALIDATION.md, session 32).
+/// a connection's solve gives up: a solve with no connection near otherwise runs all
+/// kConnectIterations. 4 keeps the image's error as without the limit; 3 raises it.
 constexpr int kConnectStall = 4;
 /// Largest Newton step on the direction (rad): keeps the walk on the surface it started on.
 constexpr double kConnectMaxStep = 0.1;
@@ -63,7 +61,7 @@ Tangents normalized_derivative(const Vec3& unit, double length, const Tangents& 
 /// cavity side; then on to the plane z = led_z. With `J`, also the 2 x 2 Jacobian of the
 /// LED-plane point (x, y) with respect to w in the tangent coordinates (b1, b2) of w
 /// (orthonormal_basis; an isometry to first order, so |det J| is per steradian), carried
-/// exactly through each step with the value (forward differences took two more passes; the
+/// exactly through each step with the value (no extra passes for finite differences; the
 /// Fresnel factors are not differentiated).
 std::optional<PlanePoint> to_led_plane(const EmbreeScene::Triangle* tris, Chain chain,
                                        const Vec3& p, const Vec3& w, double eta, double led_z,
@@ -168,7 +166,8 @@ constexpr int kMirrorScan = 64;
 /// The reflections of a -> l off the inside of the sphere about the origin of radius R (a on
 /// the sphere, l inside): the angles of the points x where the mirror law holds,
 /// (x - a)^ . tau = (l - x)^ . tau, in the plane of O, a and l (e1 = a^), found by scanning
-/// the circle and bisecting each sign change; arcs below the rim plane z = 0 are skipped.
+/// the circle and refining each sign change by regula falsi (illinois); arcs below the rim
+/// plane z = 0 are skipped.
 std::vector<Vec3> sphere_reflections(const Vec3& a, const Vec3& l, double R) {
     const Vec3 e1 = a.normalized();
     Vec3 e2 = l - l.dot(e1) * e1;
@@ -176,8 +175,8 @@ std::vector<Vec3> sphere_reflections(const Vec3& a, const Vec3& l, double R) {
     e2.normalize();
     // In the plane's coordinates a = (R, 0), l = (lx, ly), x = R (c, s) and tau = (-s, c), so
     // (x - a) . tau = R s and (l - x) . tau = ly c - lx s: a few flops and two square roots
-    // where the vectors took two normalisations (a direction of zero length counts as zero,
-    // as normalized() leaves it).
+    // instead of two vector normalisations (a direction of zero length counts as zero, as
+    // normalized() leaves it).
     const double lx = l.dot(e1), ly = l.dot(e2);
     auto mismatch_at = [&](double c, double s) {
         const double to_a = std::sqrt((c - 1.0) * (c - 1.0) + s * s); // |x - a| / R

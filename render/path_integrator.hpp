@@ -30,11 +30,12 @@
 /// Hanika et al. 2015); it starts from the same chain on the sphere through the surface below
 /// p (one start for a refraction; for a reflection one of the sphere's solutions, drawn
 /// uniformly, the density divided by their number). The solid-angle density is pdf_area *
-/// |det dl/dw| / candidates, the 2 x 2 Jacobian of the map w -> l taken by central differences
-/// on the chain's triangles. Weight: the Fresnel factors times the markers' transmittance on
-/// p -> x, zero if anything lies between x and l. NEE and BSDF sampling are combined with the
-/// power heuristic on (pdf_nee, cos/pi times the Fresnel factors); a path no chain makes (more
-/// crossings or reflections) gets weight 1 from BSDF sampling.
+/// |det dl/dw| / candidates, the 2 x 2 Jacobian of the map w -> l carried exactly through the
+/// chain's events on its triangles' planes (to_led_plane). Weight: the Fresnel factors times
+/// the markers' transmittance on p -> x, zero if anything lies between x and l. NEE and BSDF
+/// sampling are combined with the power heuristic on (pdf_nee, cos/pi times the Fresnel
+/// factors); a path no chain makes (more crossings or reflections) gets weight 1 from BSDF
+/// sampling.
 #include "render/embree_scene.hpp"
 #include "render/sampling.hpp"
 #include "render/shading.hpp"
@@ -125,10 +126,7 @@ public:
     /// `starts`: when given (the connections found at rest, `found` there), the Newton solves
     /// start from these directions instead of the sphere model's (the refracted chain from the
     /// sphere model's where starts->refracted is zero): the rest's connections, continued as
-    /// the surface deforms. A frame update then costs about 0.65 times as much at 1.5 N +
-    /// 0.6 N, 0.85 times at 5 N + 2 N and 0.35 times at rest; the fast integrator's distance
-    /// to the path integrator goes from 1.84 to 1.76 % of white at the first and from 2.00 to
-    /// 2.08 % at the second (docs/VALIDATION.md, session 24).
+    /// the surface deforms, so that a frame update costs less for about the same error.
     /// `found`: when given, set to the directions of the connections solved, blocked or not
     /// (the first refracted one).
     Vec3 led_flux_point(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& normal, int k,

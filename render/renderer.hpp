@@ -38,7 +38,7 @@ public:
     /// light_cache_store.hpp reads them from disk). Throws std::invalid_argument when it is for
     /// another LED count or mode (spectral or RGB lanes), its arrays do not match, or a frame
     /// is loaded and its coating differs from the cache's. `settings`: those the cache was
-    /// built with (generators/light_cache_store.hpp keys files by them), and the per-frame
+    /// built with (generators/pipeline/light_cache_store.hpp keys files by them), and the per-frame
     /// refresh. `undeformed`: the sensor at rest it was built on (each frame's solves of the
     /// LEDs' light start from its connections, found again here in about a frame update's
     /// time); also throws when its coating is not the cache's.

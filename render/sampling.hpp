@@ -79,9 +79,7 @@ inline int permute(std::uint32_t i, std::uint32_t n, std::uint32_t seed) {
 
 /// The hero-wavelength stratum of sample k of a pixel's n: a per-pixel permutation of the
 /// strata (`seed`: the pixel's), so that every stratum is taken once and the wavelength strata
-/// do not pair up with the position strata along the pixel's rows. (Up to 0.6.0 the renderer
-/// took (3 k + 1) mod n, which repeats strata and leaves two thirds of them out when 3
-/// divides n: 24 spp was noisier than 16.)
+/// do not pair up with the position strata along the pixel's rows.
 inline int wavelength_stratum(int k, int n, std::uint32_t seed) {
     return permute(std::uint32_t(k), std::uint32_t(n), seed);
 }
@@ -122,9 +120,8 @@ struct PixelSeeds {
 /// (k mod nx, k / nx) of the jittered grid, and within it the sub-cell that puts the nx ny
 /// samples also one in each of nx ny columns and rows of the pixel (n-rooks): the sub-cells of a
 /// column of cells, and those of a row, by one per-pixel permutation each (`seed`: the
-/// pixel's). (jx, jy) in [0, 1): the jitter within the sub-cell. Up to 0.7.0 the positions were
-/// the jittered grid alone; at 1.5 N + 0.6 N, 224 px, the fast integrator's noise at 16 spp is
-/// 1.10 % with the grid and 1.02 % with these, docs/VALIDATION.md.
+/// pixel's). (jx, jy) in [0, 1): the jitter within the sub-cell. Less noise than the jittered
+/// grid alone.
 inline std::pair<double, double> multi_jittered(int k, int nx, int ny, std::uint32_t seed,
                                                 double jx, double jy) {
     const int sx = k % nx, sy = k / nx;
@@ -181,13 +178,11 @@ inline std::array<std::uint32_t, 3> sobol3(std::uint32_t i) {
 /// sequence, N the power of two at or above n, Owen-scrambled per block and dimension
 /// (`seeds`: the pixel's; the permutation is the pixel's own). The point on the LED (u1, u2)
 /// takes dimensions 0 and 1, whose strata are the finest, and the samples that pick one LED
-/// spread over its area. (Up to 0.7.0: u_led stratified alone, the LED point drawn at random;
-/// at 1.5 N + 0.6 N, 224 px, the joint strata take the noise from 1.27 to 1.10 % at 16 spp,
-/// docs/VALIDATION.md.) The renderer gives the four pixels of a 2 x 2 block one scrambled
-/// sequence, quads 0 to 3 row by row: each pixel's points are the first n of a net of N, as
-/// alone, and for n a power of two the block's 4 n points are a net four times finer, so the
-/// shadow filter, which averages neighbouring pixels' shadow rays, finds them stratified
-/// across pixels too (0.12.0; docs/VALIDATION.md, session 18).
+/// spread over its area (less noise than u_led stratified alone). The renderer gives the four
+/// pixels of a 2 x 2 block one scrambled sequence, quads 0 to 3 row by row: each pixel's
+/// points are the first n of a net of N, as alone, and for n a power of two the block's 4 n
+/// points are a net four times finer, so the shadow filter, which averages neighbouring
+/// pixels' shadow rays, finds them stratified across pixels too.
 inline std::array<double, 3> shadow_uniforms(int k, int n, const PixelSeeds& seeds) {
     const std::array<std::uint32_t, 3> x =
         sobol3(seeds.quad * std::bit_ceil(std::uint32_t(n)) +

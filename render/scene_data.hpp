@@ -89,7 +89,7 @@ struct CameraParams {
 
 /// Linear-RGB optical properties. The defaults are a simple test geometry, LEDs 1 mm under the
 /// rim that light the dome directly and no lens barrel; a spec's defaults are the FUSE
-/// sensor's (generators/spec.hpp, docs/SPEC.md).
+/// sensor's (generators/spec/spec.hpp, docs/SPEC.md).
 struct OpticsParams {
     Vec3 coating_albedo{0.85, 0.85, 0.85};              ///< Lambertian white coating
     Vec3 inner_marker_absorption_per_mm{0.2, 3.0, 0.3}; ///< magenta filter (absorbs green)
@@ -117,7 +117,7 @@ struct OpticsParams {
     Vec3 led_rgb{1.0, 1.0, 1.0}; ///< relative emission per LED (white)
     double exposure = 1.0;       ///< multiplies the auto exposure (the reference -> 0.8)
     /// Spectral mode when set: every camera sample carries 16 hero wavelengths (the fast
-    /// integrator RenderSettings::fast_wavelengths); the coating,
+    /// integrator: RenderSettings::fast_wavelengths); the coating,
     /// marker and LED spectra replace the RGB values above (the LED's relative intensity is
     /// the mean of led_rgb), and the camera's sensitivities turn radiance into white-balanced
     /// RGB. Unset: the RGB mode (a product per channel, an approximation of the spectral one).
@@ -152,35 +152,34 @@ struct LightCacheSettings {
     double refresh_threshold = 0.5;
     /// Per frame, not part of the stored cache: scale the cached indirect light by the LEDs'
     /// unshadowed flux onto the coating on this frame over rest (LightCache::direct_flux).
-    /// Off: the path integrator finds the indirect light of a press within 0.5 % of rest,
-    /// while the scale follows the cache's point-LED flux, which misses light a deformed
-    /// surface passes (docs/VALIDATION.md, "Fast against path").
+    /// Off by default: the path integrator finds a press's indirect light within 0.5 % of
+    /// rest, while this scale follows the cache's point-LED flux, which misses light a
+    /// deformed surface passes.
     bool scale_indirect = false;
     /// Per frame, not part of the stored cache: skip the fast integrator's shadow rays that
-    /// provably meet no marker (each ray's path tested against the bounding balls of the
-    /// markers near its triangle's paths, listed per frame), and start each shadow ray's
-    /// refraction solve from a per-vertex guess (Newton). Exact: the image is the same to the
-    /// refraction solve's tolerance; off only to measure what it saves (bench render
-    /// --no-shadow-cull).
+    /// provably meet no marker, fold of the coating or the frame (each ray's path tested
+    /// against the bounding balls of the markers near its triangle's paths, listed per
+    /// frame), and start each shadow ray's refraction solve from a per-vertex guess (Newton).
+    /// The culling is exact; the Newton solves stop within about 1e-5 rad of the full solve on
+    /// average (kShadowStepTolerance, render/fast_common.hpp). Off only to measure what
+    /// it saves (bench render --no-shadow-cull).
     bool cull_shadows = true;
     /// Not part of the stored cache: near the rim the shadow rays' sphere model leaves the
     /// layers below the rim plane, so the frame's plane blocks some of them (an artefact that
-    /// offsets the cache's light from under the frame: docs/VALIDATION.md, session 28). On:
-    /// per frame, the share of each LED's light it blocks is counted over 64 LED points at
-    /// the corners and edge midpoints of the coating triangles where it blocked any at rest,
-    /// and taken off the LEDs' light there, where the shadow rays then leave the plane out:
-    /// the same mean without the noise it made in the field's outer ring (session 31). Off
-    /// only to measure it (bench render --no-frame-share).
+    /// offsets the cache's light from under the frame). On: per frame, the share of each
+    /// LED's light it blocks is counted over 64 LED points at the corners and edge midpoints
+    /// of the coating triangles where it blocked any at rest, and taken off the LEDs' light
+    /// there, where the shadow rays then leave the plane out: the same mean without the noise
+    /// the blocked rays make in the field's outer ring. Off only to measure it (bench render
+    /// --no-frame-share).
     bool frame_share = true;
     /// Not part of the stored cache: the camera ray's reflection off the inner surface (the
     /// Fresnel share F of the sample, 2.8 % at normal incidence) is shaded with the LEDs'
     /// direct light unshadowed, no shadow ray of its own, wherever its share is below
     /// kUnshadowedReflection (10 %). From a camera at the dome's centre the reflection runs
-    /// back across the cavity to the far wall near the rim plane, where no marker lies. Its
-    /// shadow rays were none of a render's at rest, 5.7 % at 1.5 N + 0.6 N and 14.8 % at
-    /// 5 N + 2 N (a press tilts the inner surface towards the lit side walls); leaving them
-    /// out moved the converged image by 0.002 % of white RMS at the first (0.043 % at most)
-    /// and 0.028 % at the second (0.44 % in one pixel) (docs/VALIDATION.md, session 34).
+    /// back across the cavity to the far wall near the rim plane, where no marker lies, so
+    /// leaving its shadow rays out moves the converged image by a few hundredths of a percent
+    /// of white RMS, even where a press tilts the inner surface towards the lit side walls.
     /// Off: each such reflection traces its shadow rays (bench render
     /// --reflection-shadow-rays).
     bool unshadowed_reflections = true;
@@ -188,7 +187,7 @@ struct LightCacheSettings {
 
 /// The fast integrator's per-sensor light cache on the coating vertices (plain data, structure
 /// of arrays; render/fast_integrator.hpp has the model). Built by Renderer::set_light_cache;
-/// generators/light_cache_store.hpp keeps it on disk.
+/// generators/pipeline/light_cache_store.hpp keeps it on disk.
 struct LightCache {
     int vertices = 0;
     int leds = 0;
@@ -230,24 +229,21 @@ struct RenderSettings {
     /// (for tests and `bench render`).
     bool batch_pixels = true;
     /// Fast integrator: the shadow filter's standard deviation, px; 0: none. The LEDs'
-    /// direct light in a pixel is, per LED (kMaxShadowGroups), its unshadowed value (no noise
-    /// from the shadow rays) times the fraction of that LED's light that gets through the
-    /// shadows, taken as a Gaussian-weighted ratio over the neighbouring pixels' samples whose
-    /// shadow ray went to that LED (per channel; the ratio estimator of Heitz et al. 2018,
-    /// post-stratified by LED: render/shadow_filter.hpp). It removes most of the shadow rays'
-    /// noise where the shadows change slowly, and blurs their edges by about this much
-    /// (docs/VALIDATION.md: error against time). The variance channel stays that of the
-    /// unfiltered pixel.
+    /// direct light in a pixel is, per group of LEDs (one per LED up to kMaxShadowGroups),
+    /// its unshadowed value (no noise from the shadow rays) times the fraction of the group's
+    /// light that gets through the shadows, taken as a Gaussian-weighted ratio over the
+    /// neighbouring pixels' shadow rays that went to the group (per channel; the ratio
+    /// estimator of Heitz et al. 2018, post-stratified by LED: render/shadow_filter.hpp). It
+    /// removes most of the shadow rays' noise where the shadows change slowly, and blurs their
+    /// edges by about this much. The variance channel stays that of the unfiltered pixel.
     double shadow_filter_px = 0.0;
     /// Fast integrator, with the shadow filter and the markers' rims found
     /// (edge_samples_per_pixel above samples_per_pixel): the filter's standard deviation in
     /// the rims' pixels, px (0: each pools its own samples alone); none: shadow_filter_px
     /// there too. The LEDs sit beside the camera, so a marker's shadow on the coating nearly
     /// coincides with its image and the transmittance changes at a rim just as the view
-    /// does: pooled over shadow_filter_px it is blurred across the edge. At 224 px the 0.8 px
-    /// filter put about 0.38 % RMS of white of bias into the image, most of it at the rims;
-    /// 0.5 px there took 3 spp (8 on the rims) from 0.89 to 0.84 % at 1.5 N + 0.6 N, and
-    /// let the rest of the image take a wider filter (docs/VALIDATION.md, session 26).
+    /// does: pooled over shadow_filter_px it is blurred across the edge, a bias that a
+    /// narrower filter on the rims avoids while the rest of the image takes a wider one.
     std::optional<double> shadow_filter_rim_px{};
     /// Fast integrator: the fewest shadow rays a pixel traces from its samples' coating hits,
     /// spread evenly over its samples, at least one and at most
@@ -255,9 +251,7 @@ struct RenderSettings {
     /// pixel's rays; a sample with several takes their mean. 0 (or at most the pixel's sample
     /// count): one a sample. The pixels with few samples (the bulk of the image) then trace
     /// more, where the shadow rays' noise is most of the error, without more camera samples;
-    /// those with many (the markers' rims, the mirrored pixels) keep one a sample. At 224 px
-    /// with 2 spp, 8 on the rims, 4 where mirrored, 32 LED rays and the 1 px filter, 4 take
-    /// the RMS of white from 0.89 to 0.77 % at 1.5 N + 0.6 N (docs/VALIDATION.md, session 29).
+    /// those with many (the markers' rims, the mirrored pixels) keep one a sample.
     int shadow_rays_per_pixel = 0;
     /// Fast integrator: samples per pixel in the pixels where the inner surface mirrors an
     /// LED (the bright streaks near the rim) and in their 8 neighbours; where it is at most
@@ -266,18 +260,18 @@ struct RenderSettings {
     /// within kReflectionMargin_mm of an LED plus half the largest distance to its 4
     /// neighbours' crossings (the pixel's reach there). A deterministic choice (no sample decides
     /// it), so each pixel stays an unbiased estimate: such a pixel is exactly the pixel of a render
-    /// at this many samples per pixel. At 224 px, 4 spp, the LEDs' images in the inner surface
-    /// (1.3 % of the pixels) held a fifth of the squared error; the pixels chosen are 5 % of
-    /// the image at 1.5 N + 0.6 N, 11 % at 5 N + 2 N (docs/VALIDATION.md). With
-    /// reflected_led_samples_per_pixel the same pixels are chosen whatever this count.
+    /// at this many samples per pixel. The LEDs' images in the inner surface cover about 1 %
+    /// of the pixels but hold a large share of the squared error at a few samples per pixel.
+    /// With reflected_led_samples_per_pixel the same pixels are chosen whatever this count.
     int reflection_samples_per_pixel = 0;
-    /// Fast integrator: samples per pixel in the pixels on a marker's rim: those whose
-    /// centre's first marker of each layer (the ray straight through the inner surface, as
-    /// the marker id channels) differs from one of its 8 neighbours'. Where it is at most
-    /// samples_per_pixel (0 included), none take more; a pixel that also mirrors an LED takes
-    /// reflection_samples_per_pixel. As for that: a choice from the frame's geometry, made
-    /// before any sample, so each pixel is exactly the pixel of a render at its count. The
-    /// markers' rims held most of a 224 px image's error at 4 spp (docs/VALIDATION.md).
+    /// Fast integrator: samples per pixel in the pixels on a marker's rim: those whose 4
+    /// corners do not all show the same markers (per layer, the first marker along the camera
+    /// ray refracted at the inner surface, as the samples see it:
+    /// FastIntegrator::marker_ids16). Where it is at most samples_per_pixel (0 included), none
+    /// take more; a pixel that also mirrors an LED takes reflection_samples_per_pixel. As for
+    /// that: a choice from the frame's geometry, made before any sample, so each pixel is
+    /// exactly the pixel of a render at its count. The markers' rims hold most of the image's
+    /// error at a few samples per pixel.
     int edge_samples_per_pixel = 0;
     /// Fast integrator: in the pixels where an LED is mirrored (those of
     /// reflection_samples_per_pixel), the LEDs seen by reflection in the inner surface are
@@ -288,8 +282,8 @@ struct RenderSettings {
     /// (FastIntegrator::reflected_leds16). The pixel's samples then leave
     /// that term out; the pixel stays an unbiased estimate (the sum of two). The LEDs' images
     /// in the inner surface are small and bright (pixels up to 1.7 times white at 224 px), so
-    /// their edges held most of those pixels' noise; 32 of these rays cost about as much as 4
-    /// samples (docs/VALIDATION.md, session 25).
+    /// their edges hold most of those pixels' noise; 32 of these rays cost about as much as 4
+    /// samples.
     /// 0: the term stays in the samples. A mirrored pixel takes at least samples_per_pixel
     /// samples.
     int reflected_led_samples_per_pixel = 0;
@@ -298,8 +292,8 @@ struct RenderSettings {
     /// inner surface, cross the LEDs' plane as a convex quadrilateral that stays clear of
     /// every LED's rectangle grown by kReflectionMargin_mm plus a quarter of the
     /// quadrilateral's diameter: its rays would all miss, so the image is the same bytes).
-    /// At 224 px it skips about a third of those pixels (docs/VALIDATION.md, session 27);
-    /// false: trace them all (for tests and `bench render --no-led-cull`).
+    /// At 224 px it skips about a third of those pixels; false: trace them all (for tests and
+    /// `bench render --no-led-cull`).
     bool cull_reflected_leds = true;
     /// Fast integrator: the most memory (MiB) the camera samples may keep from one render to
     /// the next. A pixel's samples at each of its counts (samples_per_pixel, the rims', the
@@ -310,17 +304,16 @@ struct RenderSettings {
     /// the index (8.6 MiB at 224 px with the shipped specs, 72 MiB at 896 px). Beyond the
     /// budget, or at 0, renders draw them anew: the same samples, the same bytes; so does a
     /// render that finds another thread's render of the same renderer using them (it does
-    /// not wait) (docs/VALIDATION.md, session 33).
+    /// not wait).
     double camera_cache_mb = 128.0;
     /// Fast integrator, spectral mode: the hero wavelengths a camera sample carries, 8 or 16
     /// (the direct and path integrators always carry 16); 0: 16 at one sample per pixel, 8
     /// from 2 on (fast_wavelengths_of). A pixel's samples split the wavelengths' strata, so
     /// 2 samples of 8 are about as noisy in colour as one of 16; one sample of 8 is not. The
-    /// rays do not depend on the wavelength, so the lanes cost arithmetic, not rays: at
-    /// 224 px with the shipped specs' counts (2 spp) 8 take about 5 % off a render for 0.025
-    /// to 0.03 % of white more error (0.90 against 0.88 % at 1.5 N + 0.6 N); at 896 px and
-    /// 1 spp, 0.71 against 0.58 % for 2 % (docs/VALIDATION.md, session 36). The light cache
-    /// is the same for both (its own 16 fixed wavelengths).
+    /// rays do not depend on the wavelength, so the lanes cost arithmetic, not rays: from 2
+    /// spp on, 8 take about 5 % off a render for a few hundredths of a percent of white more
+    /// error; at 1 spp they save little and add much more colour noise. The light cache is
+    /// the same for both (its own 16 fixed wavelengths).
     int fast_wavelengths = 0;
 };
 /// The hero wavelengths a fast-integrator sample carries with these settings
@@ -346,7 +339,9 @@ struct Image {
     int height = 0;
     std::vector<float> rgb;
     /// Per pixel: the marker (index within its layer) whose volume the ray through the pixel's
-    /// centre meets first in each layer, before the coating; -1 for none.
+    /// centre meets first in each layer, before the coating (refracted at the inner surface as
+    /// the path and fast integrators' samples are; straight for the direct integrator); -1 for
+    /// none.
     std::vector<std::int32_t> inner_marker_id, outer_marker_id;
     /// Per pixel and channel: the sample variance over the pixel's samples divided by their
     /// number, the variance of the mean as if the samples were independent (stratification

@@ -2,7 +2,7 @@
 /// The camera sensor: turns the renderer's noise-free linear RGB (relative radiance, the
 /// exposure reference at about 0.8) into what a camera records, linear values on the ADC's code
 /// grid in [0, 1]. Optional (render.sensor.enabled); the sRGB encoding of the PNG stays in the
-/// PNG writer (generators/image_io.cpp), the one place of the sRGB curve.
+/// PNG writer (generators/io/image_io.cpp), the one place of the sRGB curve.
 ///
 /// Per pixel and channel, in this order:
 ///   1. exposure: s = gain * value (a longer exposure or brighter LEDs: more photo-electrons);

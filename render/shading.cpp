@@ -74,7 +74,6 @@ std::vector<Vec3> led_ring(const OpticsParams& optics) {
     return leds;
 }
 
-/// The unit normal turned to face against `direction` (towards where the ray came from).
 } // namespace
 
 ShadingModel::ShadingModel(const OpticsParams& optics)

@@ -29,10 +29,9 @@ inline constexpr double kHitGap_mm = 1e-3;
 /// (kRgbLanes), or kSpectralLanes wavelengths in spectral mode (render/spectrum.hpp). The
 /// direct-light model's rays do not depend on the wavelength, so more lanes cost arithmetic,
 /// not rays: 16 stratified wavelengths per sample take the spectral noise down to about the
-/// RGB mode's (docs/VALIDATION.md, "Samples per pixel"). The fast integrator carries
-/// RenderSettings::fast_wavelengths of them, by default kFastSpectralLanes from 2 samples per
-/// pixel on: half the arithmetic for a little more colour noise (docs/VALIDATION.md,
-/// session 36).
+/// RGB mode's. The fast integrator carries RenderSettings::fast_wavelengths of them, by
+/// default kFastSpectralLanes from 2 samples per pixel on: half the arithmetic for a little
+/// more colour noise.
 inline constexpr int kRgbLanes = 4;
 inline constexpr int kSpectralLanes = 16;
 inline constexpr int kFastSpectralLanes = 8;

@@ -4,13 +4,13 @@
 /// shadows" (I3D 2018), in the image, post-stratified by groups of LEDs.
 ///
 /// A pixel's value is A + S: S the LEDs' direct light with the shadow rays' transmittance
-/// (noisy: one shadow ray per sample, to one LED), A the rest. Per group g of LEDs
+/// (noisy: each shadow ray goes to one LED), A the rest. Per group g of LEDs
 /// (FastIntegrator::shadow_groups, one per LED up to 8):
 ///   - U_g: the group's direct light with every transmittance 1 (the light cache's unshadowed
 ///     G_k; no shadow-ray noise);
-///   - C_g: the same, from the samples whose shadow ray went to the group only (each such
-///     sample's sum over all LEDs, so C_g is U_g's estimate by the LED draw);
-///   - S_g: those samples' shadowed light (S = sum_g S_g).
+///   - C_g: the same, from the shadow rays that went to the group only (each such ray's
+///     share of the sum over all LEDs, so C_g is U_g's estimate by the LED draw);
+///   - S_g: those rays' shadowed light (S = sum_g S_g).
 /// The filter writes
 ///     A + sum_g U_g R_g,   R_g = sum_q w_q S_g,q / sum_q w_q C_g,q,
 /// per channel, over the pixels q within 3 sigma, w_q = exp(-d^2 / (2 sigma^2)) (separable;
@@ -20,15 +20,14 @@
 /// shadows). Where the group's fraction is the same over the neighbourhood, R_g is that fraction;
 /// where it changes (a shadow's edge), R_g blurs it by about sigma. A group none of whose shadow
 /// rays is in the neighbourhood takes all groups' ratio, sum S / sum C; with none at all the
-/// pixel keeps its own S_g. docs/VALIDATION.md (session 22) measures the groups against one.
+/// pixel keeps its own S_g.
 ///
 /// The markers' rims (`rims`, a flag per pixel) may take a narrower sigma of their own
 /// (RenderSettings::shadow_filter_rim_px): the LEDs sit beside the camera, so a marker's
 /// shadow on the coating nearly coincides with its image, and pooling the transmittance over
-/// a rim blurs it across the marker's edge (at 224 px the 0.8 px filter alone put 0.38 % RMS
-/// of white of bias into the image, most at the rims: docs/VALIDATION.md, session 26). A rim
-/// pixel's sums are taken over the same window with the 2-D Gaussian of its own sigma (0: the
-/// pixel alone); the other pixels' are as without rims, bit for bit.
+/// a rim blurs it across the marker's edge (most of a wide filter's bias lies at the rims). A
+/// rim pixel's sums are taken over the same window with the 2-D Gaussian of its own sigma (0:
+/// the pixel alone); the other pixels' are as without rims, bit for bit.
 #include <cstdint>
 #include <span>
 

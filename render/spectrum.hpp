@@ -222,13 +222,13 @@ Eigen::Array3d camera_rgb(const CameraResponse& camera, const Eigen::Array<doubl
 /// so that for this very set the LED's own light (L = E: a perfect white) gives exactly 1 in
 /// every channel. The plain weights, s_c / (N pdf_j integral(s_c E)), give 1 only on average
 /// over sets: with the shipped spectra and 16 wavelengths a set's white is 1 +- 3.9 %, 0.5 %,
-/// 4.5 % (R, G, B), noise that every pixel paid. Self-normalised, a grey is exact with any
+/// 4.5 % (R, G, B), noise in every pixel. Self-normalised, a grey is exact with any
 /// set, and a coloured spectrum's error is what its colour adds. Its expectation over sets is
 /// a ratio's, not the integral: over the renderer's 1024-set table, the shipped marker filters
 /// come out within 7.6e-4 of white of the grid's trapezoid integral, where the plain
 /// weights' table is off by 8.5e-4 to 1.0e-3, in blue (the quadrature errors of the table and
 /// the trapezoid rule at the LED's narrow peak; the normalisation is exact on the white
-/// whatever the rule) (tests/render/test_spectrum.cpp; docs/VALIDATION.md). A channel
+/// whatever the rule) (tests/render/test_spectrum.cpp). A channel
 /// the set does not see at all (the sum zero) gets zero weights.
 template <int N>
 Eigen::Matrix<double, 3, N> camera_rgb_weights(const CameraResponse& camera,
@@ -245,7 +245,7 @@ Eigen::Matrix<double, 3, N> camera_rgb_weights(const CameraResponse& camera,
     return weights;
 }
 
-// ---- RGB reductions for the fast RGB mode and for validation ---------------------------------
+// ---- RGB reductions for the RGB mode and for validation --------------------------------------
 
 /// Camera RGB of the LED light diffusely reflected by `albedo` (unit geometry), white
 /// balanced: the RGB-mode albedo equivalent of an albedo spectrum. 1 for albedo 1.

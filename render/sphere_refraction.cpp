@@ -47,7 +47,7 @@ double SphereRefraction::mismatch(double t, double* slope, double* to_exit) {
     // A unit direction of zero length (x on p or on l) counts as zero, as Eigen's
     // normalized() leaves it (and has no slope).
     const double towards_l = m_ly * c - m_lx * s; // (l - x) . tau
-    // The reciprocals once (two divisions where each term took its own).
+    // The reciprocals once: two divisions, not one per term.
     const double inv_x = to_x > 0.0 ? 1.0 / to_x : 0.0, inv_l = to_l > 0.0 ? 1.0 / to_l : 0.0;
     if (slope) {
         // d psi / dt = 2 d, dc = -s d psi, ds = c d psi; d|x - p| = a R s d psi / |x - p|,

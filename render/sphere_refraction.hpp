@@ -8,16 +8,17 @@
 /// psi from p's foot, is parametrised without trigonometry by t = tan(psi / 2); the root of
 /// Snell's mismatch n (w_in . tau) - w_out . tau lies between p's foot (t = 0) and where the
 /// straight segment p -> l crosses the sphere (the refracted path in the denser layer is
-/// steeper), found by regula falsi with the Illinois modification.
+/// steeper).
 ///
 /// Two ways in:
-///   - solve(): the whole bracket (about 9 evaluations of the mismatch to 1e-9);
-///   - newton(): Newton's method from a guessed direction (the fast integrator's per-vertex
-///     table, a few hundredths of a radian off): about 3.4 evaluations of the mismatch and its
-///     slope to 1e-9 at the bench's frame (docs/VALIDATION.md, session 20), 2.27 when it also
-///     stops after a step that turns the direction by less than 1e-4 rad (session 27), 1.33
-///     with the fast integrator's 1e-2 (session 31); nothing where it would leave the bracket
-///     or does not get there, and the caller solves.
+///   - solve(): regula falsi with the Illinois modification over that whole bracket (about 9
+///     evaluations of the mismatch to 1e-9);
+///   - newton(): Newton's method from a guessed direction (the fast integrator's shadow rays
+///     from its per-vertex table, a few hundredths of a radian off; the path integrator's
+///     starts from the straight line to l): a few evaluations of the mismatch and its slope,
+///     fewer still when it also stops after a step that turns the direction by less than
+///     `step_tolerance` (the fast integrator's shadow rays: 1e-2 rad, about 1.3 evaluations);
+///     nothing where it would leave the bracket or does not get there, and the caller solves.
 #include <Eigen/Core>
 
 #include <cmath>
