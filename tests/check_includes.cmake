@@ -1,11 +1,15 @@
-# Fails if any source under DIR includes a header whose path starts with FORBIDDEN.
+# Fails if any source under DIR includes a header whose path starts with one of FORBIDDEN
+# (a comma-separated list of path prefixes).
 file(GLOB_RECURSE files ${DIR}/*.hpp ${DIR}/*.cpp)
+string(REPLACE "," ";" prefixes "${FORBIDDEN}")
 set(bad "")
 foreach(f ${files})
-  file(STRINGS ${f} lines REGEX "#include[ \t]*[\"<]${FORBIDDEN}")
-  if(lines)
-    list(APPEND bad "${f}: ${lines}")
-  endif()
+  foreach(prefix ${prefixes})
+    file(STRINGS ${f} lines REGEX "#include[ \t]*[\"<]${prefix}")
+    if(lines)
+      list(APPEND bad "${f}: ${lines}")
+    endif()
+  endforeach()
 endforeach()
 if(bad)
   message(FATAL_ERROR "layering violation:\n${bad}")

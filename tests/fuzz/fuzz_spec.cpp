@@ -3,7 +3,7 @@
 // SpecError that names the file; anything else is a finding: another exception, a crash, an
 // ASan/UBSan report, a hang. Built only with -DCHROMASIM_FUZZ=ON under clang
 // (scripts/fuzz-spec).
-#include "generators/spec.hpp"
+#include "generators/spec/spec.hpp"
 
 #include <cstddef>
 #include <cstdint>

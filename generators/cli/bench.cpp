@@ -1,0 +1,236 @@
+// chromasim bench: speed and accuracy tables (medians) of the mechanics, the render and the
+// whole pipeline.
+#include "generators/validation/bench.hpp"
+#include "generators/cli/command.hpp"
+
+#include <iostream>
+
+namespace chromasim::cli {
+namespace gen = generators;
+namespace {
+
+constexpr const char* kJsonHelp =
+    "also write the table to this file as JSON: {command, chromasim_version, tables: "
+    "[{caption, header, rows}]}, each cell the text printed (checked before any work)";
+
+void add_mechanics(CLI::App* bench, Action& action) {
+    auto options = std::make_shared<gen::DomeBenchOptions>();
+    gen::DomeBenchOptions& o = *options;
+    auto* command =
+        bench->add_subcommand("mechanics", "dome mesh level vs accuracy, time and memory");
+    command->alias("dome");
+    command->add_option("--levels", o.levels, "mesh levels; the last is the reference")
+        ->delimiter(',')
+        ->check(CLI::IsMember({"coarse", "medium", "fine", "refined", "reference"}));
+    command->add_option("--material", o.material, "material model")
+        ->check(CLI::IsMember({"linear", "neo_hookean"}));
+    command->add_option("--trial-frames", o.trial_frames, "frames of the timed trial")
+        ->check(CLI::Range(4, 100000));
+    command->add_option("--volumetric", o.volumetric, "volumetric formulation")
+        ->check(CLI::IsMember({"nodal_average", "element"}));
+    command->add_option("--repeat", o.repeats, "timed frames per level")
+        ->check(CLI::Range(1, 1000));
+    command->add_option("--interior", o.interior, "inside the dome")
+        ->check(CLI::IsMember({"hollow", "rigid_core", "soft_fill"}));
+    command->add_option("--fill-E", o.fill_E_MPa, "soft fill's Young's modulus, MPa")
+        ->check(CLI::Range(1e-6, 1000.0));
+    command->add_option("--json", o.json_out, kJsonHelp);
+    on_chosen(command, action, options, [](const gen::DomeBenchOptions& opts) {
+        gen::bench_dome(opts, std::cout);
+        return 0;
+    });
+}
+
+// The frame, the integrators and the reference of `bench render`.
+void add_render_frame_options(CLI::App* command, gen::RenderBenchOptions& o) {
+    command->add_option("--spp", o.samples_per_pixel, "samples per pixel")
+        ->delimiter(',')
+        ->check(CLI::Range(1, 4096));
+    command->add_option("--reference-spp", o.reference_spp, "error reference")
+        ->check(CLI::Range(1, 4096));
+    command->add_option("--size", o.size_px, "image width = height, px")
+        ->check(CLI::Range(16, 4096));
+    command->add_option("--repeat", o.repeats, "timed renders per setting")
+        ->check(CLI::Range(1, 1000));
+    command
+        ->add_option("--normal-N", o.normal_N, "the frame's normal force, N (0: the dome at rest)")
+        ->check(CLI::Range(0.0, 20.0));
+    command->add_option("--shear-N", o.shear_N, "the frame's pull along x, N")
+        ->check(CLI::Range(0.0, 20.0));
+    command->add_option("--mu", o.mu, "the frame's friction coefficient")
+        ->check(CLI::Range(0.0, 10.0));
+    command->add_option("--modes", o.modes, "spectral and/or rgb")
+        ->delimiter(',')
+        ->check(CLI::IsMember({"spectral", "rgb"}));
+    command->add_option("--integrators", o.integrators, "direct, path, fast")
+        ->delimiter(',')
+        ->check(CLI::IsMember({"direct", "path", "fast"}));
+    command
+        ->add_option("--reference-integrator", o.reference_integrator,
+                     "integrator of the error reference")
+        ->check(CLI::IsMember({"direct", "path", "fast"}));
+    command
+        ->add_option("--reference-in", o.reference_in,
+                     "read the reference from this EXR (written by --reference-out); two or "
+                     "more: independent renders (--reference-seed), averaged, their spread "
+                     "gives the reference's noise")
+        ->check(CLI::ExistingFile);
+    command->add_option("--reference-out", o.reference_out,
+                        "write the rendered reference (with variance) to this EXR");
+    command->add_option("--images-out", o.images_out,
+                        "write each timed setting's image to this folder as an EXR named "
+                        "after the setting, to see where its error lies: one more render, "
+                        "untimed, the same R, G, B, with the variance and marker id "
+                        "channels");
+    command->add_option("--json", o.json_out, kJsonHelp);
+    command->add_option("--reference-seed", o.reference_seed,
+                        "seed of the rendered reference (another seed: an independent "
+                        "reference, to measure its noise)");
+}
+
+// The fast integrator's knobs that `bench render` times.
+void add_render_fast_options(CLI::App* command, gen::RenderBenchOptions& o) {
+    command
+        ->add_option("--cache-paths", o.light_cache.paths_per_vertex,
+                     "fast integrator: light-cache paths per coating vertex")
+        ->check(CLI::Range(1, 65536));
+    command
+        ->add_option("--cache-direct", o.light_cache.direct_samples,
+                     "fast integrator: light-cache LED points per LED per vertex")
+        ->check(CLI::Range(1, 4096));
+    command
+        ->add_option("--cache-smoothing", o.light_cache.smoothing_mm,
+                     "fast integrator: light-cache smoothing, mm")
+        ->check(CLI::Range(0.0, 10.0));
+    command
+        ->add_option("--refresh-threshold", o.light_cache.refresh_threshold,
+                     "fast integrator: re-estimate a vertex's LED light per frame where the "
+                     "point LED's changed by more than this fraction")
+        ->check(CLI::Range(0.0, 10.0));
+    command->add_flag(
+        "!--no-refresh", o.light_cache.refresh_direct,
+        "fast integrator: keep the rest ratio of area to point LED light on every vertex");
+    command->add_flag("--indirect-scale", o.light_cache.scale_indirect,
+                      "fast integrator: scale the cached indirect light on every frame by "
+                      "the coating's LED light over rest (render.fast.scale_indirect)");
+    command->add_flag("!--no-shadow-cull", o.light_cache.cull_shadows,
+                      "fast integrator: trace every shadow ray, also those that provably "
+                      "meet no marker (the same image; to measure what the culling saves)");
+    command->add_flag("!--reflection-shadow-rays", o.light_cache.unshadowed_reflections,
+                      "fast integrator: let the camera ray's reflection off the inner "
+                      "surface trace its shadow rays, instead of taking the LEDs' light "
+                      "there unshadowed where it is below a tenth of the sample (to "
+                      "measure what leaving them out changes and saves)");
+    command->add_flag("!--no-frame-share", o.light_cache.frame_share,
+                      "fast integrator: let each shadow ray near the rim test the frame's "
+                      "plane, instead of taking the share it blocks off the LEDs' light "
+                      "once per cache (about the same mean, more noise in the field's "
+                      "outer ring; to measure what the share saves)");
+    command->add_flag("!--no-led-cull", o.cull_reflected_leds,
+                      "fast integrator: trace the LED rays (--reflected-led-spp) also in "
+                      "the pixels that provably mirror no LED (the same image; to measure "
+                      "what skipping them saves)");
+    command->add_flag("!--no-camera-cache", o.keep_camera_samples,
+                      "fast integrator: draw the camera samples anew for every render "
+                      "instead of keeping them from the first (the same image; to measure "
+                      "what keeping them saves)");
+    command->add_flag("!--no-batch-pixels", o.batch_pixels,
+                      "fast integrator: trace each pixel's samples alone, never with its "
+                      "neighbours' in one packet (the same image; to measure what the "
+                      "batching saves below 16 spp)");
+    command
+        ->add_option("--shadow-filter", o.shadow_filter_px,
+                     "fast integrator: the shadow filters to time, px, each at every spp "
+                     "(render.fast.shadow_filter_px; 0: none); the reference has none")
+        ->check(CLI::Range(0.0, chromasim::render::kMaxShadowFilterPx));
+    command
+        ->add_option("--reflection-spp", o.reflection_spp,
+                     "fast integrator: the samples per pixel to time where the inner surface "
+                     "mirrors an LED, each at every spp and filter "
+                     "(render.fast.reflection_samples_per_pixel; 0: none extra); the reference "
+                     "has none")
+        ->check(CLI::Range(0, 4096));
+    command
+        ->add_option("--edge-spp", o.edge_spp,
+                     "fast integrator: the samples per pixel to time on the markers' rims, each "
+                     "at every spp, filter and reflection count "
+                     "(render.fast.edge_samples_per_pixel; 0: none extra); the reference has "
+                     "none")
+        ->check(CLI::Range(0, 4096));
+    command
+        ->add_option("--reflected-led-spp", o.reflected_led_spp,
+                     "fast integrator: the rays per pixel to time for the LEDs seen by "
+                     "reflection in the inner surface, apart, where an LED is mirrored, each at "
+                     "every spp, filter, reflection and rim count "
+                     "(render.fast.reflected_led_samples_per_pixel; 0: in the samples); the "
+                     "reference has none")
+        ->check(CLI::Range(0, 4096));
+    command
+        ->add_option("--shadow-rays", o.shadow_rays_per_pixel,
+                     "fast integrator: the fewest shadow rays a pixel to time (at least one "
+                     "and at most 4 a sample), each at every spp, filter, reflection, rim and "
+                     "LED-ray count (render.fast.shadow_rays_per_pixel; 0: one a sample); the "
+                     "reference has one a sample")
+        ->check(CLI::Range(0, 4096));
+    command
+        ->add_option("--fast-wavelengths", o.fast_wavelengths,
+                     "fast integrator, spectral mode: the hero wavelengths a sample carries to "
+                     "time, 8 or 16 (0: 16 at 1 spp, else 8, the default), each at every other "
+                     "setting (render.fast.wavelengths_per_sample); the reference has 16")
+        ->check(CLI::IsMember({0, 8, 16}));
+    command
+        ->add_option("--shadow-filter-rim", o.shadow_filter_rim_px,
+                     "fast integrator: the shadow filter's widths on the markers' rims to time, "
+                     "px, each at every filter (render.fast.shadow_filter_rim_px; none given: "
+                     "the filter's own)")
+        ->check(CLI::Range(0.0, 8.0));
+}
+
+void add_render(CLI::App* bench, Action& action) {
+    auto options = std::make_shared<gen::RenderBenchOptions>();
+    auto* command = bench->add_subcommand("render", "samples per pixel vs error and time");
+    add_render_frame_options(command, *options);
+    add_render_fast_options(command, *options);
+    on_chosen(command, action, options, [](const gen::RenderBenchOptions& opts) {
+        gen::bench_render(opts, std::cout);
+        return 0;
+    });
+}
+
+void add_pipeline(CLI::App* bench, Action& action) {
+    auto options = std::make_shared<gen::PipelineBenchOptions>();
+    gen::PipelineBenchOptions& o = *options;
+    auto* command = bench->add_subcommand(
+        "pipeline", "labelled stereo frames per second of generate, per stage");
+    command->add_option("--trials", o.trials, "trials of the seed000 slice")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    command->add_option("--repeat", o.repeats, "runs of each spec")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    command
+        ->add_option("--integrator", o.integrator,
+                     "the slice's render.integrator (default: the spec's)")
+        ->check(CLI::IsMember({"direct", "path", "fast"}));
+    command
+        ->add_option("--spp", o.samples_per_pixel,
+                     "the slice's samples per pixel (default: the spec's)")
+        ->check(CLI::Range(1, 1024));
+
+    on_chosen(command, action, options, [](const gen::PipelineBenchOptions& opts) {
+        gen::bench_pipeline(opts, std::cout);
+        return 0;
+    });
+}
+
+} // namespace
+
+void add_bench(CLI::App& app, Action& action) {
+    auto* bench = app.add_subcommand("bench", "print speed and accuracy tables (medians)");
+    bench->require_subcommand(1);
+    add_mechanics(bench, action);
+    add_render(bench, action);
+    add_pipeline(bench, action);
+}
+
+} // namespace chromasim::cli

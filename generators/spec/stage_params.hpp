@@ -1,0 +1,29 @@
+#pragma once
+/// The spec's sections as each stage's parameters: the mechanics' dome and objects, the
+/// camera, the optics and the render settings. Plain translation, no work beyond reading the
+/// files the spec names (object meshes, spectra).
+#include "generators/spec/spec.hpp"
+#include "mechanics/dome_model.hpp"
+#include "render/scene_data.hpp"
+#include "render/sensor_model.hpp"
+
+namespace chromasim::generators {
+
+mechanics::DomeModelOptions dome_options(const Spec& spec);
+/// The mechanics' shape of `object` (one of spec.objects, posed as a finger sees it); `spec`
+/// resolves its mesh file's path.
+mechanics::ObjectShape object_shape(const Spec& spec, const Spec::Object& object);
+render::CameraParams camera_params(const Spec& spec);
+render::OpticsParams optics_params(const Spec& spec);
+/// `optics` in RGB mode: with spectra, the coating and marker colours the camera sees under
+/// the LEDs (albedos, and the markers' absorption over a path of `marker_path_mm`, the
+/// markers' median thickness), the spectra dropped; without, `optics` unchanged.
+render::OpticsParams rgb_optics(const render::OpticsParams& optics, double marker_path_mm);
+/// samples per pixel, seed, extra channels and integrator of the spec.
+render::RenderSettings render_settings(const Spec& spec);
+/// The fast integrator's light cache settings (render.fast.*).
+render::LightCacheSettings light_cache_settings(const Spec& spec);
+/// The camera sensor model's parameters of render.sensor (used only when it is enabled).
+render::SensorParams sensor_params(const Spec& spec);
+
+} // namespace chromasim::generators
