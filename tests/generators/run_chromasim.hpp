@@ -1,7 +1,7 @@
 #pragma once
 // Test helper: drives the chromasim executable as a user does (CHROMASIM_EXE, set by CTest), and
 // reads a folder back as relative path -> SHA-256.
-#include "generators/file_io.hpp"
+#include "generators/io/file_io.hpp"
 
 #include "scratch_dir.hpp"
 

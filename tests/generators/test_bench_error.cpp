@@ -1,10 +1,11 @@
 // What `bench render` reports as an image's error against a noisy reference
-// (generators/bench.hpp): the mean of independent reference renders with the variance of that
+// (generators/validation/bench.hpp): the mean of independent reference renders with the variance of that
 // mean from their spread, and the RMS error less the reference's noise in quadrature.
-#include "generators/bench.hpp"
-#include "generators/image_io.hpp"
+#include "generators/validation/bench.hpp"
+#include "generators/io/image_io.hpp"
 
 #include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
 
 #include <unistd.h>
 
@@ -90,13 +91,9 @@ TEST_CASE("bench error: 'in the circle' leaves out the pixels the reference leav
     CHECK(e.in_circle == Approx(0.09).epsilon(1e-4));
 }
 
-TEST_CASE("bench render --images-out writes each timed setting's image, or refuses before any "
-          "work",
-          "[generators][bench]") {
-    namespace fs = std::filesystem;
-    const fs::path dir =
-        fs::temp_directory_path() / ("chromasim_bench_images_" + std::to_string(::getpid()));
-    fs::remove_all(dir);
+namespace {
+// A bench of the direct integrator on the dome at rest at 16 px: a second's work.
+chromasim::generators::RenderBenchOptions small_bench() {
     chromasim::generators::RenderBenchOptions o;
     o.samples_per_pixel = {1, 2};
     o.reference_spp = 1;
@@ -104,7 +101,19 @@ TEST_CASE("bench render --images-out writes each timed setting's image, or refus
     o.repeats = 1;
     o.modes = {"rgb"};
     o.integrators = {"direct"};
-    o.normal_N = 0.0; // the dome at rest: no solve
+    o.normal_N = 0.0;
+    return o;
+}
+} // namespace
+
+TEST_CASE("bench render --images-out writes each timed setting's image, or refuses before any "
+          "work",
+          "[generators][bench]") {
+    namespace fs = std::filesystem;
+    const fs::path dir =
+        fs::temp_directory_path() / ("chromasim_bench_images_" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    chromasim::generators::RenderBenchOptions o = small_bench(); // the dome at rest: no solve
     SECTION("a file in the way: refused, nothing printed") {
         fs::create_directories(dir);
         const fs::path file = dir / "taken";
@@ -136,6 +145,44 @@ TEST_CASE("bench render --images-out writes each timed setting's image, or refus
                 for (int x = 0; x < 16; ++x)
                     brightest = std::max(brightest, image.at(x, y, "G"));
             CHECK(brightest > 0.1f);
+        }
+    }
+    fs::remove_all(dir);
+}
+
+// The JSON holds the tables as printed: figures.py reads it instead of the Markdown.
+TEST_CASE("bench render --json writes the printed table or refuses a bad path first",
+          "[generators][bench]") {
+    namespace fs = std::filesystem;
+    const fs::path dir =
+        fs::temp_directory_path() / ("chromasim_bench_json_" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    chromasim::generators::RenderBenchOptions o = small_bench();
+    SECTION("a folder that does not exist: refused, nothing printed") {
+        o.json_out = dir / "missing" / "r.json";
+        std::ostringstream out;
+        CHECK_THROWS_WITH(chromasim::generators::bench_render(o, out),
+                          Catch::Contains("--json") && Catch::Contains("does not exist"));
+        CHECK(out.str().empty());
+        CHECK_FALSE(fs::exists(o.json_out));
+    }
+    SECTION("the rows of the Markdown table, cell by cell") {
+        o.json_out = dir / "r.json";
+        std::ostringstream out;
+        chromasim::generators::bench_render(o, out);
+        const auto json = nlohmann::json::parse(std::ifstream(o.json_out));
+        CHECK(json["command"] == "bench render");
+        REQUIRE(json["tables"].size() == 1);
+        const auto& table = json["tables"][0];
+        CHECK(table["header"][0] == "integrator");
+        REQUIRE(table["rows"].size() == 2); // one a spp
+        for (const auto& row : table["rows"]) {
+            std::string line = "|";
+            for (const auto& cell : row)
+                line.append(" ").append(cell.get<std::string>()).append(" |");
+            INFO(line);
+            CHECK(out.str().find(line + "\n") != std::string::npos);
         }
     }
     fs::remove_all(dir);

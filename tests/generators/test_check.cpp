@@ -1,7 +1,7 @@
 // `chromasim check` and the friction limit end to end: a spec whose load steps land exactly on
 // mu f_n writes physical labels that check passes; a dataset with an impossible row is refused
 // with its line; bad input (no dataset, a newer version) is an error that writes nothing.
-#include "generators/check.hpp"
+#include "generators/output/check.hpp"
 
 #include "run_chromasim.hpp"
 #include "scratch_dir.hpp"
@@ -60,8 +60,8 @@ fs::path generate_limit(const ScratchDir& dir, int trials = 0) {
 
 } // namespace
 
-TEST_CASE("load steps landing on mu f_n: every frame converged and physical, the slip frames "
-          "held at the onset travel, the objects apart, and check finds nothing",
+// The slip frames hold the travel at slip onset and the objects stay apart.
+TEST_CASE("load steps landing on mu f_n give converged physical frames and check finds nothing",
           "[generators][check]") {
     ScratchDir dir("check_limit");
     const fs::path out = generate_limit(dir);

@@ -1,5 +1,5 @@
 // The executable as a user meets it: exit codes, messages, and nothing written on bad input.
-#include "generators/gltf_io.hpp"
+#include "generators/io/gltf_io.hpp"
 
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
@@ -101,8 +101,8 @@ TEST_CASE("spec-doc (and its old name schema) prints the documented key table",
     CHECK(old.output == r.output);
 }
 
-TEST_CASE("export-scene writes any frame as glTF, reuses the cache, and refuses a frame out of "
-          "range or a bad output before any work",
+// It reuses the cache; the frame refused is one out of range.
+TEST_CASE("export-scene writes any frame as glTF and refuses a bad frame or output before any work",
           "[generators][cli][gltf]") {
     const fs::path dir =
         fs::temp_directory_path() / ("chromasim_cli_export_" + std::to_string(::getpid()));
@@ -192,8 +192,8 @@ TEST_CASE("export-scene writes any frame as glTF, reuses the cache, and refuses 
     fs::remove(spec);
 }
 
-TEST_CASE("validate counts what a spec describes, and generate --max-trials runs a slice that "
-          "is its own dataset",
+TEST_CASE("validate counts what a spec describes and generate --max-trials runs a slice as its own "
+          "dataset",
           "[generators][cli]") {
     const Run v = run_chromasim("validate datasets_spec/seed000_train.yaml "
                                 "datasets_spec/seed001_sliding.yaml");

@@ -1,9 +1,9 @@
 // End to end: the quickstart spec through mechanics, render and writers, read back from disk.
-#include "generators/generate.hpp"
-#include "generators/image_io.hpp"
-#include "generators/plan.hpp"
-#include "generators/sensor_bridge.hpp"
-#include "generators/spec.hpp"
+#include "generators/pipeline/generate.hpp"
+#include "generators/io/image_io.hpp"
+#include "generators/plan/plan.hpp"
+#include "generators/pipeline/sensor_bridge.hpp"
+#include "generators/spec/spec.hpp"
 
 #include "test_files.hpp"
 
@@ -266,8 +266,8 @@ TEST_CASE("the spec's material model, load steps and interior reach the mechanic
     CHECK(d.load_path.normal_steps == 4);
 }
 
-TEST_CASE("a glTF mesh object from the spec presses like the analytic sphere it tessellates, a "
-          "missing or broken file stops before any work",
+// A missing or broken mesh file stops the run before any work.
+TEST_CASE("a glTF mesh object from the spec presses like the analytic sphere it tessellates",
           "[generators][e2e]") {
     const std::string asset = CHROMASIM_SOURCE_DIR "/assets/objects/sphere_cap_r45.glb";
     const double sphere = press_indentation("{shape: sphere, radius_mm: 45}");
@@ -291,8 +291,9 @@ TEST_CASE("a glTF mesh object from the spec presses like the analytic sphere it 
     fs::remove_all(dir);
 }
 
-TEST_CASE("a slide trial (seed 001's sliding plate): the object travels as asked, the force "
-          "rises to mu f_n and the contact ends sliding",
+// The protocol of seed 001's sliding plate; the contact ends sliding.
+TEST_CASE("a slide trial moves the object as asked while the force rises to mu f_n and the contact "
+          "slides",
           "[generators][e2e]") {
     const auto rows = labels_only(
         "name: s\nfriction: [{mu: 0.5}]\nfingers: {count: 1}\n"
@@ -330,8 +331,8 @@ Eigen::Vector2d force_centroid(const chromasim::mechanics::DomeModel& model,
 }
 } // namespace
 
-TEST_CASE("object poses reach the mechanics: an offset sphere and a tilted flat touch off "
-          "the apex where geometry says",
+TEST_CASE("object poses reach the mechanics: an offset sphere and a tilted flat touch where "
+          "geometry says",
           "[generators][object]") {
     using namespace chromasim;
     const Spec base = parse_spec("name: pose\n", "pose.yaml");

@@ -1,6 +1,6 @@
-// The fast integrator's light cache on disk (generators/light_cache_store.hpp): read back
+// The fast integrator's light cache on disk (generators/pipeline/light_cache_store.hpp): read back
 // with the same image bytes, keyed by the optics, and refused when damaged.
-#include "generators/light_cache_store.hpp"
+#include "generators/pipeline/light_cache_store.hpp"
 #include "render/renderer.hpp"
 #include "tests/render/test_meshes.hpp"
 
@@ -18,8 +18,10 @@ using namespace chromasim::render::test;
 using chromasim::generators::LightCacheOutcome;
 using chromasim::generators::provide_light_cache;
 
-TEST_CASE("fast integrator: the light cache saved to disk is read back by the next renderer "
-          "with the same bytes, and a corrupt, truncated or foreign file is refused and rebuilt",
+// The next renderer reads the saved cache back; a corrupt, truncated or foreign file is
+// refused and rebuilt.
+TEST_CASE("fast integrator: a light cache saved to disk renders the same bytes and a bad one is "
+          "rebuilt",
           "[render][fast][cache]") {
     namespace fs = std::filesystem;
     const fs::path dir =

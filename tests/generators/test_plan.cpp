@@ -1,7 +1,7 @@
 // The plan of trials: sampling (full grid, random, Latin hypercube), splits, the trial
 // timelines (grasp, hold, load, slip; slide) and their determinism. Pure data: no mechanics.
-#include "generators/plan.hpp"
-#include "generators/spec.hpp"
+#include "generators/plan/plan.hpp"
+#include "generators/spec/spec.hpp"
 
 #include <catch2/catch.hpp>
 

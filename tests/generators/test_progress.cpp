@@ -1,7 +1,7 @@
-// The generation's progress reporter (generators/progress.hpp) and what `generate` prints with
+// The generation's progress reporter (generators/pipeline/progress.hpp) and what `generate` prints with
 // it: plain lines when the log is not a terminal, a line redrawn in place when it is, nothing
 // with --quiet.
-#include "generators/progress.hpp"
+#include "generators/pipeline/progress.hpp"
 
 #include <catch2/catch.hpp>
 

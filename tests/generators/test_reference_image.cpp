@@ -1,8 +1,8 @@
 // The committed reference image (tests/data/reference_dome_path.exr, written by
 // `chromasim verify render --write-reference FILE --reference-spp 4096`) against a fresh render
 // with another seed: they must agree within their noise.
-#include "generators/image_io.hpp"
-#include "generators/verify_render.hpp"
+#include "generators/io/image_io.hpp"
+#include "generators/validation/verify_render.hpp"
 
 #include <catch2/catch.hpp>
 

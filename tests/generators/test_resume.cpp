@@ -1,7 +1,7 @@
 // Nothing lost, nothing corrupt: manifest.json's checksums, byte-identical datasets for any
 // thread count, and a generation killed (SIGKILL) at every kind of write step that --resume
 // finishes into the dataset an uninterrupted run writes. Drives the executable as a user does.
-#include "generators/file_io.hpp"
+#include "generators/io/file_io.hpp"
 
 #include "run_chromasim.hpp"
 #include "scratch_dir.hpp"
@@ -126,8 +126,9 @@ TEST_CASE("SHA-256 of known strings, and write errors name the file and the OS's
     CHECK_FALSE(fs::exists(dir.path / "b.txt.tmp"));
 }
 
-TEST_CASE("manifest.json lists every file's SHA-256 and the counts per split, and the dataset "
-          "is byte-identical for 1 and 2 threads",
+// The manifest also holds the counts per split.
+TEST_CASE("manifest.json lists every file's SHA-256 and the dataset is byte-identical on 1 and 2 "
+          "threads",
           "[generators][resume]") {
     const Fixture f("manifest");
     const nlohmann::json& m = f.manifest;
@@ -212,8 +213,8 @@ TEST_CASE("a generation killed at any kind of write step and resumed is byte-ide
     f.resume_matches(twice);
 }
 
-TEST_CASE("resume redoes a trial whose files do not match their checksums, refuses another "
-          "spec or a running generation, and --overwrite starts over",
+// A trial whose files do not match their checksums is redone; --overwrite starts over.
+TEST_CASE("resume redoes a damaged trial and refuses another spec or a running generation",
           "[generators][resume]") {
     const Fixture f("resume_checks");
     const int first = f.first_trial_frames();
@@ -272,8 +273,8 @@ TEST_CASE("resume redoes a trial whose files do not match their checksums, refus
     f.resume_matches(locked);
 }
 
-TEST_CASE("an output path that cannot be written is refused with the path and the OS's reason, "
-          "and leaves nothing",
+TEST_CASE("an unwritable output path is refused with the path and the OS's reason and leaves "
+          "nothing",
           "[generators][resume]") {
     const Fixture f("unwritable");
     // Under a regular file: fails for root too.
@@ -319,8 +320,9 @@ TEST_CASE("an output path that cannot be written is refused with the path and th
     }
 }
 
-TEST_CASE("a run killed between moving the replaced dataset aside and moving the new one in "
-          "leaves DIR.old-<pid>, which the resumed run removes once the new dataset is in place",
+// A run killed between moving the replaced dataset aside and moving the new one in leaves
+// DIR.old-<pid>; the resumed run removes it once the new dataset is in place.
+TEST_CASE("resume removes the DIR.old-<pid> left by a run killed between its two renames",
           "[generators][resume]") {
     const Fixture f("old_copy");
     const fs::path out = f.dir.path / "out";

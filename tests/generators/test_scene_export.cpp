@@ -1,6 +1,6 @@
 // export-scene's library side: a hand-made sensor frame to glTF and back, as a viewer sees it.
-#include "generators/gltf_io.hpp"
-#include "generators/scene_export.hpp"
+#include "generators/io/gltf_io.hpp"
+#include "generators/pipeline/scene_export.hpp"
 #include "render/fisheye_camera.hpp"
 #include "scratch_dir.hpp"
 
@@ -89,8 +89,8 @@ TEST_CASE("area-weighted normals: triangles pull a shared vertex in proportion t
     CHECK((N.row(5).transpose() - Eigen::Vector3f::UnitZ()).norm() < 1e-6f);
 }
 
-TEST_CASE("a hand-made sensor frame written as .gltf and .glb reads back in metres, y up, with "
-          "its materials, LEDs and camera",
+// Its materials, LEDs and camera come back too.
+TEST_CASE("a hand-made sensor frame written as .gltf and .glb reads back in metres with y up",
           "[generators][gltf]") {
     ScratchDir dir("scene_roundtrip");
     const render::SensorFrame frame = hand_made_frame();
@@ -259,9 +259,8 @@ TEST_CASE("a hand-made sensor frame written as .gltf and .glb reads back in metr
         CHECK_THAT(entry.path().string(), !Contains(".partial-"));
 }
 
-TEST_CASE("a Kannala-Brandt calibration goes to the camera extras as given, and a frame without an "
-          "inner surface exports none",
-          "[generators][gltf]") {
+// A frame without an inner surface exports none.
+TEST_CASE("a Kannala-Brandt calibration goes to the camera extras as given", "[generators][gltf]") {
     render::SensorFrame frame = hand_made_frame();
     frame.inner_surface = {};
     render::CameraParams camera;

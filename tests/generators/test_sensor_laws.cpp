@@ -1,8 +1,8 @@
 // The image metrics of `chromasim verify sensor` on synthetic images with known answers, the
 // centroid law and the marker association on the default sensor, and bad input refused before
 // any work.
-#include "generators/spec.hpp"
-#include "generators/verify_sensor.hpp"
+#include "generators/spec/spec.hpp"
+#include "generators/validation/verify_sensor.hpp"
 
 #include "scratch_dir.hpp"
 

@@ -2,7 +2,7 @@
 // trials), `merge` joins them into the bytes of an unsharded run, manifest.json included, and
 // refuses (naming what is wrong, leaving nothing) parts that do not make one dataset. Drives
 // the executable as a user does.
-#include "generators/file_io.hpp"
+#include "generators/io/file_io.hpp"
 
 #include "run_chromasim.hpp"
 #include "scratch_dir.hpp"
@@ -113,8 +113,8 @@ std::vector<std::string> image_trials(const fs::path& root) {
 
 } // namespace
 
-TEST_CASE("generate --shard K/N writes disjoint round-robin parts that merge into the unsharded "
-          "dataset byte for byte, for 2 and 4 shards (one of them empty), resumed or not",
+// The parts are disjoint and round-robin; 2 and 4 shards (one of them empty), resumed or not.
+TEST_CASE("generate --shard K/N writes parts that merge into the unsharded dataset byte for byte",
           "[generators][shard]") {
     const Fixture f("shard_merge");
     REQUIRE(nlohmann::json::parse(read_file(f.ref / "manifest.json"))["counts"]["trials"] == 3);
@@ -174,8 +174,9 @@ TEST_CASE("generate --shard K/N writes disjoint round-robin parts that merge int
     f.merge_matches({parts4[3], parts4[1], parts4[0], parts4[2]}, f.dir.path / "merged4");
 }
 
-TEST_CASE("merge refuses a missing, duplicate or incomplete shard, parts of another spec, "
-          "shard count or instruction set, and a damaged file, naming it, and writes nothing",
+// A missing, duplicate or incomplete shard; parts of another spec, shard count or instruction
+// set; a damaged file.
+TEST_CASE("merge refuses a missing or mismatched or damaged shard by name and writes nothing",
           "[generators][shard]") {
     const Fixture f("shard_refuse", false);
     const fs::path p1 = f.part("p1", "1/2"), p2 = f.part("p2", "2/2");

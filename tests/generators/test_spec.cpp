@@ -1,9 +1,9 @@
 // Spec files: the committed quickstart validates, defaults fill, every class of bad input is
 // rejected with FILE:LINE:COL, key, value and what is allowed, and the resolved YAML is a
 // deterministic, exact round trip.
-#include "generators/sensor_bridge.hpp"
-#include "generators/spec.hpp"
-#include "generators/spec_schema.hpp"
+#include "generators/pipeline/sensor_bridge.hpp"
+#include "generators/spec/spec.hpp"
+#include "generators/spec/spec_schema.hpp"
 
 #include "scratch_dir.hpp"
 
@@ -11,7 +11,9 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <numbers>
+#include <regex>
 #include <sstream>
 
 using namespace chromasim::generators;
@@ -199,6 +201,22 @@ TEST_CASE("the schema is well formed", "[generators][spec]") {
     CHECK(is_schema_section("sensor.materials"));
     CHECK_FALSE(is_schema_section("sensor.materials.coating.E_MPa"));
     CHECK_FALSE(is_schema_section("sens"));
+}
+
+// The manual says what a key is, its unit and when to change it; measurements belong in
+// docs/VALIDATION.md, where they are kept current.
+TEST_CASE("every spec key's doc is at most two sentences and names no version",
+          "[generators][spec]") {
+    const std::regex sentence_end(R"([.!?](\s+[A-Z`(]|$))");
+    const std::regex version(R"(\b\d+\.\d+\.\d+\b|session)");
+    for (const SchemaEntry& e : spec_schema()) {
+        INFO(e.key << ": " << e.doc);
+        const auto ends = std::distance(
+            std::sregex_iterator(e.doc.begin(), e.doc.end(), sentence_end), std::sregex_iterator());
+        CHECK(ends <= 2);
+        CHECK(e.doc.size() <= 400);
+        CHECK_FALSE(std::regex_search(e.doc, version));
+    }
 }
 
 TEST_CASE("malformed YAML is reported at its line and column", "[generators][spec]") {
@@ -683,8 +701,8 @@ TEST_CASE("cross-key rules of the trial keys", "[generators][spec]") {
           "allowed: one of full_grid, random, latin_hypercube");
 }
 
-TEST_CASE("validate is as strict as generate: a quote never closed, a mesh or spectra that "
-          "cannot be read, a rule about a key left out, each at its line:col",
+// A quote never closed, a mesh or spectra that cannot be read, a rule about a key left out.
+TEST_CASE("validate is as strict as generate and places each error at its line:col",
           "[generators][spec]") {
     // yaml-cpp would let the name swallow the lines up to the next quote.
     CHECK(error_of("name: \"quick\nseed: 1\nrender: {width_px: 64}\n") ==

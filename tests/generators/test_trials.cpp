@@ -1,9 +1,9 @@
 // Trials end to end: the plan's loads reach the mechanics per fingertip, hold frames are not
 // solved (or rendered) again, Gamma and the forces in labels.csv follow the requested loads,
 // slip ends a trial, and slices of the shipped seed specs run.
-#include "generators/generate.hpp"
-#include "generators/plan.hpp"
-#include "generators/spec.hpp"
+#include "generators/pipeline/generate.hpp"
+#include "generators/plan/plan.hpp"
+#include "generators/spec/spec.hpp"
 
 #include "test_files.hpp"
 

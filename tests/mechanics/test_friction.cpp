@@ -83,8 +83,8 @@ TEST_CASE("force and displacement control agree, a zero increment changes nothin
     CHECK(again.contact.slipping.empty()); // nothing moves, so nothing slips in this frame
 }
 
-TEST_CASE("sliding ramp (seed 001): force rises to mu P, stick zone shrinks to nothing, Gamma "
-          "falls to 0, history matters on the way back",
+// As in seed 001: Gamma falls to 0, and history matters on the way back.
+TEST_CASE("sliding ramp: the force rises to mu P as the stick zone shrinks to nothing",
           "[mechanics][friction]") {
     const DomeModel& model = coarse_model();
     const double P = 1.2, mu = 0.8;
@@ -133,8 +133,8 @@ TEST_CASE("sliding ramp (seed 001): force rises to mu P, stick zone shrinks to n
     CHECK(back.stick_area_mm2 > 0);
 }
 
-TEST_CASE("friction during indentation: converges, obeys Coulomb, locks in traction, "
-          "Goodman's approximation leaves the normal problem frictionless",
+// Goodman's approximation leaves the normal problem frictionless.
+TEST_CASE("friction during indentation: converges and obeys Coulomb with locked-in traction",
           "[mechanics][friction]") {
     const DomeModel& model = coarse_model();
     const FrameResult frictionless = model.solve({2.0, {0, 0}, 0.0}, {});
@@ -224,8 +224,8 @@ TEST_CASE("a tessellated 45 mm sphere presses like the analytic sphere, a posed 
     CHECK_THROWS_AS(object_gap(hollow, Points::Zero(2, 3)), std::invalid_argument);
 }
 
-TEST_CASE("neo-Hookean frames: the linear answer at small load, deeper and still invertible at "
-          "3.2 N, trial frames from the previous state",
+// A trial's next frame is solved from the previous state.
+TEST_CASE("neo-Hookean frames: the linear answer at small load and deeper but invertible at 3.2 N",
           "[mechanics][hyperelastic]") {
     const DomeModel& linear = coarse_model();
     DomeModelOptions options;
@@ -258,8 +258,8 @@ TEST_CASE("neo-Hookean frames: the linear answer at small load, deeper and still
     CHECK(next.contact.object_displacement_mm.x() > 0);
 }
 
-TEST_CASE("friction law: the solver's linearization against central finite differences, Euler's "
-          "identity makes the Newton rows homogeneous",
+// Euler's identity makes the Newton rows homogeneous.
+TEST_CASE("friction law: the solver's linearization matches central finite differences",
           "[mechanics][friction]") {
     const double mu = 0.7, r = 3.0, h = 1e-6;
     const std::vector<std::tuple<Eigen::Vector2d, double, Eigen::Vector2d>> points{

@@ -75,8 +75,8 @@ void check_physical(const FrameResult& f, const ContactLoad& load, double outer_
 
 } // namespace
 
-TEST_CASE("the friction limit under force control: finite, bounded, continuous labels for every "
-          "object, mu and ratio Q / (mu P) in [0.98, 1.02], from rest and from a trial",
+// For every object and mu, Q / (mu P) in [0.98, 1.02], from rest and from a trial.
+TEST_CASE("the friction limit under force control: labels are finite and bounded and continuous",
           "[mechanics][friction]") {
     const DomeModel& model = coarse_model();
     const double R = model.options().dome.radii_mm.back();
@@ -111,8 +111,9 @@ TEST_CASE("the friction limit under force control: finite, bounded, continuous l
         }
 }
 
-TEST_CASE("frames after a slide: the travel is held while the contact slides, a pull below "
-          "mu P sticks again, two fingertips' histories do not mix",
+// Two fingertips' histories do not mix.
+TEST_CASE("frames after a slide: the travel is held while sliding and a pull below mu P sticks "
+          "again",
           "[mechanics][friction]") {
     const DomeModel& model = coarse_model();
     const double P = 1.5, mu = 1.1;
@@ -144,8 +145,9 @@ TEST_CASE("frames after a slide: the travel is held while the contact slides, a 
     CHECK(std::abs(flat.contact.indentation_mm - f.contact.indentation_mm) > 0.01);
 }
 
-TEST_CASE("the neo-Hookean dome pulled in small steps up to and past mu P: every frame "
-          "converges, slides once its stick zone vanishes, and keeps sliding",
+// The pull goes in small steps up to and past mu P; every frame converges, and once
+// sliding the dome keeps sliding.
+TEST_CASE("the neo-Hookean dome pulled past mu P converges and slides once its stick zone vanishes",
           "[mechanics][friction][neo_hookean]") {
     DomeModelOptions options;
     options.material = MaterialModel::neo_hookean;

@@ -22,8 +22,9 @@ TEST_CASE("Hertz formulas reproduce SENSOR.md's scale check", "[mechanics][hertz
     CHECK(mindlin_stick_radius(2.0, 1.5, 1.0, 1.0) == 0.0);
 }
 
-TEST_CASE("sphere on a near-incompressible block (nu = 0.49): Hertz a, approach, p0, and "
-          "Cattaneo-Mindlin stick radius",
+// nu = 0.49; the contact radius a, the approach and p0 against Hertz.
+TEST_CASE("sphere on a near-incompressible block: Hertz contact and the Cattaneo-Mindlin stick "
+          "radius",
           "[mechanics][hertz]") {
     const double nu = 0.49;
     BlockParams params = block_level("coarse"); // average nodal pressure: no locking

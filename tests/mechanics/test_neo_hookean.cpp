@@ -11,9 +11,7 @@
 #include <catch2/catch.hpp>
 #include <tbb/global_control.h>
 
-#include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <random>
 
@@ -319,49 +317,5 @@ TEST_CASE("neo-Hookean results do not depend on the thread count", "[mechanics][
         CHECK(H.nonZeros() == H_many.nonZeros());
         CHECK(Eigen::Map<const Eigen::VectorXd>(H.valuePtr(), H.nonZeros()) ==
               Eigen::Map<const Eigen::VectorXd>(H_many.valuePtr(), H_many.nonZeros()));
-    }
-}
-
-TEST_CASE("neo-Hookean timings on the coarse dome", "[.bench][slow]") {
-    const MeshLevel level = mesh_level("coarse");
-    TetgenOptions tg;
-    tg.max_volume_mm3 = level.max_volume_mm3;
-    const TetMesh mesh = tetrahedralize(dome_plc(DomeParams{}, level.edge_mm), tg);
-    const std::vector<Material> materials{{0.8, 0.45}, {0.3, 0.45}, {0.8, 0.45}, {1.0, 0.45}};
-    using Clock = std::chrono::steady_clock;
-    auto ms = [](Clock::time_point t0) {
-        return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-    };
-    auto best = [&](auto&& f) { // best of 5, ms
-        double b = 1e300;
-        for (int k = 0; k < 5; ++k) {
-            const auto t0 = Clock::now();
-            f();
-            b = std::min(b, ms(t0));
-        }
-        return b;
-    };
-    std::printf("coarse dome: %d nodes, %d tets\n", int(mesh.V.rows()), int(mesh.T.rows()));
-    for (Volumetric volumetric : {Volumetric::element, Volumetric::nodal_average}) {
-        auto t0 = Clock::now();
-        const NeoHookean nh(mesh, materials, volumetric);
-        const double setup = ms(t0);
-        const double k = best([&] { assemble_stiffness(mesh, materials, volumetric); });
-        std::printf("%s: setup %.1f ms, assemble_stiffness %.1f ms, Hessian nnz %ld\n",
-                    volumetric == Volumetric::element ? "element" : "nodal_average", setup, k,
-                    long(nh.hessian_pattern().nonZeros()));
-        for (double amplitude : {0.02, 1.0}) { // |grad u| about 0.002 and 0.1
-            const Eigen::VectorXd u = amplitude * random_deformation(mesh, 1);
-            REQUIRE(nh.min_jacobian(u) > 0);
-            Eigen::SparseMatrix<double> H = nh.hessian(u, false);
-            const double e = best([&] { nh.energy(u); });
-            const double g = best([&] { nh.gradient(u); });
-            const double h = best([&] { nh.hessian(u, false); });
-            const double h_in_place = best([&] { nh.hessian(u, false, H); });
-            const double h_psd = best([&] { nh.hessian(u, true, H); });
-            std::printf("  |grad u| ~ %.3f: energy %.2f ms, gradient %.2f ms, hessian %.1f ms "
-                        "(in place %.1f, projected in place %.1f)\n",
-                        0.1 * amplitude, e, g, h, h_in_place, h_psd);
-        }
     }
 }

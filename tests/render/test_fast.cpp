@@ -204,8 +204,8 @@ TEST_CASE("fast integrator: the same image with 1 and 2 threads, a light cache o
                       Catch::Contains("the light cache's") && Catch::Contains("allowed:"));
 }
 
-TEST_CASE("fast integrator: shadow rays follow the deformed inner surface's refraction, where "
-          "the sphere model alone is far off",
+// Where the press deforms it, the sphere model alone is far off.
+TEST_CASE("fast integrator: shadow rays follow the deformed inner surface's refraction",
           "[render][fast]") {
     const SensorFrame rest = clear_dome(16, 64, 24, 96);
     FastOnFrame on(rest);
@@ -253,8 +253,9 @@ TEST_CASE("fast integrator: shadow rays follow the deformed inner surface's refr
     CHECK(max_fast < 0.05);
 }
 
-TEST_CASE("fast integrator: where a contact bends the coating, the frame re-estimates the LEDs' "
-          "light as a cache built on that frame holds it",
+// The frame re-estimates the LEDs' light there as a cache built on that frame holds it.
+TEST_CASE("fast integrator: where a contact bends the coating the LEDs' light matches a cache of "
+          "that frame",
           "[render][fast]") {
     const SensorFrame rest = clear_dome(16, 64, 24, 96);
     const SensorFrame pressed = pressed_flat(rest);
@@ -305,8 +306,9 @@ TEST_CASE("fast integrator: where a contact bends the coating, the frame re-esti
     CHECK(rms_refreshed < 1e-5);
 }
 
-TEST_CASE("fast integrator: the LEDs' light is interpolated quadratically over a coating "
-          "triangle, closer to the light there than the corners' linear interpolation",
+// Over a coating triangle it is closer to the light than the corners' linear interpolation.
+TEST_CASE("fast integrator: the LEDs' light interpolated quadratically over a triangle beats the "
+          "linear one",
           "[render][fast]") {
     const SensorFrame rest = clear_dome(8, 32, 24, 96); // coarse triangles, about 2.5 mm
     FastOnFrame on(rest);
@@ -392,9 +394,9 @@ TEST_CASE("fast integrator: at rest the frame's LED light is the cache's own, ve
     CHECK(fast.indirect_scale() == Approx(1.0).margin(1e-6));
 }
 
-TEST_CASE("fast integrator: a frame's point-LED light solved from the connections found at "
-          "rest: the same bits at rest, the sphere model's values where the press leaves the "
-          "connections, each connection once, the reflections from the given starts alone",
+// It gives the same bits at rest, the sphere model's values where the press leaves the
+// connections, each connection once, the reflections from the given starts alone.
+TEST_CASE("fast integrator: a frame's point-LED light is solved from the connections found at rest",
           "[render][fast]") {
     const SensorFrame rest = clear_dome(16, 64, 24, 96);
     const SensorFrame pressed = pressed_flat(rest);
@@ -455,8 +457,9 @@ TEST_CASE("fast integrator: a frame's point-LED light solved from the connection
     CHECK(agree >= compared - compared / 20);
 }
 
-TEST_CASE("fast integrator: under a press the rest cache's indirect light is what a cache built "
-          "on the pressed frame holds, and the optional scale follows the coating's LED light",
+// The optional scale follows the coating's LED light.
+TEST_CASE("fast integrator: under a press the rest cache's indirect light matches a pressed "
+          "frame's cache",
           "[render][fast]") {
     const SensorFrame rest = clear_dome(16, 64, 24, 96);
     const SensorFrame pressed = pressed_flat(rest);
@@ -524,8 +527,9 @@ TEST_CASE("fast integrator: the light cache's LED light does not depend on how m
     CHECK(few == more); // the same streams per vertex and LED: the same bytes
 }
 
-TEST_CASE("fast integrator: neighbouring pixels traced together give each pixel the bytes it "
-          "gets alone, in RGB and spectral mode, with variance and marker ids",
+// Checked in RGB and spectral mode, with variance and marker ids.
+TEST_CASE("fast integrator: neighbouring pixels traced together give each pixel the bytes it gets "
+          "alone",
           "[render][fast]") {
     const SensorFrame rest = dome_with_box_markers();
     const SensorFrame pressed = pressed_flat(rest);
@@ -577,9 +581,10 @@ TEST_CASE("fast integrator: neighbouring pixels traced together give each pixel 
     }
 }
 
-TEST_CASE("fast integrator: the camera samples kept from render to render give every frame the "
-          "bytes it gets with them drawn anew, through changes of frame, seed, count and shadow "
-          "rays, in RGB and spectral mode, none kept beyond the budget, and two renders at once",
+// This holds through changes of frame, seed, count and shadow rays, in RGB and spectral
+// mode; none is kept beyond the budget, and two renders may run at once.
+TEST_CASE("fast integrator: the camera samples kept from render to render give the bytes of "
+          "samples drawn anew",
           "[render][fast]") {
     const SensorFrame rest = dome_with_box_markers();
     const SensorFrame pressed = pressed_flat(rest);
@@ -666,9 +671,9 @@ TEST_CASE("fast integrator: the camera samples kept from render to render give e
                       Catch::Contains("camera_cache_mb = -1") && Catch::Contains("allowed: >= 0"));
 }
 
-TEST_CASE("fast integrator: the pixels that mirror an LED take reflection_samples_per_pixel, "
-          "each as a render at that count would have it, among them every pixel that sees an "
-          "LED in the inner surface, and the other pixels keep their bytes",
+// Each such pixel is as a render at that count would have it, among them every pixel that
+// sees an LED in the inner surface; the other pixels keep their bytes.
+TEST_CASE("fast integrator: the pixels that mirror an LED take reflection_samples_per_pixel",
           "[render][fast]") {
     const SensorFrame rest = dome_with_box_markers();
     const SensorFrame pressed = pressed_flat(rest);
@@ -739,8 +744,9 @@ TEST_CASE("fast integrator: the pixels that mirror an LED take reflection_sample
                       Catch::Contains("reflection_samples_per_pixel = -1 is invalid"));
 }
 
-TEST_CASE("fast integrator: the LEDs seen by reflection in the inner surface, left out of a "
-          "sample and given apart (reflected_leds16), add up to the sample, to round-off",
+// The LEDs in the inner surface, left out of a sample and given apart (reflected_leds16),
+// add up to it to round-off.
+TEST_CASE("fast integrator: the LEDs seen by reflection and given apart add up to the sample",
           "[render][fast]") {
     const SensorFrame rest = dome_with_box_markers();
     const SensorFrame pressed = pressed_flat(rest);
@@ -788,9 +794,10 @@ TEST_CASE("fast integrator: the LEDs seen by reflection in the inner surface, le
         Catch::Contains("allowed: at most 16"));
 }
 
-TEST_CASE("fast integrator: with the LEDs by reflection from rays of their own "
-          "(reflected_led_samples_per_pixel), the pixels that mirror an LED are as bright on "
-          "average with less noise, in RGB and spectral mode, and the others keep their bytes",
+// reflected_led_samples_per_pixel: the pixels that mirror an LED are as bright on average, in
+// RGB and spectral mode; the other pixels keep their bytes.
+TEST_CASE("fast integrator: reflected LEDs from rays of their own keep the brightness with less "
+          "noise",
           "[render][fast]") {
     const SensorFrame rest = dome_with_box_markers();
     const SensorFrame pressed = pressed_flat(rest);
@@ -860,9 +867,8 @@ TEST_CASE("fast integrator: with the LEDs by reflection from rays of their own "
                       Catch::Contains("reflected_led_samples_per_pixel = -1 is invalid"));
 }
 
-TEST_CASE("fast integrator: the LED rays are skipped only in pixels that provably mirror no "
-          "LED: the same bytes as tracing them all, 256 a pixel, at rest and pressed, in fewer "
-          "rays",
+// The same bytes as tracing them all (256 a pixel), at rest and pressed, in fewer rays.
+TEST_CASE("fast integrator: the LED rays are skipped only in pixels that provably mirror no LED",
           "[render][fast]") {
     const SensorFrame rest = dome_with_box_markers();
     for (const auto& [name, frame] : {std::pair<const char*, SensorFrame>{"at rest", rest},
@@ -891,8 +897,10 @@ TEST_CASE("fast integrator: the LED rays are skipped only in pixels that provabl
     }
 }
 
-TEST_CASE("the quadrilateral test of the LED culling: clear of the LEDs, overlapping, within the "
-          "margin, enclosing one, and folded",
+// Cases: clear of the LEDs, overlapping, within the margin, enclosing one, and folded (no
+// proof, so near).
+TEST_CASE("the LED culling's quadrilateral test tells a quadrilateral clear of an LED from one "
+          "near it",
           "[render][fast]") {
     const ShadingModel shading{OpticsParams{}};
     const PathIntegrator path{shading};
@@ -926,9 +934,9 @@ TEST_CASE("the quadrilateral test of the LED culling: clear of the LEDs, overlap
     CHECK(path.quad_near_led({beside, beside, beside, beside}, 0.0));
 }
 
-TEST_CASE("fast integrator: the pixels on a marker's rim take edge_samples_per_pixel, each as "
-          "a render at that count would have it, exactly those whose corners' markers differ, "
-          "and the other pixels keep their bytes",
+// Each is as a render at that count would have it, exactly those whose corners' markers
+// differ; the other pixels keep their bytes.
+TEST_CASE("fast integrator: the pixels on a marker's rim take edge_samples_per_pixel",
           "[render][fast]") {
     const SensorFrame rest = dome_with_box_markers();
     const SensorFrame pressed = pressed_flat(rest);
@@ -1011,8 +1019,9 @@ TEST_CASE("fast integrator: the pixels on a marker's rim take edge_samples_per_p
                       Catch::Contains("edge_samples_per_pixel = -1 is invalid"));
 }
 
-TEST_CASE("fast integrator: the shadow filter's own width on the markers' rims changes the rims' "
-          "pixels only, and only where the rims are found",
+// It changes them only where the rims are found.
+TEST_CASE("fast integrator: the shadow filter's own width on the markers' rims changes only the "
+          "rims' pixels",
           "[render][fast]") {
     const SensorFrame rest = dome_with_box_markers();
     const SensorFrame pressed = pressed_flat(rest);
@@ -1066,9 +1075,10 @@ TEST_CASE("fast integrator: the shadow filter's own width on the markers' rims c
     }
 }
 
-TEST_CASE("fast integrator: the frame's share of the LEDs' light, taken apart near the rim, "
-          "leaves the field's outer ring as bright on average with less noise, and the pixels "
-          "away from the rim their bytes",
+// The field's outer ring is as bright on average with less noise; the pixels away from the
+// rim keep their bytes.
+TEST_CASE("fast integrator: the frame's share of the LEDs' light taken apart near the rim lowers "
+          "the noise",
           "[render][fast]") {
     const SensorFrame rest = dome_with_box_markers();
     const SensorFrame pressed = pressed_flat(rest);
@@ -1116,8 +1126,9 @@ TEST_CASE("fast integrator: the frame's share of the LEDs' light, taken apart ne
     CHECK(variances[1] < 0.5 * variances[0]);
 }
 
-TEST_CASE("fast integrator: shadow rays culled where they provably meet nothing leave the image "
-          "as it was, at rest, pressed and where the coating folds inwards",
+// Checked at rest, pressed and where the coating folds inwards.
+TEST_CASE("fast integrator: shadow rays culled where they provably meet nothing leave the image as "
+          "it was",
           "[render][fast]") {
     const SensorFrame rest = dome_with_box_markers();
     // A groove 1.8 mm deep on the coating's ring at 61.9 degrees: shadow rays from above it
@@ -1157,8 +1168,8 @@ TEST_CASE("fast integrator: shadow rays culled where they provably meet nothing 
     }
 }
 
-TEST_CASE("fast integrator: a pixel's samples traced 16 at a time in Embree packets bring back "
-          "what they bring back one by one, to the bit",
+TEST_CASE("fast integrator: a pixel's samples traced in Embree packets of 16 match one by one to "
+          "the bit",
           "[render][fast]") {
     const SensorFrame rest = dome_with_box_markers();
     const SensorFrame pressed = pressed_flat(rest);
@@ -1217,8 +1228,8 @@ TEST_CASE("fast integrator: a pixel's samples traced 16 at a time in Embree pack
                       Catch::Contains("allowed: at most 16"));
 }
 
-TEST_CASE("fast integrator: the shadow filter brings a noisy image nearer the converged one: "
-          "the direct light apart adds up and changes no sample",
+// The direct light given apart adds up and changes no sample.
+TEST_CASE("fast integrator: the shadow filter brings a noisy image nearer the converged one",
           "[render][fast]") {
     const SensorFrame rest = dome_with_box_markers();
     const SensorFrame pressed = pressed_flat(rest);
@@ -1324,9 +1335,10 @@ TEST_CASE("fast integrator: the shadow filter brings a noisy image nearer the co
     }
 }
 
-TEST_CASE("fast integrator: more shadow rays a pixel (shadow_rays_per_pixel): up to the sample "
-          "count the same bytes, above it the same image on average with less noise, their "
-          "parts adding up to the same unshadowed light, the same bytes on 1 and 2 threads",
+// shadow_rays_per_pixel: up to the sample count the same bytes; their parts add up to the same
+// unshadowed light; the same bytes on 1 and 2 threads.
+TEST_CASE("fast integrator: more shadow rays a pixel give the same image on average with less "
+          "noise",
           "[render][fast]") {
     const SensorFrame rest = dome_with_box_markers();
     const SensorFrame pressed = pressed_flat(rest);
@@ -1447,9 +1459,10 @@ TEST_CASE("fast integrator: more shadow rays a pixel (shadow_rays_per_pixel): up
                           Catch::Contains("allowed: integer >= 0"));
 }
 
-TEST_CASE("fast integrator: the camera ray's reflection off the inner surface, below a tenth of "
-          "the sample, is shaded unshadowed: the refracted ray's parts the same, the sample's "
-          "radiance up by at most the reflection's share of its LED light",
+// The reflection is below a tenth of the sample: the refracted ray's parts stay the same,
+// the sample's radiance rises by at most the reflection's share of its LED light.
+TEST_CASE("fast integrator: the camera ray's faint reflection off the inner surface is shaded "
+          "unshadowed",
           "[render][fast]") {
     const SensorFrame rest = dome_with_box_markers();
     // The camera rays' reflections off the tilted cut go across the cavity to the lit far wall
@@ -1531,9 +1544,10 @@ TEST_CASE("fast integrator: the camera ray's reflection off the inner surface, b
     CHECK(brighter > 0);
 }
 
-TEST_CASE("fast integrator: the marker id channels and the rims' pixels follow the camera ray "
-          "refracted at the inner surface, as the samples see the markers, where the direct "
-          "integrator's ids go straight through it",
+// The ids follow the markers as the samples see them; the direct integrator's ids go
+// straight through the inner surface.
+TEST_CASE("fast integrator: marker ids and rim pixels follow the camera ray refracted at the inner "
+          "surface",
           "[render][fast]") {
     // A press tilted 35 degrees: the camera rays meet its flat cut well off normal incidence
     // and bend by several degrees on their way to the markers.
@@ -1605,9 +1619,9 @@ TEST_CASE("fast integrator: the marker id channels and the rims' pixels follow t
     CHECK(with_marker > 500);
 }
 
-TEST_CASE("fast integrator: 8 hero wavelengths a sample (fast_wavelengths) estimate the same "
-          "colours as 16, with a little more noise, 0 picks by the samples per pixel, and other "
-          "counts are refused",
+// fast_wavelengths 8 has a little more noise; 0 picks by the samples per pixel, other
+// counts are refused.
+TEST_CASE("fast integrator: 8 hero wavelengths a sample estimate the same colours as 16",
           "[render][fast]") {
     const SensorFrame rest = dome_with_box_markers();
     const SensorFrame pressed = pressed_flat(rest);
@@ -1678,8 +1692,8 @@ TEST_CASE("fast integrator: 8 hero wavelengths a sample (fast_wavelengths) estim
     }
 }
 
-TEST_CASE("fast integrator: a pixel's samples split the hero wavelengths' strata between them, "
-          "so 2 samples of 8 wavelengths are about as noisy in colour as 1 of 16",
+// Hence 2 samples of 8 wavelengths are about as noisy in colour as 1 of 16.
+TEST_CASE("fast integrator: a pixel's samples split the hero wavelengths' strata between them",
           "[render][fast]") {
     // A narrow camera that sees the coating through one wide inner (magenta) marker at the
     // apex: every pixel's colour is the filter's product with the LEDs' spectrum, so the

@@ -50,8 +50,8 @@ Estimate mean_radiance(const PathIntegrator& integrator, const EmbreeScene& scen
 
 } // namespace
 
-TEST_CASE("furnace: an integrating sphere's radiance out of direct light is rho^2 Phi / "
-          "(pi A (1 - rho)) per lane",
+TEST_CASE("furnace: an integrating sphere's radiance out of direct light is "
+          "rho^2 Phi / (pi A (1 - rho))",
           "[render][path]") {
     // A closed white sphere with tiny LEDs inside facing +z: below the LED plane there is no
     // direct light, and the indirect irradiance of a Lambertian sphere is uniform
@@ -153,8 +153,8 @@ TEST_CASE("refracted connections obey Snell's law and their Jacobian matches fin
     }
 }
 
-TEST_CASE("the fast integrator's shadow-ray refraction through the sphere model obeys Snell's "
-          "law, up to grazing exits at the rim",
+// It holds up to grazing exits at the rim.
+TEST_CASE("the fast integrator's shadow-ray refraction through the sphere model obeys Snell's law",
           "[render][path][fast]") {
     const ShadingModel shading(OpticsParams{});
     const PathIntegrator integrator(shading);
@@ -228,9 +228,9 @@ TEST_CASE("the sphere model's mismatch slope equals its central differences", "[
     CHECK(compared == 2 * 3 * integrator.led_count() * 5);
 }
 
-TEST_CASE("the sphere model's refraction by Newton from a guess ends where the whole "
-          "bracket's solve does, in fewer evaluations, also a hair off the sphere, and a wild "
-          "guess gives the root or nothing",
+// It needs fewer evaluations, also a hair off the sphere; a wild guess gives the root or nothing.
+TEST_CASE("the sphere model's refraction by Newton from a guess ends where the whole bracket's "
+          "solve does",
           "[render][path][fast]") {
     const ShadingModel shading(OpticsParams{});
     const PathIntegrator integrator(shading);
@@ -365,8 +365,8 @@ OpticsParams fuse_optics() {
 
 } // namespace
 
-TEST_CASE("with the LEDs deep under the rim beside a lens barrel, next-event estimation with "
-          "MIS agrees with BSDF sampling alone",
+// The LEDs lie deep under the rim.
+TEST_CASE("beside a lens barrel next-event estimation with MIS agrees with BSDF sampling alone",
           "[render][path]") {
     // The barrel hides the LEDs from the apex, which the coating's interreflection lights; at
     // 60 deg the LEDs' light arrives straight. BSDF paths rarely find the small, far LEDs: a

@@ -504,8 +504,8 @@ TEST_CASE("EmbreeScene leaves out the surface kinds a query does not ask for", "
     CHECK_FALSE(first(kind_bit(SurfaceKind::none)).hit());
 }
 
-TEST_CASE("RayHits walks a ray's hits as successive closest_hit calls do, in fewer traversals, "
-          "also past more markers than it keeps",
+// It also walks past more markers than it keeps.
+TEST_CASE("RayHits walks a ray's hits as successive closest_hit calls do in fewer traversals",
           "[render]") {
     // The dome with both marker layers, the inner one replaced by the apex marker plus a stack
     // of six more at x = 3 mm (twelve faces, more than RayHits keeps).
@@ -634,8 +634,8 @@ TEST_CASE("EmbreeScene packets of 16 rays answer as the rays one by one", "[rend
                     std::invalid_argument);
 }
 
-TEST_CASE("EmbreeScene's inner-surface packets answer rays in the cavity as closest_hit does, "
-          "and see nothing but the inner surface, and which points are in the cavity",
+// They see nothing but the inner surface, and tell which points are in the cavity.
+TEST_CASE("EmbreeScene's inner-surface packets answer rays in the cavity as closest_hit does",
           "[render]") {
     // Rays in the cavity: from the camera point, and from points on the inner surface back
     // into the cavity (as the fast integrator's reflections). Their first surface in the whole
@@ -808,8 +808,9 @@ TEST_CASE("bad input is reported, not rendered", "[render]") {
                       Catch::Contains("Embree error in rtcNewDevice"));
 }
 
-TEST_CASE("filter_product: through two filters onto the white coating, a pixel is the spectral "
-          "product of their transmittances",
+// The filters lie over the white coating.
+TEST_CASE("filter_product: through two filters a pixel is the spectral product of their "
+          "transmittances",
           "[render][spectral]") {
     OpticsParams optics;
     optics.spectra = load_sensor_spectra(SensorSpectraFiles::in_directory(

@@ -46,8 +46,7 @@ template <typename Fraction> Parts parts(int width, int height, Fraction fractio
 
 } // namespace
 
-TEST_CASE("shadow filter: where the fraction that gets through the shadows is the same "
-          "everywhere, the image is kept, up to the image's edges",
+TEST_CASE("shadow filter: a shadow fraction the same everywhere keeps the image up to its edges",
           "[render][shadow_filter]") {
     for (const double sigma : {0.3, 1.0, 2.5}) {
         const Parts p = parts(13, 9, [](int, int, int c) { return 0.25 + 0.2 * c; });
@@ -62,8 +61,8 @@ TEST_CASE("shadow filter: where the fraction that gets through the shadows is th
     }
 }
 
-TEST_CASE("shadow filter: a step in the shadow fraction comes out as the Gaussian's partial "
-          "sums, along the row, whatever the unshadowed light",
+// The step shows along the row, whatever the unshadowed light.
+TEST_CASE("shadow filter: a step in the shadow fraction comes out as the Gaussian's partial sums",
           "[render][shadow_filter]") {
     // r = 1 left of x = 8, 0.2 from there; U the same along each column, so the ratio along a
     // row is sum_{q < 8} w + 0.2 sum_{q >= 8} w over sum w, the weights over the row's
@@ -105,8 +104,9 @@ TEST_CASE("shadow filter: a step in the shadow fraction comes out as the Gaussia
     CHECK(rgb[right] > q.rest[right] + 0.25f * q.lit[right]);
 }
 
-TEST_CASE("shadow filter: noise in the shadowed light falls by about the neighbourhood's "
-          "effective count, and the same bytes come out on 1 and 2 threads",
+// The same bytes come out on 1 and 2 threads.
+TEST_CASE("shadow filter: noise in the shadowed light falls by about the neighbourhood's effective "
+          "count",
           "[render][shadow_filter]") {
     // Each pixel's S a binary shadow ray's estimate: U (with probability 0.7) or 0, so the
     // fraction is 0.7 everywhere with the noise of one shadow ray.
@@ -163,9 +163,9 @@ TEST_CASE("shadow filter: a channel without unshadowed light is kept, bad sizes 
                           Catch::Contains("allowed: 0 < sigma <= "));
 }
 
-TEST_CASE("shadow filter in groups of LEDs: which group each pixel's shadow ray went to adds no "
-          "noise where each group's fraction is uniform (the one-group ratio keeps that "
-          "noise), and a group without shadow rays near takes all groups' ratio",
+// No noise where each group's fraction is uniform (the one-group ratio keeps that noise);
+// a group without shadow rays near takes all groups' ratio.
+TEST_CASE("shadow filter in groups of LEDs: the group each shadow ray went to adds no noise",
           "[render][shadow_filter]") {
     // Three groups of LEDs with their own unshadowed light U_g (smooth) and fractions r_g
     // (per channel). Each pixel's one shadow ray goes to group g with probability U_g / U:
@@ -265,8 +265,10 @@ TEST_CASE("shadow filter in groups of LEDs: which group each pixel's shadow ray 
     CHECK(off < 1e-5);
 }
 
+// The Gaussian is taken over the window; the other pixels keep their bytes, bad rims are
+// refused.
 TEST_CASE("shadow filter on the markers' rims: a rim pixel's ratio takes the 2-D Gaussian of its "
-          "own sigma over the window, the other pixels keep their bytes, bad rims are refused",
+          "own sigma",
           "[render][shadow_filter]") {
     // A random shadow fraction per pixel and channel (so every weight shows), two groups,
     // rims on a diagonal band and one corner pixel.

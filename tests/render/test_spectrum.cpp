@@ -12,7 +12,6 @@
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
-#include <iostream>
 #include <random>
 #include <sstream>
 #include <string>
@@ -421,8 +420,8 @@ TEST_CASE("wavelengths in proportion to what the camera sees: unbiased, less noi
     }
 }
 
-TEST_CASE("self-normalised RGB weights: every wavelength set renders the white exactly, "
-          "coloured filters within 0.1 % of white of their integral and less noisy",
+// Coloured filters come within 0.1 % of white of their integral, with less noise.
+TEST_CASE("self-normalised RGB weights: every wavelength set renders the white exactly",
           "[render][spectrum]") {
     // The renderer's table: 1024 sets of 16 wavelengths from the camera-weighted sampler.
     const SensorSpectra& s = shipped();
@@ -589,45 +588,32 @@ TEST_CASE("RGB reductions of filters: neutral filters exact, coloured ones not",
     }
 }
 
-// The numbers quoted in assets/spectra/README.md: `test_render "[spectrum_report]"`.
-TEST_CASE("report the shipped spectra's camera-RGB equivalents", "[.spectrum_report]") {
+// The numbers that assets/spectra/README.md quotes, to the digits it prints. Run with -s to see
+// each value beside the quoted one after replacing a spectrum.
+TEST_CASE("the camera-RGB values quoted in assets/spectra/README.md", "[spectrum]") {
     const SensorSpectra& s = shipped();
     const RgbEquivalents eq = rgb_equivalents();
-    std::cout << std::fixed << std::setprecision(3)
-              << "camera-RGB equivalents of assets/spectra (white balanced on the LED), "
-                 "absorption at a 0.5 mm path:\n"
-              << "  coating albedo                " << text_of(eq.coating_albedo) << "\n"
-              << "  outer marker albedo           " << text_of(eq.outer_albedo) << "\n"
-              << "  inner marker absorption 1/mm  " << text_of(eq.inner_absorption_per_mm) << "\n"
-              << "  outer marker absorption 1/mm  " << text_of(eq.outer_absorption_per_mm) << "\n"
-              << "  LED white integral (r, g, b)  " << text_of(s.camera.white_integral())
-              << " (relative units x nm)\n";
-    for (double t : {0.25, 0.5, 1.0}) {
-        std::cout << "  absorption at a " << t << " mm path: inner "
-                  << text_of(rgb_absorption_per_mm(s.camera, s.inner_marker_absorption_per_mm, t))
-                  << ", outer "
-                  << text_of(rgb_absorption_per_mm(s.camera, s.outer_marker_absorption_per_mm, t))
-                  << "\n";
-    }
-    const auto pair = [&](const Spectrum& a, double ta, const Spectrum& b, double tb,
-                          const char* name) {
-        const FilterPairRgb p = rgb_of_filter_pair(s.camera, a, ta, b, tb);
-        std::cout << "  " << name << ": spectral " << text_of(p.spectral) << ", RGB product "
-                  << text_of(p.rgb_product) << ", difference "
-                  << text_of(p.rgb_product - p.spectral) << "\n";
-    };
+    CHECK(text_of(eq.coating_albedo) == "(0.850, 0.850, 0.842)");
+    CHECK(text_of(eq.outer_albedo) == "(0.122, 0.654, 0.770)");
+    CHECK(text_of(eq.inner_absorption_per_mm) == "(0.231, 2.894, 0.312)");
+    CHECK(text_of(eq.outer_absorption_per_mm) == "(3.015, 0.317, 0.170)");
     const Spectrum& m = s.inner_marker_absorption_per_mm;
     const Spectrum& cy = s.outer_marker_absorption_per_mm;
-    pair(m, 0.5, cy, 0.5, "magenta 0.5 mm over cyan 0.5 mm");
-    pair(m, 0.25, cy, 0.25, "magenta 0.25 mm over cyan 0.25 mm");
-    pair(m, 1.0, cy, 1.0, "magenta 1 mm over cyan 1 mm");
+    // The magenta's green channel depends on the path (no Beer-Lambert per channel).
+    CHECK(rgb_absorption_per_mm(s.camera, m, 0.25)[1] == Approx(3.93).margin(0.005));
+    CHECK(rgb_absorption_per_mm(s.camera, m, 1.0)[1] == Approx(1.88).margin(0.005));
+    const auto pair = [&](double path_mm) {
+        const FilterPairRgb p = rgb_of_filter_pair(s.camera, m, path_mm, cy, path_mm);
+        return text_of(p.spectral) + " " + text_of(p.rgb_product);
+    };
+    CHECK(pair(0.25) == "(0.324, 0.317, 0.862) (0.344, 0.343, 0.863)");
+    CHECK(pair(0.5) == "(0.164, 0.159, 0.785) (0.197, 0.201, 0.786)");
+    CHECK(pair(1.0) == "(0.064, 0.068, 0.673) (0.103, 0.116, 0.673)");
     // The scattering path through an overlap: LED -> magenta -> cyan marker scatters back
     // (albedo) -> magenta -> camera.
     const Spectrum t_m = transmittance(m, 0.5);
-    const Eigen::Array3d spectral = rgb_of_reflectance(s.camera, t_m * s.outer_marker_albedo * t_m);
-    const Eigen::Array3d rgb = rgb_of_reflectance(s.camera, t_m).square() *
-                               rgb_of_reflectance(s.camera, s.outer_marker_albedo);
-    std::cout << "  cyan albedo seen through magenta 0.5 mm twice: spectral " << text_of(spectral)
-              << ", RGB product " << text_of(rgb) << "\n";
-    SUCCEED();
+    CHECK(text_of(rgb_of_reflectance(s.camera, t_m * s.outer_marker_albedo * t_m)) ==
+          "(0.072, 0.053, 0.609)");
+    CHECK(text_of(rgb_of_reflectance(s.camera, t_m).square() *
+                  rgb_of_reflectance(s.camera, s.outer_marker_albedo)) == "(0.096, 0.036, 0.564)");
 }
