@@ -20,8 +20,9 @@ needs, otherwise skipped with the reason printed:
                               marked
   stickslip_trialN            stick ratio, stick and contact area over one trial
   images_trialN               a grid of the trial's tactile images (both fingertips)
-  bench_<file>[_k]            error against run time, one per table of a saved
-                              `chromasim bench mechanics|render` output (parse_bench_tables)
+  bench_<file>[_k]            error against run time, one per table of a
+                              `chromasim bench mechanics|render --json FILE` file
+                              (read_bench_json)
 docs/PYTHON.md describes the choices.
 """
 
@@ -29,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import os
 import re
 import sys
@@ -530,11 +532,11 @@ def figure_images(ds, trial, outdir, count=6):
 
 @dataclass
 class BenchTable:
-    """One markdown table of a saved benchmark output."""
+    """One table of a `chromasim bench mechanics|render --json FILE` file."""
 
-    caption: str            # the non-table line just before the table ('' if none)
+    caption: str            # the line the Markdown prints before the table ('' if none)
     header: list[str]
-    rows: list[list[str]]
+    rows: list[list[str]]   # each cell the text the Markdown shows ('' when empty)
 
     def column(self, j: int) -> np.ndarray:
         return np.array([_number(r[j]) if j < len(r) else np.nan for r in self.rows])
@@ -545,34 +547,42 @@ def _number(cell: str) -> float:
     return float(m.group(1)) if m else np.nan
 
 
-def parse_bench_tables(text: str) -> list[BenchTable]:
-    """Every markdown table (a header row, a |---| row, data rows) in the text."""
-    lines = text.splitlines()
-    tables, i = [], 0
-    while i < len(lines):
-        if (lines[i].strip().startswith("|") and i + 1 < len(lines)
-                and re.fullmatch(r"\s*\|(\s*:?-+:?\s*\|)+\s*", lines[i + 1])):
-            header = _cells(lines[i])
-            caption = ""
-            for k in range(i - 1, -1, -1):
-                if lines[k].strip():
-                    caption = lines[k].strip() if not lines[k].strip().startswith("|") else ""
-                    break
-            rows, i = [], i + 2
-            while i < len(lines) and lines[i].strip().startswith("|"):
-                rows.append(_cells(lines[i]))
-                i += 1
-            tables.append(BenchTable(caption, header, rows))
-        else:
-            i += 1
-    return tables
+BENCH_JSON = ("written by `chromasim bench mechanics|render --json FILE`: {command, "
+              "chromasim_version, tables: [{caption, header, rows}]}")
 
 
-def _cells(line: str) -> list[str]:
-    s = line.strip()
-    s = s[1:] if s.startswith("|") else s
-    s = s[:-1] if s.endswith("|") else s
-    return [c.strip() for c in s.split("|")]
+def read_bench_json(path: str) -> list[BenchTable]:
+    """The tables of a bench's JSON file (BENCH_JSON); a cell that is a number is read as
+    its text, null as ''. Raises DatasetError naming the path."""
+    try:
+        with open(path, encoding="utf-8") as f:
+            doc = json.load(f)
+    except OSError as e:
+        raise DatasetError(f"{path}: {e.strerror}") from None
+    except ValueError as e:
+        raise DatasetError(f"{path}: not JSON ({e}); allowed: a file {BENCH_JSON}") from None
+    try:
+        tables = doc["tables"]
+        if isinstance(tables, list):
+            return [_bench_table(t) for t in tables]
+    except (KeyError, TypeError, AttributeError):
+        pass  # told below
+    raise DatasetError(f"{path}: not a bench table file; allowed: a file {BENCH_JSON}")
+
+
+def _bench_table(t: dict) -> BenchTable:
+    header, rows = t["header"], t["rows"]
+    if not (isinstance(header, list) and isinstance(rows, list)
+            and all(isinstance(r, list) for r in rows)):
+        raise TypeError("header and rows are lists")
+    return BenchTable(_text(t.get("caption")), [_text(h) for h in header],
+                      [[_text(c) for c in r] for r in rows])
+
+
+def _text(cell) -> str:
+    if isinstance(cell, (list, dict)):
+        raise TypeError("a cell is text or a number")
+    return "" if cell is None else str(cell)
 
 
 TIME_COLUMNS = ("trial frame ms", "render ms", "frame from rest ms", "frame ms", "time ms",
@@ -699,14 +709,9 @@ def _decade_limits(ax):
 
 
 def bench_figures(path: str, outdir: str, report) -> list[str]:
-    try:
-        with open(path) as f:
-            text = f.read()
-    except OSError as e:
-        raise DatasetError(f"{path}: {e.strerror}") from None
-    tables = parse_bench_tables(text)
+    tables = read_bench_json(path)
     if not tables:
-        report(f"bench {path}", "no markdown table found")
+        report(f"bench {path}", "no table in the file")
         return []
     base = re.sub(r"[^A-Za-z0-9_-]+", "_", os.path.splitext(os.path.basename(path))[0])
     stem = base if base.startswith("bench") else f"bench_{base}"
@@ -729,7 +734,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="python3 -m chromasim.figures",
         description="The seeds' figures from a dataset (seed 000 Fig. 2E, 3C-3E; seed 001 "
                     "Fig. 2E; stick/slip; sample images) and error-against-run-time plots "
-                    "from saved `chromasim bench mechanics|render` output. PNG and SVG.")
+                    "from `chromasim bench mechanics|render --json FILE` files. PNG and SVG.")
     p.add_argument("dataset", nargs="?", help="dataset folder written by `chromasim generate`")
     p.add_argument("-o", "--out", required=True, help="output folder (created)")
     p.add_argument("--trial", type=int, default=None,
@@ -740,7 +745,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--finger", choices=("left", "right"), default=None,
                    help="fingertip of the marker figures (default: every fingertip)")
     p.add_argument("--bench", nargs="+", default=[], metavar="FILE",
-                   help="saved stdout of `chromasim bench mechanics` or `bench render`")
+                   help="JSON written by `chromasim bench mechanics|render --json FILE`")
     return p
 
 

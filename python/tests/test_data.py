@@ -46,3 +46,14 @@ def test_errors_name_the_path(tmp_path):
     (tmp_path / "manifest.json").write_text("{ nope")
     with pytest.raises(DatasetError, match=r"manifest.json:1:3"):
         open_dataset(str(tmp_path))
+
+
+def test_package_version_is_the_project_version():
+    import pathlib
+    import re
+
+    import chromasim
+
+    cmake = pathlib.Path(__file__).resolve().parents[2] / "CMakeLists.txt"
+    version = re.search(r"project\(chromasim VERSION (\S+)", cmake.read_text()).group(1)
+    assert chromasim.__version__ == version

@@ -1,6 +1,7 @@
 """chromasim.figures: every figure a dataset supports is written; selections and the
-benchmark-table parser against hand-checked values."""
+benchmark-table reader against hand-checked values."""
 
+import json
 import os
 
 import matplotlib.image as mpimg
@@ -10,8 +11,9 @@ import pytest
 from chromasim import figures as F
 
 DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data")
-BENCH_RENDER = os.path.join(DATA, "bench_render.md")        # `chromasim bench render` stdout
-BENCH_MECHANICS = os.path.join(DATA, "bench_mechanics.md")  # `chromasim bench mechanics` stdout
+# The tables of `chromasim bench render|mechanics --json FILE`
+BENCH_RENDER = os.path.join(DATA, "bench_render.json")
+BENCH_MECHANICS = os.path.join(DATA, "bench_mechanics.json")
 
 
 def _check_figure(out, stem):
@@ -97,8 +99,8 @@ def test_stick_matrix(quickstart):
 
 
 def test_bench_tables_by_header():
-    with open(BENCH_RENDER) as f:
-        (t,) = F.parse_bench_tables(f.read())
+    (t,) = F.read_bench_json(BENCH_RENDER)
+    assert t.caption.startswith("render 32 x 32, coarse dome at 1.5 N + 0.6 N pull")
     jt, je, series, point = F.bench_columns(t)
     assert t.header[jt] == "render ms" and t.header[je] == "RMS error %"
     assert [t.header[j] for j in series] == ["integrator", "mode"] and t.header[point] == "spp"
@@ -109,8 +111,7 @@ def test_bench_tables_by_header():
     assert len(cache) == 2 and np.isnan(errors[cache]).all()
     assert np.isfinite(times).sum() == len(t.rows) - 2
 
-    with open(BENCH_MECHANICS) as f:
-        (m,) = F.parse_bench_tables(f.read())
+    (m,) = F.read_bench_json(BENCH_MECHANICS)
     jt, je, series, point = F.bench_columns(m)
     assert m.header[jt] == "trial frame ms"
     assert m.header[je] == "vs ref" and m.header[je - 1] == "indentation mm"
@@ -118,14 +119,28 @@ def test_bench_tables_by_header():
     assert m.column(je)[-1] == 0.0  # the reference level
 
 
-def test_bench_parser_by_hand():
-    text = "caption line\n\n| a | render ms | RMS error % |\n|---|:--:|---|\n| x | 1.5 | 2 % |\n" \
-           "| y | n/a | 3 |\nafter\n| not | a table |\n"
-    (t,) = F.parse_bench_tables(text)
+def _write_json(path, doc):
+    path.write_text(json.dumps(doc))
+    return str(path)
+
+
+def test_bench_json_by_hand(tmp_path):
+    doc = {"command": "bench render", "chromasim_version": "0.0.0",
+           "tables": [{"caption": "caption line", "header": ["a", "render ms", "RMS error %"],
+                       "rows": [["x", "1.5", "2 %"], ["y", "n/a", 3], ["z", "", None]]}]}
+    (t,) = F.read_bench_json(_write_json(tmp_path / "b.json", doc))
     assert t.caption == "caption line" and t.header == ["a", "render ms", "RMS error %"]
-    np.testing.assert_array_equal(t.column(1), [1.5, np.nan])
-    np.testing.assert_array_equal(t.column(2), [2.0, 3.0])
+    np.testing.assert_array_equal(t.column(1), [1.5, np.nan, np.nan])
+    np.testing.assert_array_equal(t.column(2), [2.0, 3.0, np.nan])
     assert F.bench_columns(F.BenchTable("", ["level", "nodes"], [])) is None
+    # not JSON (a saved Markdown stdout) and not the bench's shape: named, with what is allowed
+    md = tmp_path / "b.md"
+    md.write_text("| a | render ms |\n|---|---|\n| x | 1 |\n")
+    for path in (str(md), _write_json(tmp_path / "c.json", {"tables": [{"header": "a"}]}),
+                 _write_json(tmp_path / "d.json", [1, 2])):
+        with pytest.raises(F.DatasetError, match="allowed: a file written by") as e:
+            F.read_bench_json(path)
+        assert path in str(e.value)
 
 
 def test_cli_errors(quickstart, tmp_path):
@@ -136,7 +151,7 @@ def test_cli_errors(quickstart, tmp_path):
         F.main([quickstart.root, "-o", str(tmp_path / "o"), "--trial", "99"])
     assert "no trial 99" in str(e.value)
     with pytest.raises(SystemExit) as e:
-        F.main(["-o", str(tmp_path / "o"), "--bench", str(tmp_path / "missing.md")])
-    assert "missing.md" in str(e.value)
+        F.main(["-o", str(tmp_path / "o"), "--bench", str(tmp_path / "missing.json")])
+    assert "missing.json" in str(e.value)
     with pytest.raises(SystemExit):
         F.main(["-o", str(tmp_path / "o")])
