@@ -133,15 +133,19 @@ render::OpticsParams rgb_optics(const render::OpticsParams& optics, double path_
     return rgb;
 }
 
+render::Integrator integrator_of(const std::string& name) {
+    return name == "path"   ? render::Integrator::path
+           : name == "fast" ? render::Integrator::fast
+                            : render::Integrator::direct;
+}
+
 render::RenderSettings render_settings(const Spec& spec) {
     render::RenderSettings s;
     s.samples_per_pixel = spec.render.samples_per_pixel;
     s.seed = spec.seed;
     s.marker_ids = spec.outputs.marker_ids;
     s.variance = spec.outputs.variance;
-    s.integrator = spec.render.integrator == "path"   ? render::Integrator::path
-                   : spec.render.integrator == "fast" ? render::Integrator::fast
-                                                      : render::Integrator::direct;
+    s.integrator = integrator_of(spec.render.integrator);
     s.shadow_filter_px = spec.render.fast.shadow_filter_px;
     s.shadow_filter_rim_px = spec.render.fast.shadow_filter_rim_px;
     s.reflection_samples_per_pixel = spec.render.fast.reflection_samples_per_pixel;

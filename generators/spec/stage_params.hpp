@@ -19,6 +19,8 @@ render::OpticsParams optics_params(const Spec& spec);
 /// the LEDs (albedos, and the markers' absorption over a path of `marker_path_mm`, the
 /// markers' median thickness), the spectra dropped; without, `optics` unchanged.
 render::OpticsParams rgb_optics(const render::OpticsParams& optics, double marker_path_mm);
+/// The integrator a render.integrator value names (direct, path or fast; anything else: direct).
+render::Integrator integrator_of(const std::string& name);
 /// samples per pixel, seed, extra channels and integrator of the spec.
 render::RenderSettings render_settings(const Spec& spec);
 /// The fast integrator's light cache settings (render.fast.*).

@@ -285,12 +285,6 @@ BenchFrame bench_frame(const mechanics::DomeModel& model, const RenderBenchOptio
     return f;
 }
 
-render::Integrator integrator_of(const std::string& name) {
-    return name == "path"   ? render::Integrator::path
-           : name == "fast" ? render::Integrator::fast
-                            : render::Integrator::direct;
-}
-
 constexpr std::uint64_t kTimedSeed = 7; // the timed renders'
 constexpr double kWhite = 0.8;          // the exposure reference's image value
 
