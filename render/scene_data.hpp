@@ -149,7 +149,7 @@ struct LightCacheSettings {
     /// `refresh_threshold` (relative) from rest. Elsewhere the point LED's light is scaled by
     /// the area LED's ratio to it at rest, which goes stale where the surface bends.
     bool refresh_direct = true;
-    double refresh_threshold = 0.5;
+    double refresh_threshold = 1.0;
     /// Per frame, not part of the stored cache: scale the cached indirect light by the LEDs'
     /// unshadowed flux onto the coating on this frame over rest (LightCache::direct_flux).
     /// Off by default: the path integrator finds a press's indirect light within 0.5 % of

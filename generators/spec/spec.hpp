@@ -148,7 +148,7 @@ struct Spec {
             int direct_samples = 16;
             double smoothing_mm = 0.75;
             bool refresh_direct = true;
-            double refresh_threshold = 0.5;
+            double refresh_threshold = 1.0;
             bool scale_indirect = false;
             double shadow_filter_px = 1.0; ///< render::RenderSettings::shadow_filter_px
             /// render::RenderSettings::shadow_filter_rim_px

@@ -584,11 +584,11 @@ void add_render_fast(std::vector<SchemaEntry>& out) {
                           "render.fast.refresh_threshold. Turning it off keeps the rest value "
                           "everywhere: faster, and far off the path integrator under deep presses.",
                           CHROMASIM_FIELD(render.fast.refresh_direct)));
-    out.push_back(number("render.fast.refresh_threshold", 0.5, closed(0, 10), "",
+    out.push_back(number("render.fast.refresh_threshold", 1.0, closed(0, 10), "",
                          "Fast integrator: the relative change of a vertex's point-LED light from "
-                         "rest above which render.fast.refresh_direct re-estimates it; 0: every "
-                         "vertex whose light changed. Lower is slightly more accurate and much "
-                         "slower per frame.",
+                         "rest above which render.fast.refresh_direct re-estimates it on the "
+                         "frame; 0: every vertex whose light changed. docs/VALIDATION.md gives "
+                         "its error against the path integrator under a press.",
                          CHROMASIM_FIELD(render.fast.refresh_threshold)));
     out.push_back(boolean("render.fast.scale_indirect", false,
                           "Fast integrator: per frame, scale the cached indirect light by the "
