@@ -1,4 +1,5 @@
-"""Matplotlib helpers shared by chromasim.eigenstrain and chromasim.figures.
+"""Matplotlib helpers shared by the figures of chromasim.eigenstrain and chromasim.figures
+(eigenstrain_plots, figures_plots, figures_bench).
 
 Agg backend (no display); every figure is saved as PNG and SVG under the same stem.
 """
