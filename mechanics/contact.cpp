@@ -5,8 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <optional>
-#include <stdexcept>
+#include <utility>
+#include <vector>
 
 namespace chromasim::mechanics {
 
@@ -19,34 +19,6 @@ double safety_margin(double mu, double normal_force_N, double tangential_force_N
 bool gross_slip(double mu, double normal_force_N, double tangential_force_N) {
     if (!(tangential_force_N > 0)) return false;
     return tangential_force_N >= std::max(0.0, mu) * normal_force_N * (1.0 - kGrossSlipTolerance);
-}
-
-Eigen::VectorXd
-object_gap(const ObjectShape& object,
-           const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& X,
-           const Eigen::Vector2d& shift) {
-    constexpr double kUnreachable_mm = 1e3;
-    if (object.kind == ObjectShape::Kind::mesh && !object.mesh)
-        throw std::invalid_argument("object_gap: a mesh object needs its height field");
-    const Eigen::Index n = X.rows();
-    // Object surface height above its lowest point, at (x, y) relative to the object's axis.
-    auto height = [&](double x, double y) {
-        if (object.kind == ObjectShape::Kind::mesh) {
-            const std::optional<double> z = object.mesh->lowest_z(x, y);
-            return z ? *z : kUnreachable_mm;
-        }
-        if (object.kind != ObjectShape::Kind::sphere) return 0.0;
-        x -= object.offset_mm.x();
-        y -= object.offset_mm.y();
-        const double R = object.radius_mm, r2 = x * x + y * y;
-        return r2 < R * R ? R - std::sqrt(R * R - r2) : kUnreachable_mm;
-    };
-    Eigen::VectorXd g(n), g_shifted(n);
-    for (Eigen::Index i = 0; i < n; ++i) {
-        g(i) = height(X(i, 0), X(i, 1)) - X(i, 2);
-        g_shifted(i) = height(X(i, 0) - shift.x(), X(i, 1) - shift.y()) - X(i, 2);
-    }
-    return g_shifted.array() - g.minCoeff();
 }
 
 FrictionLaw friction_law(const Eigen::Vector2d& t, double lambda, const Eigen::Vector2d& g,
@@ -86,24 +58,12 @@ struct LinearSolution {
     Eigen::Vector2d w{0, 0};
 };
 
-/// One (semi-smooth) Newton system. Unknowns: lambda and t on A, d, and w when `w_unknown`
-/// (force control with friction; otherwise w = `w_given`). Forces on the body
-/// F_j = (t_j, -lambda_j); u_i = sum_j C_ij F_j; slip g_j = u_t,j - w - a_j. Rows:
-/// u_z,i + d = gap_i on A (contact closed); g_j = 0 for a stick node; for a slip node the
-/// Alart-Curnier law t = mu lambda tau / |tau|, tau = t - r g, linearized at the last iterate
-/// (friction_law: (I - kappa P) t + kappa r P g - mu n lambda = 0, P = I - n n', or a fixed
-/// direction when everything slides); sum lambda = P; when w is unknown, sum t = Q. Goodman:
-/// the z rows ignore the tangential forces. Dense LU (not symmetric).
-bool solve_linear(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, const RowVectors2& anchor,
-                  const ActiveSets& sets, const ContactLoad& load, bool w_unknown,
-                  const Eigen::Vector2d& w_given, bool coupled, LinearSolution& out) {
-    const std::vector<int>& A = sets.A;
+/// Displacements (3m rows, x y z per node of A) per unit unknown force component: column k for
+/// lambda_k, columns m + 2k + c for t_k. Goodman (`coupled` false): the z rows ignore the
+/// tangential forces.
+Eigen::MatrixXd contact_response(const Eigen::MatrixXd& C, const std::vector<int>& A,
+                                 bool coupled) {
     const Eigen::Index m = Eigen::Index(A.size());
-    const bool force = w_unknown;
-    const Eigen::Index nw = force ? 2 : 0, N = 3 * m + 1 + nw;
-    const Eigen::Index col_d = 3 * m, col_w = 3 * m + 1;
-    // Column of unknown: lambda_k -> k, t_k -> m + 2k + c.
-    // G: displacement (3m rows, x y z per contact node) per unit unknown force component.
     Eigen::MatrixXd G = Eigen::MatrixXd::Zero(3 * m, 3 * m);
     for (Eigen::Index k = 0; k < m; ++k) {
         const int j = A[std::size_t(k)];
@@ -114,14 +74,18 @@ bool solve_linear(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, const Ro
             if (!coupled) G.block<1, 2>(3 * i + 2, m + 2 * k).setZero();
         }
     }
-    Eigen::MatrixXd M = Eigen::MatrixXd::Zero(N, N);
-    Eigen::VectorXd b = Eigen::VectorXd::Zero(N);
-    Eigen::Index row = 0;
-    for (Eigen::Index i = 0; i < m; ++i, ++row) { // contact closed
-        M.row(row).head(3 * m) = G.row(3 * i + 2);
-        M(row, col_d) = 1.0;
-        b(row) = gap(A[std::size_t(i)]);
-    }
+    return G;
+}
+
+/// The two tangential rows of every node of A, from `row` on: g = 0 for a stick node, the
+/// linearized friction law for a slip node (see solve_linear). `force`: w is unknown (columns
+/// from `col_w`); otherwise it is `w_given`.
+void add_tangential_rows(const Eigen::MatrixXd& G, const RowVectors2& anchor,
+                         const ActiveSets& sets, bool force, const Eigen::Vector2d& w_given,
+                         Eigen::Index col_w, Eigen::Index row, Eigen::MatrixXd& M,
+                         Eigen::VectorXd& b) {
+    const std::vector<int>& A = sets.A;
+    const Eigen::Index m = Eigen::Index(A.size());
     for (Eigen::Index i = 0; i < m; ++i) {
         const std::size_t j = std::size_t(A[std::size_t(i)]);
         // g = Gt y - w - a as rows: coefficients over y, the w columns, and a constant.
@@ -142,15 +106,15 @@ bool solve_linear(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, const Ro
         }
         row += 2;
     }
-    M.row(row).head(m).setOnes(); // sum lambda = P
-    b(row++) = load.normal_force_N;
-    if (force) { // sum t = Q
-        for (int c = 0; c < 2; ++c, ++row) {
-            for (Eigen::Index k = 0; k < m; ++k)
-                M(row, m + 2 * k + c) = 1.0;
-            b(row) = load.tangential_force_N(c);
-        }
-    }
+}
+
+/// Solves the system M y = b of solve_linear (dense LU, M is not symmetric) and spreads y over
+/// `out`: lambda and t on A, d, and w (`force`) or `w_given`. False when y is not finite or
+/// does not solve the system (M singular for these sets).
+bool solve_dense(const Eigen::MatrixXd& M, const Eigen::VectorXd& b, const std::vector<int>& A,
+                 bool force, const Eigen::Vector2d& w_given, LinearSolution& out) {
+    const Eigen::Index m = Eigen::Index(A.size());
+    const Eigen::Index col_d = 3 * m, col_w = 3 * m + 1;
     const Eigen::PartialPivLU<Eigen::MatrixXd> lu(M);
     const Eigen::VectorXd y = lu.solve(b);
     if (!y.allFinite() || (M * y - b).norm() > 1e-6 * (b.norm() + 1e-300)) return false;
@@ -164,6 +128,45 @@ bool solve_linear(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, const Ro
     out.d = y(col_d);
     out.w = force ? Eigen::Vector2d(y.segment<2>(col_w)) : w_given;
     return true;
+}
+
+/// One (semi-smooth) Newton system. Unknowns: lambda and t on A, d, and w when `w_unknown`
+/// (force control with friction; otherwise w = `w_given`). Forces on the body
+/// F_j = (t_j, -lambda_j); u_i = sum_j C_ij F_j; slip g_j = u_t,j - w - a_j. Rows:
+/// u_z,i + d = gap_i on A (contact closed); g_j = 0 for a stick node; for a slip node the
+/// Alart-Curnier law t = mu lambda tau / |tau|, tau = t - r g, linearized at the last iterate
+/// (friction_law: (I - kappa P) t + kappa r P g - mu n lambda = 0, P = I - n n', or a fixed
+/// direction when everything slides); sum lambda = P; when w is unknown, sum t = Q. Goodman:
+/// the z rows ignore the tangential forces. Dense LU (not symmetric).
+bool solve_linear(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap, const RowVectors2& anchor,
+                  const ActiveSets& sets, const ContactLoad& load, bool w_unknown,
+                  const Eigen::Vector2d& w_given, bool coupled, LinearSolution& out) {
+    const std::vector<int>& A = sets.A;
+    const Eigen::Index m = Eigen::Index(A.size());
+    const bool force = w_unknown;
+    const Eigen::Index nw = force ? 2 : 0, N = 3 * m + 1 + nw;
+    const Eigen::Index col_d = 3 * m, col_w = 3 * m + 1;
+    const Eigen::MatrixXd G = contact_response(C, A, coupled);
+    Eigen::MatrixXd M = Eigen::MatrixXd::Zero(N, N);
+    Eigen::VectorXd b = Eigen::VectorXd::Zero(N);
+    Eigen::Index row = 0;
+    for (Eigen::Index i = 0; i < m; ++i, ++row) { // contact closed
+        M.row(row).head(3 * m) = G.row(3 * i + 2);
+        M(row, col_d) = 1.0;
+        b(row) = gap(A[std::size_t(i)]);
+    }
+    add_tangential_rows(G, anchor, sets, force, w_given, col_w, row, M, b);
+    row += 2 * m;
+    M.row(row).head(m).setOnes(); // sum lambda = P
+    b(row++) = load.normal_force_N;
+    if (force) { // sum t = Q
+        for (int c = 0; c < 2; ++c, ++row) {
+            for (Eigen::Index k = 0; k < m; ++k)
+                M(row, m + 2 * k + c) = 1.0;
+            b(row) = load.tangential_force_N(c);
+        }
+    }
+    return solve_dense(M, b, A, force, w_given, out);
 }
 
 /// Displacements (n x 3) of every candidate under the forces of `sol` on A.
@@ -318,50 +321,106 @@ double update_friction(const RowForces& u, const LinearSolution& lin, const RowV
     return law_error;
 }
 
-/// One step for a given kind (solve_contact_step).
-ContactSolution solve_step(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_mm,
-                           const ContactLoad& load, const ContactSolution* previous,
-                           const ContactOptions& options, const RowForces* extra_mm,
-                           const StepKind& kind) {
+/// What the Newton iteration of one step reads; fixed for the step (n candidates).
+struct StepProblem {
+    const Eigen::MatrixXd& C;
+    Eigen::VectorXd gap;              ///< n: gaps less the extra displacement (mm)
+    Eigen::VectorXd r_stiff;          ///< n: each node's own tangential stiffness 1 / C_tt
+    std::vector<char> was_in_contact; ///< n: in the previous step's contact
+    double mu;                        ///< >= 0
+    const StepKind& kind;
+    const ContactOptions& options;
+};
+
+/// The iterate of the Newton loop: the sets, the forces they give and the anchors.
+struct NewtonIterate {
+    ActiveSets sets;
+    LinearSolution lin;
+    RowVectors2 anchor; ///< n x 2
+};
+
+/// Internally the displacement is the part the contact forces cause through C: the extra
+/// displacement moves the gaps (and start_anchors moves the anchors).
+StepProblem step_problem(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_mm,
+                         const ContactSolution* previous, const RowForces* extra_mm, double mu,
+                         const StepKind& kind, const ContactOptions& options) {
     const int n = int(gap_mm.size());
-    // Internally the displacement is the part the contact forces cause through C: the extra
-    // displacement moves the gaps and anchors.
     Eigen::VectorXd gap = gap_mm;
     if (extra_mm) gap -= extra_mm->col(2);
-    const std::size_t nz = std::size_t(n);
-    ContactSolution sol;
-    sol.load = load;
-    sol.forces_N = RowForces::Zero(n, 3);
-    sol.displacement_mm = RowForces::Zero(n, 3);
-    sol.state.assign(nz, NodeContact::free);
-    sol.anchor_mm = RowVectors2::Zero(n, 2);
-    const Eigen::Vector2d w_prev =
-        previous ? previous->object_displacement_mm : Eigen::Vector2d::Zero();
-    const double mu = std::max(0.0, load.mu);
-    sol.object_displacement_mm = kind.w_given;
-    const double P = load.normal_force_N;
-    if (!(P > 0)) { // unloaded: nothing touches
-        sol.converged = true;
-        sol.gamma = safety_margin(load.mu, 0.0, 0.0);
-        return sol;
-    }
-    RowVectors2 anchor = start_anchors(previous, n, w_prev, extra_mm);
-    std::vector<char> was_in_contact(nz, 0);
+    std::vector<char> was_in_contact(std::size_t(n), 0);
     if (previous)
         for (int j : previous->active)
             was_in_contact[std::size_t(j)] = 1;
-    Eigen::VectorXd r_stiff(n); // each node's own tangential stiffness 1 / C_tt
+    Eigen::VectorXd r_stiff(n);
     for (int j = 0; j < n; ++j)
         r_stiff(j) = 2.0 / (C(3 * j, 3 * j) + C(3 * j + 1, 3 * j + 1));
-    ActiveSets sets = start_sets(previous, gap, r_stiff, mu, kind);
+    return {C, std::move(gap), std::move(r_stiff), std::move(was_in_contact), mu, kind, options};
+}
 
-    LinearSolution lin{Eigen::VectorXd::Zero(n), RowVectors2::Zero(n, 2), 0.0, kind.w_given};
+/// Nodes that leave the contact set and nodes that enter it, each with the value that ranks it.
+struct NormalChanges {
+    std::vector<std::pair<double, int>> release, add;
+};
+
+/// The normal half of a semi-smooth Newton update: release the nodes of A pulling on the object
+/// (except a full slip's sticking node), add the nodes out of A (`in_A`) penetrating it by more
+/// than `tol_mm`. `cautious`: only the worst of each (anti-cycling). The contact stays
+/// non-empty.
+NormalChanges normal_changes(const StepProblem& p, const NewtonIterate& x, const RowForces& uz,
+                             const std::vector<char>& in_A, double tol_mm, bool cautious) {
+    const int n = int(p.gap.size());
+    NormalChanges ch;
+    for (int j : x.sets.A)
+        if (x.lin.lambda(j) < 0.0 && j != p.kind.sticking)
+            ch.release.emplace_back(x.lin.lambda(j), j);
+    for (int i = 0; i < n; ++i) {
+        const double g = p.gap(i) - x.lin.d - uz(i, 2);
+        if (!in_A[std::size_t(i)] && g < -tol_mm) ch.add.emplace_back(g, i);
+    }
+    if (cautious) {
+        std::sort(ch.release.begin(), ch.release.end());
+        std::sort(ch.add.begin(), ch.add.end());
+        if (ch.release.size() > 1) ch.release.resize(1);
+        if (ch.add.size() > 1) ch.add.resize(1);
+    }
+    if (ch.release.size() == x.sets.A.size()) ch.release.clear(); // keep the contact non-empty
+    return ch;
+}
+
+/// Applies `ch` to the membership `in_A` and the slip set: a node entering the contact sticks
+/// where it touches (its anchor set there if it was not in contact in the previous step). With
+/// `changed`, A is rebuilt (sorted) from `in_A`.
+void apply_normal_changes(const StepProblem& p, const NormalChanges& ch, const RowForces& u,
+                          bool changed, std::vector<char>& in_A, NewtonIterate& x) {
+    const int n = int(p.gap.size());
+    for (const auto& [value, j] : ch.release) {
+        in_A[std::size_t(j)] = 0;
+        if (!p.kind.all_slip) x.sets.slip[std::size_t(j)] = 0;
+    }
+    for (const auto& [value, i] : ch.add) { // sticks where it touches
+        in_A[std::size_t(i)] = 1;
+        if (!p.kind.all_slip) x.sets.slip[std::size_t(i)] = 0;
+        if (!p.was_in_contact[std::size_t(i)])
+            x.anchor.row(i) = u.row(i).head<2>() - x.lin.w.transpose();
+    }
+    if (changed) {
+        x.sets.A.clear();
+        for (int i = 0; i < n; ++i)
+            if (in_A[std::size_t(i)]) x.sets.A.push_back(i);
+    }
+}
+
+/// The semi-smooth Newton loop of a step under the normal force `P`: solves the linear system
+/// of the sets in `x`, updates the sets, until none changes and the friction law holds. Counts
+/// the iterations in `sol` and sets its status (ok | max_iterations | singular).
+void iterate_sets(const StepProblem& p, double P, NewtonIterate& x, ContactSolution& sol) {
+    const int n = int(p.gap.size());
     sol.status = "max_iterations";
-    const double tol_mm = 1e-9 * std::max(1.0, std::min(gap.maxCoeff(), 1e2));
-    for (int it = 0; it < options.max_iterations; ++it) {
+    const double tol_mm = 1e-9 * std::max(1.0, std::min(p.gap.maxCoeff(), 1e2));
+    for (int it = 0; it < p.options.max_iterations; ++it) {
         ++sol.iterations;
-        if (!solve_linear(C, gap, anchor, sets, kind.solved, kind.w_unknown, kind.w_given,
-                          options.coupled, lin)) {
+        if (!solve_linear(p.C, p.gap, x.anchor, x.sets, p.kind.solved, p.kind.w_unknown,
+                          p.kind.w_given, p.options.coupled, x.lin)) {
             sol.status = "singular";
             break;
         }
@@ -370,116 +429,139 @@ ContactSolution solve_step(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_
         // unless everything slides). Friction: update_friction. Converged when no set changes
         // and t = proj(tau) at every node. Past 30 iterations only the worst node enters or
         // leaves per iteration (anti-cycling).
-        const RowForces u = candidate_displacements(C, sets.A, lin, false);
-        const RowForces& uz = options.coupled ? u : candidate_displacements(C, sets.A, lin, true);
+        const RowForces u = candidate_displacements(p.C, x.sets.A, x.lin, false);
+        const RowForces& uz =
+            p.options.coupled ? u : candidate_displacements(p.C, x.sets.A, x.lin, true);
         const bool cautious = it >= 30;
         // With friction the discrete problem can cycle on a node at the contact edge (a tiny
         // tension in contact, a tiny penetration out of it): past 30 iterations a penetration
         // below 1e-3 of the indentation is accepted (it shows in residual_mm).
-        const double cautious_tol_mm = std::max(tol_mm, 1e-3 * std::abs(lin.d));
-        std::vector<char> in_A(nz, 0);
-        for (int j : sets.A)
+        const double cautious_tol_mm = std::max(tol_mm, 1e-3 * std::abs(x.lin.d));
+        std::vector<char> in_A(std::size_t(n), 0);
+        for (int j : x.sets.A)
             in_A[std::size_t(j)] = 1;
-        std::vector<std::pair<double, int>> release, add;
-        for (int j : sets.A)
-            if (lin.lambda(j) < 0.0 && j != kind.sticking) release.emplace_back(lin.lambda(j), j);
-        for (int i = 0; i < n; ++i) {
-            const double g = gap(i) - lin.d - uz(i, 2);
-            if (!in_A[std::size_t(i)] && g < -(cautious ? cautious_tol_mm : tol_mm))
-                add.emplace_back(g, i);
-        }
-        if (cautious) {
-            std::sort(release.begin(), release.end());
-            std::sort(add.begin(), add.end());
-            if (release.size() > 1) release.resize(1);
-            if (add.size() > 1) add.resize(1);
-        }
-        if (release.size() == sets.A.size()) release.clear(); // keep the contact non-empty
-        bool changed = !release.empty() || !add.empty();
+        const NormalChanges ch =
+            normal_changes(p, x, uz, in_A, cautious ? cautious_tol_mm : tol_mm, cautious);
+        bool changed = !ch.release.empty() || !ch.add.empty();
         const double law_error =
-            kind.all_slip ? 0.0 : update_friction(u, lin, anchor, r_stiff, mu, sets, changed);
-        for (const auto& [value, j] : release) {
-            in_A[std::size_t(j)] = 0;
-            if (!kind.all_slip) sets.slip[std::size_t(j)] = 0;
-        }
-        for (const auto& [value, i] : add) { // sticks where it touches
-            in_A[std::size_t(i)] = 1;
-            if (!kind.all_slip) sets.slip[std::size_t(i)] = 0;
-            if (!was_in_contact[std::size_t(i)])
-                anchor.row(i) = u.row(i).head<2>() - lin.w.transpose();
-        }
-        if (changed) {
-            sets.A.clear();
-            for (int i = 0; i < n; ++i)
-                if (in_A[std::size_t(i)]) sets.A.push_back(i);
-        }
+            p.kind.all_slip ? 0.0
+                            : update_friction(u, x.lin, x.anchor, p.r_stiff, p.mu, x.sets, changed);
+        apply_normal_changes(p, ch, u, changed, in_A, x);
         if (changed) continue;
         if (law_error <= 1e-12 * P) {
             sol.status = "ok";
             break;
         }
     }
-    sol.converged = sol.status == "ok";
+}
 
-    // Forces, displacements, states and anchors at the end of the step.
-    sol.active = sets.A;
+/// Forces, states, displacements (from the contact forces) and anchors at the end of the step.
+/// A node on the friction cone that did not move relative to the object sticks; in a full slip
+/// every node slides with the object. `force`: force control; `w_prev`: the object's travel at
+/// the previous step.
+void record_contact(const StepProblem& p, const NewtonIterate& x, bool force,
+                    const Eigen::Vector2d& w_prev, ContactSolution& sol) {
+    const std::vector<int>& A = x.sets.A;
+    const LinearSolution& lin = x.lin;
+    sol.active = A;
     sol.indentation_mm = lin.d;
-    const RowForces u_end = candidate_displacements(C, sets.A, lin, false);
-    for (int j : sets.A) {
+    const RowForces u_end = candidate_displacements(p.C, A, lin, false);
+    for (int j : A) {
         sol.forces_N.row(j) << lin.t(j, 0), lin.t(j, 1), -lin.lambda(j);
-        // A node on the friction cone that did not move relative to the object sticks; in a
-        // full slip every node slides with the object.
-        const double slip_mm = (u_end.row(j).head<2>() - lin.w.transpose() - anchor.row(j)).norm();
-        const bool slips = kind.full_slip ||
-                           (sets.slip[std::size_t(j)] != 0 && (kind.all_slip || slip_mm > 1e-13));
+        const double slip_mm =
+            (u_end.row(j).head<2>() - lin.w.transpose() - x.anchor.row(j)).norm();
+        const bool slips = p.kind.full_slip || (x.sets.slip[std::size_t(j)] != 0 &&
+                                                (p.kind.all_slip || slip_mm > 1e-13));
         sol.state[std::size_t(j)] = slips ? NodeContact::slip : NodeContact::stick;
         if (slips) sol.slipping.push_back(j);
     }
     sol.object_displacement_mm = lin.w;
-    const bool force = load.tangential == TangentialControl::force;
-    sol.sliding =
-        kind.full_slip || (!force && !sets.A.empty() && sol.slipping.size() == sets.A.size() &&
-                           (sol.object_displacement_mm - w_prev).norm() > 0);
+    sol.sliding = p.kind.full_slip || (!force && !A.empty() && sol.slipping.size() == A.size() &&
+                                       (sol.object_displacement_mm - w_prev).norm() > 0);
     sol.displacement_mm = u_end;
     const Eigen::Vector2d w = sol.object_displacement_mm;
-    for (int j : sets.A)
+    for (int j : A)
         sol.anchor_mm.row(j) =
             sol.state[std::size_t(j)] == NodeContact::stick
-                ? Eigen::RowVector2d(anchor.row(j))
+                ? Eigen::RowVector2d(x.anchor.row(j))
                 : Eigen::RowVector2d(sol.displacement_mm.row(j).head<2>() - w.transpose());
+}
 
-    sol.normal_force_N = -sol.forces_N.col(2).sum();
-    sol.tangential_force_N = sol.forces_N.leftCols<2>().colwise().sum().transpose();
-    sol.gamma =
-        sol.sliding ? 0.0 : safety_margin(mu, sol.normal_force_N, sol.tangential_force_N.norm());
-
-    // Residuals: contact (no penetration, closed on A), stick (anchor kept), force balance,
-    // friction law; with Goodman's approximation the contact is judged on the normal forces'
-    // displacement, as solved.
-    const RowForces uz =
-        options.coupled ? sol.displacement_mm : candidate_displacements(C, sets.A, lin, true);
+/// Residuals of the recorded solution under the normal force `P`: contact (no penetration,
+/// closed on A), stick (anchor kept), force balance, friction law; with Goodman's approximation
+/// the contact is judged on the normal forces' displacement, as solved.
+void record_residuals(const StepProblem& p, const NewtonIterate& x, double P,
+                      ContactSolution& sol) {
+    const int n = int(p.gap.size());
+    const Eigen::Vector2d w = sol.object_displacement_mm;
+    const RowForces uz = p.options.coupled ? sol.displacement_mm
+                                           : candidate_displacements(p.C, x.sets.A, x.lin, true);
     double res_mm = 0, res_N = std::abs(sol.normal_force_N - P);
     for (int i = 0; i < n; ++i) {
-        const double g = gap(i) - sol.indentation_mm - uz(i, 2);
+        const double g = p.gap(i) - sol.indentation_mm - uz(i, 2);
         const NodeContact s = sol.state[std::size_t(i)];
         res_mm = std::max(res_mm, s == NodeContact::free ? std::max(0.0, -g) : std::abs(g));
-        const double tn = sol.forces_N.row(i).head<2>().norm(), lim = mu * lin.lambda(i);
+        const double tn = sol.forces_N.row(i).head<2>().norm(), lim = p.mu * x.lin.lambda(i);
         if (s == NodeContact::stick) {
             res_mm = std::max(
                 res_mm,
-                (sol.displacement_mm.row(i).head<2>() - w.transpose() - anchor.row(i)).norm());
+                (sol.displacement_mm.row(i).head<2>() - w.transpose() - x.anchor.row(i)).norm());
             res_N = std::max(res_N, tn - lim);
         } else if (s == NodeContact::slip) {
             res_N = std::max(res_N, std::abs(tn - lim));
         }
     }
-    if (kind.w_unknown)
-        res_N = std::max(res_N, (sol.tangential_force_N - kind.solved.tangential_force_N).norm());
+    if (p.kind.w_unknown)
+        res_N = std::max(res_N, (sol.tangential_force_N - p.kind.solved.tangential_force_N).norm());
     sol.residual_mm = res_mm;
     sol.residual_N = res_N;
+}
+
+/// A step's solution before it is solved: nothing touches, the object at the kind's travel.
+ContactSolution untouched(const ContactLoad& load, int n, const StepKind& kind) {
+    ContactSolution sol;
+    sol.load = load;
+    sol.forces_N = RowForces::Zero(n, 3);
+    sol.displacement_mm = RowForces::Zero(n, 3);
+    sol.state.assign(std::size_t(n), NodeContact::free);
+    sol.anchor_mm = RowVectors2::Zero(n, 2);
+    sol.object_displacement_mm = kind.w_given;
+    return sol;
+}
+
+/// One step for a given kind (solve_contact_step).
+ContactSolution solve_step(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_mm,
+                           const ContactLoad& load, const ContactSolution* previous,
+                           const ContactOptions& options, const RowForces* extra_mm,
+                           const StepKind& kind) {
+    const int n = int(gap_mm.size());
+    ContactSolution sol = untouched(load, n, kind);
+    const double P = load.normal_force_N;
+    if (!(P > 0)) { // unloaded: nothing touches
+        sol.converged = true;
+        sol.gamma = safety_margin(load.mu, 0.0, 0.0);
+        return sol;
+    }
+    const Eigen::Vector2d w_prev =
+        previous ? previous->object_displacement_mm : Eigen::Vector2d::Zero();
+    const double mu = std::max(0.0, load.mu);
+    const StepProblem p = step_problem(C, gap_mm, previous, extra_mm, mu, kind, options);
+    NewtonIterate x{
+        start_sets(previous, p.gap, p.r_stiff, mu, kind),
+        LinearSolution{Eigen::VectorXd::Zero(n), RowVectors2::Zero(n, 2), 0.0, kind.w_given},
+        start_anchors(previous, n, w_prev, extra_mm)};
+    iterate_sets(p, P, x, sol);
+    sol.converged = sol.status == "ok";
+
+    record_contact(p, x, load.tangential == TangentialControl::force, w_prev, sol);
+    sol.normal_force_N = -sol.forces_N.col(2).sum();
+    sol.tangential_force_N = sol.forces_N.leftCols<2>().colwise().sum().transpose();
+    sol.gamma =
+        sol.sliding ? 0.0 : safety_margin(mu, sol.normal_force_N, sol.tangential_force_N.norm());
+    record_residuals(p, x, P, sol);
     if (extra_mm) { // back to total displacements
         sol.displacement_mm += *extra_mm;
-        for (int j : sets.A)
+        for (int j : x.sets.A)
             sol.anchor_mm.row(j) += extra_mm->row(j).head<2>();
     }
     return sol;
@@ -513,99 +595,6 @@ ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::Vector
         sol = solve_step(C, gap_mm, load, previous, options, extra_mm,
                          step_kind(load, mu, previous, true));
     return sol;
-}
-
-namespace {
-
-ContactLoad interpolate(const ContactLoad& a, const ContactLoad& b, double s) {
-    ContactLoad l = b;
-    l.normal_force_N = a.normal_force_N + s * (b.normal_force_N - a.normal_force_N);
-    l.tangential_force_N = a.tangential_force_N + s * (b.tangential_force_N - a.tangential_force_N);
-    l.tangential_displacement_mm =
-        a.tangential_displacement_mm +
-        s * (b.tangential_displacement_mm - a.tangential_displacement_mm);
-    return l;
-}
-
-} // namespace
-
-std::vector<ContactLoad> load_steps(const ContactLoad& load, const LoadPath& path,
-                                    const ContactSolution* previous) {
-    std::vector<ContactLoad> steps;
-    if (previous) {
-        ContactLoad from = previous->load;
-        from.tangential_displacement_mm = previous->object_displacement_mm;
-        if (load.tangential == TangentialControl::force &&
-            previous->load.tangential != TangentialControl::force)
-            from.tangential_force_N = previous->tangential_force_N;
-        const int k = std::max(1, path.steps_from_previous);
-        for (int i = 1; i <= k; ++i)
-            steps.push_back(interpolate(from, load, double(i) / k));
-    } else {
-        ContactLoad rest = load, grasp = load;
-        rest.normal_force_N = 0;
-        rest.tangential_force_N.setZero();
-        rest.tangential_displacement_mm.setZero();
-        grasp.tangential_force_N.setZero();
-        grasp.tangential_displacement_mm.setZero();
-        if (path.frictionless_indentation) rest.mu = grasp.mu = 0.0;
-        const int kn = std::max(1, path.normal_steps);
-        for (int i = 1; i <= kn; ++i)
-            steps.push_back(interpolate(rest, grasp, double(i) / kn));
-        const bool tangential = load.tangential_force_N.norm() > 0 ||
-                                load.tangential_displacement_mm.norm() > 0 ||
-                                (path.frictionless_indentation && load.mu > 0);
-        if (tangential) {
-            grasp.mu = load.mu;
-            const int kt = std::max(1, path.tangential_steps);
-            for (int i = 1; i <= kt; ++i)
-                steps.push_back(interpolate(grasp, load, double(i) / kt));
-        }
-    }
-    return steps;
-}
-
-ContactSolution solve_contact_path(
-    const Eigen::MatrixXd& C, const ObjectShape& object,
-    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& X,
-    const ContactLoad& load, const LoadPath& path, const ContactSolution* previous,
-    const ContactOptions& options) {
-    const std::vector<ContactLoad> steps = load_steps(load, path, previous);
-    // A step that does not converge is split in two halves (from the same start), down to
-    // 1/64 of a step: the stick/slip sets then change little per step.
-    int iterations = 0;
-    auto step_from = [&](auto&& self, const ContactSolution* from, const ContactLoad& start,
-                         const ContactLoad& target, int depth) -> ContactSolution {
-        const Eigen::Vector2d shift = from ? from->object_displacement_mm : Eigen::Vector2d::Zero();
-        ContactSolution next =
-            solve_contact_step(C, object_gap(object, X, shift), target, from, options);
-        iterations += next.iterations;
-        if (next.converged || depth >= 6) return next;
-        const ContactLoad middle = interpolate(start, target, 0.5);
-        const ContactSolution half = self(self, from, start, middle, depth + 1);
-        if (!half.converged) return half;
-        return self(self, &half, middle, target, depth + 1);
-    };
-    ContactSolution current;
-    const ContactSolution* last = previous;
-    ContactLoad start = previous ? previous->load : load; // the load the first step starts from
-    if (previous) {
-        start.tangential_displacement_mm = previous->object_displacement_mm;
-    } else {
-        start.normal_force_N = 0;
-        start.tangential_force_N.setZero();
-        start.tangential_displacement_mm.setZero();
-    }
-    for (const ContactLoad& step : steps) {
-        ContactLoad from = start;
-        from.mu = step.mu;
-        current = step_from(step_from, last, from, step, 0);
-        last = &current;
-        start = step;
-        if (!current.converged) break;
-    }
-    current.iterations = iterations;
-    return current;
 }
 
 } // namespace chromasim::mechanics

@@ -3,8 +3,113 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
+#include <vector>
 
 namespace chromasim::mechanics {
+
+namespace {
+
+/// Anderson acceleration (type II) over the last `kDepth` iterations: x_{k+1} = g_k - dG gamma
+/// with gamma minimizing |f_k - dF gamma|, f = g(x) - x the fixed-point residual.
+/// The history restarts when it has not produced a new smallest increment for `kPatience`
+/// iterations: near the fixed point an old history can hold the iteration in a cycle.
+class AndersonMixing {
+public:
+    /// Forgets the history and the patience count.
+    void restart() {
+        m_dF.clear();
+        m_dG.clear();
+        m_f_prev.resize(0);
+        m_since_best = 0;
+    }
+
+    /// Forgets the smallest increment seen so far.
+    void forget_best() { m_best_increment = std::numeric_limits<double>::infinity(); }
+
+    /// Drops the differences of the history (the last iterate stays).
+    void drop_history() {
+        m_dF.clear();
+        m_dG.clear();
+    }
+
+    /// Counts an iteration's largest increment (mm) towards the patience.
+    void note_increment(double increment_mm) {
+        if (increment_mm < m_best_increment) {
+            m_best_increment = increment_mm;
+            m_since_best = 0;
+        } else if (++m_since_best >= kPatience) {
+            restart();
+        }
+    }
+
+    /// The next iterate after one with image `g` and residual `f` = g - x, added to the history.
+    Eigen::VectorXd next(const Eigen::VectorXd& f, const Eigen::VectorXd& g) {
+        if (m_f_prev.size()) {
+            m_dF.push_back(f - m_f_prev);
+            m_dG.push_back(g - m_g_prev);
+            if (int(m_dF.size()) > kDepth) {
+                m_dF.erase(m_dF.begin());
+                m_dG.erase(m_dG.begin());
+            }
+        }
+        m_f_prev = f;
+        m_g_prev = g;
+        Eigen::VectorXd accelerated = g;
+        if (!m_dF.empty()) {
+            Eigen::MatrixXd F(g.size(), Eigen::Index(m_dF.size()));
+            for (std::size_t i = 0; i < m_dF.size(); ++i)
+                F.col(Eigen::Index(i)) = m_dF[i];
+            const Eigen::VectorXd gamma = F.colPivHouseholderQr().solve(f);
+            for (std::size_t i = 0; i < m_dG.size(); ++i)
+                accelerated -= gamma(Eigen::Index(i)) * m_dG[i];
+        }
+        return accelerated;
+    }
+
+private:
+    static constexpr int kDepth = 6, kPatience = 8;
+    double m_best_increment = std::numeric_limits<double>::infinity();
+    int m_since_best = 0;
+    std::vector<Eigen::VectorXd> m_dF, m_dG;
+    Eigen::VectorXd m_f_prev, m_g_prev;
+};
+
+/// The candidates' rows (n x 3) of the full displacement `u` (3 #V).
+void gather_candidates(const Eigen::VectorXd& u, const std::vector<int>& candidates,
+                       RowForces& out) {
+    for (Eigen::Index j = 0; j < Eigen::Index(candidates.size()); ++j)
+        out.row(j) = u.segment<3>(3 * candidates[std::size_t(j)]).transpose();
+}
+
+/// `u` plus K^-1 of the contact forces, from the candidates' field responses: one dense product
+/// in place of a second back-substitution per iteration.
+Eigen::VectorXd with_contact_forces(Eigen::VectorXd u, const Eigen::MatrixXd& field,
+                                    const ContactSolution& contact) {
+    for (int j : contact.active)
+        u.noalias() +=
+            field.middleCols<3>(3 * Eigen::Index(j)) * contact.forces_N.row(j).transpose();
+    return u;
+}
+
+/// Keeps det F > 0 (and away from 0): blends `accelerated` back towards the plain update `u`,
+/// then shortens it, until every J stays at or above `min_jacobian`. Returns false (`u` kept)
+/// when the step falls to 1e-6; drops the mixing's history once the step is below 0.3.
+bool relax_step(const NeoHookean& energy, const Eigen::VectorXd& accelerated, double min_jacobian,
+                AndersonMixing& mixing, Eigen::VectorXd& u) {
+    double step = 1.0;
+    Eigen::VectorXd trial = accelerated;
+    while (energy.min_jacobian(trial) < min_jacobian && step > 1e-6) {
+        step *= 0.5;
+        trial = u + step * (accelerated - u);
+        if (step < 0.3) mixing.drop_history(); // the history led astray: restart it
+    }
+    if (step <= 1e-6) return false;
+    u = std::move(trial);
+    return true;
+}
+
+} // namespace
 
 HyperelasticContact::HyperelasticContact(const TetMesh& mesh,
                                          const std::vector<Material>& materials,
@@ -22,53 +127,34 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
     HyperelasticStep out;
     out.u = u_previous ? *u_previous : Eigen::VectorXd::Zero(dofs);
     out.status = "max_iterations";
-    // Anderson acceleration (type II) over the last `depth` iterations: x_{k+1} = g_k - dG gamma
-    // with gamma minimizing |f_k - dF gamma|, f = g(x) - x the fixed-point residual.
-    // The history restarts when it has not produced a new smallest increment for `patience`
-    // iterations: near the fixed point an old history can hold the iteration in a cycle.
-    constexpr int depth = 6, patience = 8;
-    double best_increment = std::numeric_limits<double>::infinity();
-    int since_best = 0;
-    std::vector<Eigen::VectorXd> dF, dG;
-    Eigen::VectorXd f_prev, g_prev;
+    AndersonMixing mixing;
     RowForces extra(n, 3);
     // Near mu P an iterate whose stick zone vanished slides (solve_contact_step) and the next
     // may stick again. The second iterate that slides decides: the step slides to its end,
     // rather than cycle between the two maps, and the history restarts on the sliding map.
     bool slides = false;
     int sliding_iterates = 0;
-    const auto restart_history = [&] {
-        dF.clear();
-        dG.clear();
-        f_prev.resize(0);
-        since_best = 0;
-    };
     const Eigen::MatrixXd& field = m_body.candidate_field_responses();
     for (int it = 1; it <= options.max_iterations; ++it) {
         out.iterations = it;
         // Nonlinear remainder of the internal force, moved to the right-hand side.
         const Eigen::VectorXd r = m_energy.gradient(out.u) - m_K0 * out.u;
         const Eigen::VectorXd u_r = -m_body.solve(r);
-        for (Eigen::Index j = 0; j < n; ++j)
-            extra.row(j) = u_r.segment<3>(3 * candidates[std::size_t(j)]).transpose();
+        gather_candidates(u_r, candidates, extra);
         ContactSolution contact = solve_contact_step(m_body.compliance(), gap_mm, load, previous,
                                                      contact_options, &extra, slides);
         if (!slides && contact.sliding && ++sliding_iterates == 2) {
             slides = true;
-            restart_history();
-            best_increment = std::numeric_limits<double>::infinity();
+            mixing.restart();
+            mixing.forget_best();
         }
         if (!contact.converged) {
             out.status = "contact: " + contact.status;
             out.contact = std::move(contact);
             return out;
         }
-        // K^-1 of the contact forces from the candidates' field responses: one dense product
-        // in place of a second back-substitution per iteration.
-        Eigen::VectorXd u_star = u_r;
-        for (int j : contact.active)
-            u_star.noalias() +=
-                field.middleCols<3>(3 * Eigen::Index(j)) * contact.forces_N.row(j).transpose();
+        // The fixed-point map's image and its increment.
+        const Eigen::VectorXd u_star = with_contact_forces(u_r, field, contact);
         const Eigen::VectorXd delta = u_star - out.u;
         out.contact = std::move(contact);
         out.increment_mm = delta.cwiseAbs().maxCoeff();
@@ -79,48 +165,13 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
             out.status = out.converged ? "ok" : "inverted";
             return out;
         }
-        if (out.increment_mm < best_increment) {
-            best_increment = out.increment_mm;
-            since_best = 0;
-        } else if (++since_best >= patience) {
-            restart_history();
-        }
-        if (f_prev.size()) {
-            dF.push_back(delta - f_prev);
-            dG.push_back(u_star - g_prev);
-            if (int(dF.size()) > depth) {
-                dF.erase(dF.begin());
-                dG.erase(dG.begin());
-            }
-        }
-        f_prev = delta;
-        g_prev = u_star;
-        Eigen::VectorXd accelerated = u_star;
-        if (!dF.empty()) {
-            Eigen::MatrixXd F(dofs, Eigen::Index(dF.size()));
-            for (std::size_t i = 0; i < dF.size(); ++i)
-                F.col(Eigen::Index(i)) = dF[i];
-            const Eigen::VectorXd gamma = F.colPivHouseholderQr().solve(delta);
-            for (std::size_t i = 0; i < dG.size(); ++i)
-                accelerated -= gamma(Eigen::Index(i)) * dG[i];
-        }
-        // Keep det F > 0 (and away from 0): blend back towards the plain update, then shorten
-        // it, until every J stays above the bound.
-        double step = 1.0;
-        Eigen::VectorXd trial = accelerated;
-        while (m_energy.min_jacobian(trial) < options.min_jacobian && step > 1e-6) {
-            step *= 0.5;
-            trial = out.u + step * (accelerated - out.u);
-            if (step < 0.3) {
-                dF.clear(); // the history led astray: restart it
-                dG.clear();
-            }
-        }
-        if (step <= 1e-6) {
+        // Accelerate, then keep every J above the bound.
+        mixing.note_increment(out.increment_mm);
+        const Eigen::VectorXd accelerated = mixing.next(delta, u_star);
+        if (!relax_step(m_energy, accelerated, options.min_jacobian, mixing, out.u)) {
             out.status = "inverted";
             return out;
         }
-        out.u = std::move(trial);
     }
     out.min_jacobian = m_energy.min_jacobian(out.u);
     return out;

@@ -1,5 +1,7 @@
 #include "generators/io/gltf_io.hpp"
 
+#include "generators/io/gltf_detail.hpp"
+
 // The one file that includes tinygltf. Debian's libtinygltf carries the implementation, so
 // TINYGLTF_IMPLEMENTATION is not defined here (and no stb or JSON header is needed).
 #include <tiny_gltf.h>
@@ -8,20 +10,15 @@
 #include <Eigen/Geometry>
 
 #include <algorithm>
-#include <array>
 #include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#include <fstream>
-#include <iterator>
 #include <limits>
 #include <numbers>
 #include <set>
-#include <sstream>
 #include <stdexcept>
 #include <string>
-#include <unistd.h>
 #include <vector>
 
 namespace chromasim::generators {
@@ -30,16 +27,22 @@ namespace fs = std::filesystem;
 
 namespace {
 
-[[noreturn]] void fail(const fs::path& file, const std::string& what) {
-    throw std::runtime_error(file.string() + ": " + what);
-}
+using detail::AccessorBytes;
+using detail::fail;
+using detail::IndexTriangles;
 
-std::string lowercase_extension(const fs::path& file) {
-    std::string ext = file.extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(),
-                   [](unsigned char c) { return char(std::tolower(c)); });
-    return ext;
-}
+// gltf_mesh.cpp decodes accessors and primitives with the spec's numbers.
+static_assert(detail::kComponentByte == TINYGLTF_COMPONENT_TYPE_BYTE &&
+              detail::kComponentUnsignedByte == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
+              detail::kComponentShort == TINYGLTF_COMPONENT_TYPE_SHORT &&
+              detail::kComponentUnsignedShort == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+              detail::kComponentInt == TINYGLTF_COMPONENT_TYPE_INT &&
+              detail::kComponentUnsignedInt == TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT &&
+              detail::kComponentFloat == TINYGLTF_COMPONENT_TYPE_FLOAT &&
+              detail::kComponentDouble == TINYGLTF_COMPONENT_TYPE_DOUBLE);
+static_assert(detail::kModeTriangles == TINYGLTF_MODE_TRIANGLES &&
+              detail::kModeTriangleStrip == TINYGLTF_MODE_TRIANGLE_STRIP &&
+              detail::kModeTriangleFan == TINYGLTF_MODE_TRIANGLE_FAN);
 
 std::string trimmed(std::string s) {
     while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back())))
@@ -47,54 +50,10 @@ std::string trimmed(std::string s) {
     return s;
 }
 
-const char* component_name(int type) {
-    switch (type) {
-    case TINYGLTF_COMPONENT_TYPE_BYTE:
-        return "BYTE";
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
-        return "UNSIGNED_BYTE";
-    case TINYGLTF_COMPONENT_TYPE_SHORT:
-        return "SHORT";
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT:
-        return "UNSIGNED_SHORT";
-    case TINYGLTF_COMPONENT_TYPE_INT:
-        return "INT";
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT:
-        return "UNSIGNED_INT";
-    case TINYGLTF_COMPONENT_TYPE_FLOAT:
-        return "FLOAT";
-    case TINYGLTF_COMPONENT_TYPE_DOUBLE:
-        return "DOUBLE";
-    default:
-        return "unknown";
-    }
-}
-
-const char* mode_name(int mode) {
-    static const char* names[] = {"POINTS",    "LINES",          "LINE_LOOP",   "LINE_STRIP",
-                                  "TRIANGLES", "TRIANGLE_STRIP", "TRIANGLE_FAN"};
-    return mode >= 0 && mode <= 6 ? names[mode] : "unknown";
-}
-
 // ---- Loading --------------------------------------------------------------------------------
 
-std::vector<unsigned char> read_bytes(const fs::path& file) {
-    std::error_code ec;
-    if (!fs::is_regular_file(file, ec))
-        fail(file, fs::exists(file, ec) ? "not a regular file; expected a glTF 2.0 file"
-                                        : "no such file; expected a glTF 2.0 file (.gltf or .glb)");
-    std::ifstream in(file, std::ios::binary);
-    if (!in) fail(file, "cannot open for reading");
-    std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)),
-                                     std::istreambuf_iterator<char>());
-    if (in.bad()) fail(file, "read error");
-    if (bytes.size() > std::numeric_limits<unsigned int>::max())
-        fail(file, "larger than 4 GiB; glTF files are limited to 4 GiB");
-    return bytes;
-}
-
 tinygltf::Model parse(const fs::path& file) {
-    const std::vector<unsigned char> bytes = read_bytes(file);
+    const std::vector<unsigned char> bytes = detail::read_bytes(file);
     tinygltf::TinyGLTF loader;
     tinygltf::Model model;
     std::string err, warn;
@@ -118,14 +77,6 @@ tinygltf::Model parse(const fs::path& file) {
     }
     return model;
 }
-
-// Bytes of one accessor: element k starts at data + k * stride.
-struct AccessorBytes {
-    const unsigned char* data = nullptr;
-    std::size_t stride = 0;
-    std::size_t count = 0;
-    int component = 0;
-};
 
 AccessorBytes accessor_bytes(const fs::path& file, const tinygltf::Model& model, int index,
                              int type, const std::string& what) {
@@ -160,47 +111,13 @@ AccessorBytes accessor_bytes(const fs::path& file, const tinygltf::Model& model,
 std::vector<Eigen::Vector3d> read_positions(const fs::path& file, const tinygltf::Model& model,
                                             int index, const std::string& what) {
     const AccessorBytes a = accessor_bytes(file, model, index, TINYGLTF_TYPE_VEC3, what);
-    if (a.component != TINYGLTF_COMPONENT_TYPE_FLOAT)
-        fail(file, "accessor " + std::to_string(index) + " (" + what + ") has component type " +
-                       component_name(a.component) + "; POSITION must be FLOAT");
-    std::vector<Eigen::Vector3d> p(a.count);
-    for (std::size_t k = 0; k < a.count; ++k) {
-        float xyz[3];
-        std::memcpy(xyz, a.data + k * a.stride, sizeof xyz);
-        p[k] = Eigen::Vector3f(xyz[0], xyz[1], xyz[2]).cast<double>();
-        if (!p[k].allFinite())
-            fail(file, "accessor " + std::to_string(index) + " (" + what + "): position " +
-                           std::to_string(k) + " is not finite; positions must be finite");
-    }
-    return p;
+    return detail::decode_positions(file, a, index, what);
 }
 
 std::vector<std::uint32_t> read_indices(const fs::path& file, const tinygltf::Model& model,
                                         int index, const std::string& what) {
     const AccessorBytes a = accessor_bytes(file, model, index, TINYGLTF_TYPE_SCALAR, what);
-    std::vector<std::uint32_t> out(a.count);
-    for (std::size_t k = 0; k < a.count; ++k) {
-        const unsigned char* e = a.data + k * a.stride;
-        switch (a.component) {
-        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
-            out[k] = *e;
-            break;
-        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
-            std::uint16_t v;
-            std::memcpy(&v, e, sizeof v);
-            out[k] = v;
-            break;
-        }
-        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT:
-            std::memcpy(&out[k], e, sizeof out[k]);
-            break;
-        default:
-            fail(file, "accessor " + std::to_string(index) + " (" + what + ") has component type " +
-                           component_name(a.component) +
-                           "; indices must be UNSIGNED_BYTE, UNSIGNED_SHORT or UNSIGNED_INT");
-        }
-    }
-    return out;
+    return detail::decode_indices(file, a, index, what);
 }
 
 // Local transform of a node: its matrix, else translation * rotation * scale.
@@ -219,24 +136,6 @@ Eigen::Affine3d local_transform(const tinygltf::Node& node) {
     if (node.scale.size() == 3)
         m.scale(Eigen::Vector3d(node.scale[0], node.scale[1], node.scale[2]));
     return m;
-}
-
-// Vertex index triples of a primitive's triangles, in the order of `mode`.
-std::vector<std::array<std::uint32_t, 3>> triangle_indices(const std::vector<std::uint32_t>& idx,
-                                                           int mode) {
-    std::vector<std::array<std::uint32_t, 3>> t;
-    const std::size_t n = idx.size();
-    if (mode == TINYGLTF_MODE_TRIANGLES)
-        for (std::size_t k = 0; k + 2 < n; k += 3)
-            t.push_back({idx[k], idx[k + 1], idx[k + 2]});
-    else if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) // every other triangle reversed
-        for (std::size_t k = 0; k + 2 < n; ++k)
-            t.push_back(k % 2 == 0 ? std::array{idx[k], idx[k + 1], idx[k + 2]}
-                                   : std::array{idx[k + 1], idx[k], idx[k + 2]});
-    else if (mode == TINYGLTF_MODE_TRIANGLE_FAN)
-        for (std::size_t k = 1; k + 1 < n; ++k)
-            t.push_back({idx[0], idx[k], idx[k + 1]});
-    return t;
 }
 
 // Calls visit(node index, node, world transform) for every node of scene `scene`, parents
@@ -282,16 +181,16 @@ const tinygltf::Mesh& node_mesh(const fs::path& file, const tinygltf::Model& mod
 
 // The triangles of a primitive with `vertices` POSITION entries: its indices (0, 1, ... if it
 // has none) in the order of its mode, each checked against `vertices`.
-std::vector<std::array<std::uint32_t, 3>>
-primitive_triangles(const fs::path& file, const tinygltf::Model& model,
-                    const tinygltf::Primitive& p, const std::string& what, std::size_t vertices) {
+IndexTriangles primitive_triangles(const fs::path& file, const tinygltf::Model& model,
+                                   const tinygltf::Primitive& p, const std::string& what,
+                                   std::size_t vertices) {
     std::vector<std::uint32_t> idx;
     if (p.indices >= 0)
         idx = read_indices(file, model, p.indices, what + " indices");
     else
         for (std::uint32_t k = 0; k < vertices; ++k)
             idx.push_back(k);
-    auto triangles = triangle_indices(idx, p.mode);
+    auto triangles = detail::triangle_indices(idx, p.mode);
     for (const auto& t : triangles)
         for (std::uint32_t i : t)
             if (i >= vertices)
@@ -301,16 +200,15 @@ primitive_triangles(const fs::path& file, const tinygltf::Model& model,
     return triangles;
 }
 
+// The primitives of a scene's nodes, read into one surface (detail::SurfaceAssembly).
 class SurfaceBuilder {
 public:
     SurfaceBuilder(const fs::path& file, const tinygltf::Model& model, double scale_to_mm)
-        : m_file(file), m_model(model), m_scale(scale_to_mm) {}
+        : surface(scale_to_mm), m_file(file), m_model(model) {}
 
     void add_node(int index, const tinygltf::Node& node, const Eigen::Affine3d& world);
-    mechanics::TriangleSurface finish() const;
 
-    GltfLoadReport report;
-    std::vector<int> skipped_modes = std::vector<int>(7, 0);
+    detail::SurfaceAssembly surface;
 
 private:
     void add_primitive(const tinygltf::Primitive& p, const std::string& what,
@@ -318,9 +216,6 @@ private:
 
     const fs::path& m_file;
     const tinygltf::Model& m_model;
-    double m_scale;
-    std::vector<Eigen::Vector3d> m_V;
-    std::vector<Eigen::Vector3i> m_F;
 };
 
 void SurfaceBuilder::add_node(int index, const tinygltf::Node& node, const Eigen::Affine3d& world) {
@@ -337,43 +232,13 @@ void SurfaceBuilder::add_primitive(const tinygltf::Primitive& p, const std::stri
     if (p.mode < 0 || p.mode > TINYGLTF_MODE_TRIANGLE_FAN)
         fail(m_file, what + " has mode " + std::to_string(p.mode) + "; glTF modes are 0 to 6");
     if (p.mode < TINYGLTF_MODE_TRIANGLES) { // points and lines have no area
-        ++report.primitives_skipped;
-        ++skipped_modes[std::size_t(p.mode)];
+        surface.skip(p.mode);
         return;
     }
     const auto position = p.attributes.find("POSITION");
     if (position == p.attributes.end()) fail(m_file, what + " has no POSITION attribute");
     const auto P = read_positions(m_file, m_model, position->second, what + " POSITION");
-    const int base = int(m_V.size());
-    for (const auto& x : P)
-        m_V.push_back(m_scale * (world * x));
-    const bool mirrored = world.linear().determinant() < 0.0; // keep the winding outward
-    for (auto t : primitive_triangles(m_file, m_model, p, what, P.size())) {
-        if (mirrored) std::swap(t[1], t[2]);
-        const Eigen::Vector3i f(base + int(t[0]), base + int(t[1]), base + int(t[2]));
-        if (mechanics::is_degenerate_triangle(m_V[std::size_t(f[0])], m_V[std::size_t(f[1])],
-                                              m_V[std::size_t(f[2])]))
-            ++report.degenerate_triangles_dropped;
-        else
-            m_F.push_back(f);
-    }
-    ++report.primitives_used;
-}
-
-mechanics::TriangleSurface SurfaceBuilder::finish() const {
-    if (m_F.empty()) {
-        std::string what = "no triangle in the default scene";
-        for (int mode = 0; mode < 4; ++mode)
-            if (skipped_modes[std::size_t(mode)] > 0)
-                what += "; " + std::to_string(skipped_modes[std::size_t(mode)]) + " " +
-                        mode_name(mode) + " primitive(s) skipped";
-        if (report.degenerate_triangles_dropped > 0)
-            what += "; " + std::to_string(report.degenerate_triangles_dropped) +
-                    " degenerate triangle(s) dropped";
-        fail(m_file, what + "; an object needs TRIANGLES, TRIANGLE_STRIP or TRIANGLE_FAN "
-                            "primitives with a non-zero area");
-    }
-    return mechanics::triangle_surface(m_V, m_F);
+    surface.add(P, primitive_triangles(m_file, m_model, p, what, P.size()), world);
 }
 
 // ---- Writing --------------------------------------------------------------------------------
@@ -486,29 +351,14 @@ tinygltf::Model surface_model(const mechanics::TriangleSurface& surface, double 
     return m;
 }
 
-// Writes `model` to a temporary name beside `file`, then renames it into place; removes the
-// temporary file on any failure.
+// Writes `model` to a temporary name beside `file`, then renames it into place
+// (detail::write_atomically).
 void write_model(const fs::path& file, const tinygltf::Model& model) {
-    const bool binary = lowercase_extension(file) == ".glb";
-    const fs::path tmp = file.string() + ".partial-" + std::to_string(::getpid());
-    bool ok = false;
-    {
-        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-        if (!out) fail(file, "cannot open " + tmp.string() + " for writing");
+    const bool binary = detail::lowercase_extension(file) == ".glb";
+    detail::write_atomically(file, [&](std::ostream& out) {
         tinygltf::TinyGLTF writer;
-        ok = writer.WriteGltfSceneToStream(&model, out, true, binary);
-        out.close();
-        ok = ok && !out.fail();
-    }
-    std::error_code ec;
-    if (ok) fs::rename(tmp, file, ec);
-    if (!ok || ec) {
-        const std::string why =
-            ok ? "cannot rename " + tmp.string() + " into place: " + ec.message()
-               : "write error (disk full or folder not writable?)";
-        fs::remove(tmp, ec);
-        fail(file, why);
-    }
+        return writer.WriteGltfSceneToStream(&model, out, true, binary);
+    });
 }
 
 // ---- Scenes: plain data <-> tinygltf ---------------------------------------------------------
@@ -583,20 +433,6 @@ tinygltf::Material gltf_material(const GltfMaterial& g, std::set<std::string>& u
     return m;
 }
 
-void check_mesh(const GltfMesh& mesh) {
-    const auto bad = [&](const std::string& what) {
-        throw std::invalid_argument("write_gltf_scene: mesh '" + mesh.name + "': " + what);
-    };
-    const render::SurfaceMesh& s = mesh.surface;
-    if (s.F.rows() == 0) bad("no triangle; leave an empty mesh out");
-    if (s.F.maxCoeff() >= s.V.rows())
-        bad("vertex index " + std::to_string(s.F.maxCoeff()) + " out of range [0, " +
-            std::to_string(s.V.rows()) + ")");
-    if (!s.V.allFinite()) bad("positions must be finite");
-    if (mesh.normals.rows() != 0 && mesh.normals.rows() != s.V.rows())
-        bad("normals must have one row per vertex or none");
-}
-
 // Adds a node below the root (node 0) and returns it.
 tinygltf::Node& add_child(tinygltf::Model& m, const std::string& name) {
     m.nodes[0].children.push_back(int(m.nodes.size()));
@@ -607,7 +443,7 @@ tinygltf::Node& add_child(tinygltf::Model& m, const std::string& name) {
 
 void add_mesh(tinygltf::Model& m, BufferWriter& buffer, const GltfMesh& g,
               std::set<std::string>& used) {
-    check_mesh(g);
+    detail::check_mesh(g);
     tinygltf::Primitive p;
     p.attributes["POSITION"] = buffer.add_vec3(g.surface.V, kMmToM, true);
     if (g.normals.rows() != 0) p.attributes["NORMAL"] = buffer.add_vec3(g.normals, 1.0, false);
@@ -755,7 +591,7 @@ private:
 void SceneReader::add_mesh(int index, const tinygltf::Node& node, const Eigen::Affine3d& world) {
     const tinygltf::Mesh& mesh = node_mesh(m_file, m_model, index, node);
     std::vector<Eigen::Vector3d> V, N;
-    std::vector<std::array<std::uint32_t, 3>> F;
+    IndexTriangles F;
     GltfMesh g;
     g.name = mesh.name.empty() ? node.name : mesh.name;
     const Eigen::Matrix3d normal_matrix = world.linear().inverse().transpose();
@@ -776,17 +612,7 @@ void SceneReader::add_mesh(int index, const tinygltf::Node& node, const Eigen::A
             for (const auto& x : read_positions(m_file, m_model, n->second, what + " NORMAL"))
                 N.push_back((normal_matrix * x).normalized());
     }
-    g.surface.V.resize(Eigen::Index(V.size()), 3);
-    for (std::size_t i = 0; i < V.size(); ++i)
-        g.surface.V.row(Eigen::Index(i)) = V[i].transpose().cast<float>();
-    g.surface.F.resize(Eigen::Index(F.size()), 3);
-    for (std::size_t f = 0; f < F.size(); ++f)
-        g.surface.F.row(Eigen::Index(f)) << F[f][0], F[f][1], F[f][2];
-    if (N.size() == V.size() && !N.empty()) {
-        g.normals.resize(Eigen::Index(N.size()), 3);
-        for (std::size_t i = 0; i < N.size(); ++i)
-            g.normals.row(Eigen::Index(i)) = N[i].transpose().cast<float>();
-    }
+    detail::set_mesh_arrays(V, F, N, g);
     scene.meshes.push_back(std::move(g));
 }
 
@@ -837,25 +663,9 @@ mechanics::TriangleSurface load_gltf_surface(const fs::path& file, double scale_
                [&](int index, const tinygltf::Node& node, const Eigen::Affine3d& world) {
                    builder.add_node(index, node, world);
                });
-    mechanics::TriangleSurface surface = builder.finish();
-    if (report) *report = builder.report;
+    mechanics::TriangleSurface surface = builder.surface.finish(file);
+    if (report) *report = builder.surface.report;
     return surface;
-}
-
-void check_gltf_output_path(const fs::path& file) {
-    const std::string ext = lowercase_extension(file);
-    if (ext != ".gltf" && ext != ".glb")
-        fail(file, "unknown extension '" + file.extension().string() +
-                       "'; use .gltf (JSON, embedded buffer) or .glb (binary)");
-    const fs::path folder = file.parent_path().empty() ? fs::path(".") : file.parent_path();
-    std::error_code ec;
-    if (!fs::is_directory(folder, ec))
-        fail(file, "folder " + folder.string() +
-                       (fs::exists(folder, ec) ? " is not a folder" : " does not exist") +
-                       "; the output goes into an existing, writable folder");
-    if (::access(folder.c_str(), W_OK) != 0)
-        fail(file, "folder " + folder.string() +
-                       " is not writable; the output goes into an existing, writable folder");
 }
 
 void write_gltf_surface(const fs::path& file, const mechanics::TriangleSurface& surface,
