@@ -41,8 +41,9 @@ constexpr double kCullMargin_mm = 0.1;
 /// the dome's radius (coplanar triangles of a tessellated sphere are no fold), a hundredth of
 /// the rays' kHitGap_mm.
 constexpr double kFoldHeight_mm = 1e-5;
-/// LightCacheSettings::frame_share: the LED points a side (their cells' centres) over which
-/// the frame's share of an LED's light is taken at a coating vertex or edge midpoint.
+/// The frame's share near the rim (FastIntegrator::tabulate_frame_share): the LED points a
+/// side (their cells' centres) over which the share of an LED's light is taken at a coating
+/// vertex or edge midpoint.
 constexpr int kFrameShareGrid = 8;
 /// A shade's draws: none (ShadowDraw::rays 0), and one shadow ray from the stream (both
 /// referred to, not copied, per sample).

@@ -149,23 +149,16 @@ void FastIntegrator::set_frame(const SensorFrame& frame, const EmbreeScene& scen
     }
 }
 
-void FastIntegrator::build_shadow_culling(const SensorFrame& frame) {
-    m_cull_ball.clear();
-    m_cull_first.assign(1, 0);
-    m_cull_markers.clear();
-    m_marker_balls.clear();
-    m_fold_cones.clear();
-    if (m_guess.empty()) return;
-    const LightCache& c = *m_cache;
-    const std::size_t leds = std::size_t(c.leds);
-    const auto nf = std::size_t(frame.coating.F.rows());
-    m_cull_ball.assign(nf * leds, Eigen::Vector4d(0.0, 0.0, 0.0, -1.0));
-    m_cull_first.assign(nf * leds + 1, 0);
-    // Each marker's bounding ball (its closed surface lies in its corners' convex hull).
+namespace {
+
+/// Each marker's bounding ball (centre, radius; its closed surface lies in its corners' convex
+/// hull); none when markers lack their grouping (triangles_per_marker).
+std::optional<std::vector<Eigen::Vector4d>> marker_balls(const SensorFrame& frame) {
+    std::vector<Eigen::Vector4d> out;
     const int per_marker = frame.triangles_per_marker;
     for (const SurfaceMesh* mesh : {&frame.inner_markers, &frame.outer_markers}) {
         if (mesh->F.rows() == 0) continue;
-        if (per_marker < 1) return; // markers without their grouping: no culling
+        if (per_marker < 1) return std::nullopt;
         for (Eigen::Index first = 0; first < mesh->F.rows(); first += per_marker) {
             const Eigen::Index last = std::min<Eigen::Index>(first + per_marker, mesh->F.rows());
             Vec3 centre = Vec3::Zero();
@@ -179,72 +172,183 @@ void FastIntegrator::build_shadow_culling(const SensorFrame& frame) {
                     r2 = std::max(r2,
                                   (mesh->V.row(mesh->F(f, a)).cast<double>().transpose() - centre)
                                       .squaredNorm());
-            m_marker_balls.emplace_back(centre.x(), centre.y(), centre.z(),
-                                        std::sqrt(r2) * (1.0 + 1e-9) + 1e-9);
+            out.emplace_back(centre.x(), centre.y(), centre.z(),
+                             std::sqrt(r2) * (1.0 + 1e-9) + 1e-9);
         }
     }
-    // Where the coating folds inwards (an edge whose neighbour rises above a triangle's plane,
-    // seen from the cavity), a path from the cavity can meet the coating before its end. A
-    // path that does so leaves and re-enters the coating, so in the plane through the origin
-    // and the path the coating's section between the two points is not convex: the path's
-    // radial projection crosses such an edge. So each fold is kept as the cone of directions
-    // of its edge (axis, chord to the ends), and is in the way of paths whose directions come
-    // that close. Under load the contact's edges fold by up to about 0.01 mm.
+    return out;
+}
+
+/// Where the coating folds inwards (an edge whose neighbour rises above a triangle's plane,
+/// seen from the cavity), a path from the cavity can meet the coating before its end. A
+/// path that does so leaves and re-enters the coating, so in the plane through the origin
+/// and the path the coating's section between the two points is not convex: the path's
+/// radial projection crosses such an edge. So each fold is kept as the cone of directions
+/// of its edge (axis, chord to the ends), and is in the way of paths whose directions come
+/// that close. Under load the contact's edges fold by up to about 0.01 mm.
+std::vector<Eigen::Vector4d> fold_cones(const SensorFrame& frame,
+                                        const std::vector<std::array<std::uint32_t, 2>>& edges,
+                                        const std::vector<std::uint32_t>& triangle_edges,
+                                        const std::vector<std::uint32_t>& triangles) {
+    std::vector<Eigen::Vector4d> out;
+    const auto nf = std::size_t(frame.coating.F.rows());
     const auto& V = frame.coating.V;
     const auto vertex = [&](std::uint32_t v) -> Vec3 {
         return V.row(Eigen::Index(v)).cast<double>().transpose();
     };
-    std::vector<std::array<std::int64_t, 2>> sides(m_edges.size(), {-1, -1});
+    std::vector<std::array<std::int64_t, 2>> sides(edges.size(), {-1, -1});
     for (std::size_t f = 0; f < nf; ++f)
         for (int a = 0; a < 3; ++a) {
-            auto& side = sides[m_triangle_edges[3 * f + std::size_t(a)]];
+            auto& side = sides[triangle_edges[3 * f + std::size_t(a)]];
             side[side[0] < 0 ? 0 : 1] = std::int64_t(f);
         }
-    for (std::size_t e = 0; e < m_edges.size(); ++e) {
+    for (std::size_t e = 0; e < edges.size(); ++e) {
         if (sides[e][1] < 0) continue; // the rim
         bool fold = false;
         for (int s = 0; s < 2; ++s) {
-            const std::uint32_t* t = c.coating_triangles.data() + 3 * std::size_t(sides[e][s]);
-            const std::uint32_t* o = c.coating_triangles.data() + 3 * std::size_t(sides[e][1 - s]);
+            const std::uint32_t* t = triangles.data() + 3 * std::size_t(sides[e][s]);
+            const std::uint32_t* o = triangles.data() + 3 * std::size_t(sides[e][1 - s]);
             Vec3 n = (vertex(t[1]) - vertex(t[0])).cross(vertex(t[2]) - vertex(t[0]));
             if (n.dot(vertex(t[0]) + vertex(t[1]) + vertex(t[2])) < 0.0) n = -n; // outwards
             // A triangle squeezed to no area has no plane to tell: counted as a fold.
             if (!(n.norm() > 0.0) || !n.allFinite()) fold = true;
             for (int a = 0; a < 3 && !fold; ++a)
-                if (o[a] != m_edges[e][0] && o[a] != m_edges[e][1])
+                if (o[a] != edges[e][0] && o[a] != edges[e][1])
                     fold = !(n.normalized().dot(vertex(o[a]) - vertex(t[0])) <= kFoldHeight_mm);
         }
         if (fold) {
-            const Vec3 a = vertex(m_edges[e][0]).normalized(),
-                       b = vertex(m_edges[e][1]).normalized();
+            const Vec3 a = vertex(edges[e][0]).normalized(), b = vertex(edges[e][1]).normalized();
             const Vec3 axis = (a + b).normalized();
-            m_fold_cones.emplace_back(axis.x(), axis.y(), axis.z(), (axis - a).norm() + 1e-9);
+            out.emplace_back(axis.x(), axis.y(), axis.z(), (axis - a).norm() + 1e-9);
         }
     }
-    // Each triangle's ball per LED: its corners, and where the guessed paths from its
-    // corners to the LED's corners leave the sphere, plus a margin; then the markers whose
-    // balls meet it and the folds whose cones meet its cone.
-    const auto markers = std::uint32_t(m_marker_balls.size());
-    // The markers' balls as structure of arrays: the test of a ball against them all
-    // vectorises (thousands of triangles' balls against every marker, each frame).
-    std::array<std::vector<double>, 4> balls;
+    return out;
+}
+
+/// A fold cone's half-angle b (its chord w seen as 2 asin(w / 2)) plus the margin, as cos b
+/// and sin b: a ball whose directions spread by a about its centre's meets the cone where
+/// the angle between the axes is at most a + b, i.e. cos(apart) >= cos(a + b) =
+/// cos a cos b - sin a sin b while a + b < pi; no trigonometry per triangle and LED.
+struct ConeAngle {
+    double angle, cos_b, sin_b;
+};
+std::vector<ConeAngle> cone_angles(const std::vector<Eigen::Vector4d>& cones) {
+    std::vector<ConeAngle> out(cones.size());
+    for (std::size_t i = 0; i < cones.size(); ++i) {
+        const double b = 2.0 * std::asin(std::min(1.0, 0.5 * cones[i].w())) + 1e-6;
+        out[i] = {b, std::cos(b), std::sin(b)};
+    }
+    return out;
+}
+
+/// The markers' balls as structure of arrays: the test of a ball against them all
+/// vectorises (thousands of triangles' balls against every marker, each frame).
+std::array<std::vector<double>, 4> ball_arrays(const std::vector<Eigen::Vector4d>& balls) {
+    std::array<std::vector<double>, 4> out;
     for (int a = 0; a < 4; ++a) {
-        balls[std::size_t(a)].resize(markers);
-        for (std::uint32_t m = 0; m < markers; ++m)
-            balls[std::size_t(a)][m] = m_marker_balls[m][a];
+        out[std::size_t(a)].resize(balls.size());
+        for (std::size_t m = 0; m < balls.size(); ++m)
+            out[std::size_t(a)][m] = balls[m][a];
     }
-    // Each fold cone's half-angle b (its chord w seen as 2 asin(w / 2)) plus the margin, as
-    // cos b and sin b: a ball whose directions spread by a about its centre's meets the cone
-    // where the angle between the axes is at most a + b, i.e. cos(apart) >= cos(a + b) =
-    // cos a cos b - sin a sin b while a + b < pi; no trigonometry per triangle and LED.
-    struct ConeAngle {
-        double angle, cos_b, sin_b;
-    };
-    std::vector<ConeAngle> cone_angles(m_fold_cones.size());
-    for (std::size_t i = 0; i < m_fold_cones.size(); ++i) {
-        const double b = 2.0 * std::asin(std::min(1.0, 0.5 * m_fold_cones[i].w())) + 1e-6;
-        cone_angles[i] = {b, std::cos(b), std::sin(b)};
+    return out;
+}
+
+/// Appends to `list` the markers whose balls meet the ball (centre, r); `meets`: scratch of
+/// one entry per marker.
+void add_markers_meeting(const std::array<std::vector<double>, 4>& balls, const Vec3& centre,
+                         double r, std::vector<std::uint32_t>& meets,
+                         std::vector<std::uint32_t>& list) {
+    const double *bx = balls[0].data(), *by = balls[1].data(), *bz = balls[2].data(),
+                 *br = balls[3].data();
+    const double cx = centre.x(), cy = centre.y(), cz = centre.z(), grow = r + 1e-9;
+    const auto n = std::uint32_t(balls[0].size()); // a local bound: the loop vectorises
+    std::uint32_t* out = meets.data();
+    for (std::uint32_t m = 0; m < n; ++m) {
+        const double reach = br[m] + grow; // round-off: never narrower
+        const double dx = bx[m] - cx, dy = by[m] - cy, dz = bz[m] - cz;
+        out[m] = dx * dx + dy * dy + dz * dz <= reach * reach;
     }
+    for (std::uint32_t m = 0; m < n; ++m)
+        if (out[m]) list.push_back(m);
+}
+
+/// Appends to `list` the folds (numbered from `first`) whose cones meet the directions of the
+/// ball (centre, r): they lie within a = asin(r / |centre|) of the centre's (all directions
+/// where the ball holds the origin).
+void add_folds_meeting(const std::vector<Eigen::Vector4d>& cones,
+                       const std::vector<ConeAngle>& angles, const Vec3& centre, double r,
+                       std::uint32_t first, std::vector<std::uint32_t>& list) {
+    const double distance = centre.norm();
+    const bool everywhere = !(r < distance);
+    const double sin_a = everywhere ? 1.0 : r / distance;
+    const double cos_a = std::sqrt(std::max(0.0, 1.0 - sin_a * sin_a));
+    const double a = everywhere ? std::numbers::pi : std::asin(sin_a);
+    const Vec3 towards = centre / distance;
+    for (std::size_t i = 0; i < cones.size(); ++i) {
+        const ConeAngle& b = angles[i];
+        // Round-off only widens the test (1e-12), so a fold is never left out.
+        if (everywhere || a + b.angle >= std::numbers::pi ||
+            cones[i].head<3>().dot(towards) >= cos_a * b.cos_b - sin_a * b.sin_b - 1e-12)
+            list.push_back(first + std::uint32_t(i));
+    }
+}
+
+} // namespace
+
+std::optional<Eigen::Vector4d> FastIntegrator::culling_ball(const SensorFrame& frame,
+                                                            const std::uint32_t* t,
+                                                            std::size_t k) const {
+    const std::size_t leds = std::size_t(m_cache->leds);
+    std::array<Vec3, 15> points;
+    int count = 0;
+    for (int a = 0; a < 3; ++a) {
+        const Vec3 p = frame.coating.V.row(Eigen::Index(t[a])).cast<double>().transpose();
+        points[std::size_t(count++)] = p;
+        const double radius = m_radius[t[a]];
+        if (!(radius > 0.0)) return std::nullopt;
+        const float* cor = m_shadow.data() + 3 * (std::size_t(t[a]) * leds + k);
+        for (const double u1 : {-0.5, 0.5})
+            for (const double u2 : {-0.5, 0.5}) {
+                Vec3 w = guessed_direction(t[a], int(k), u1, u2);
+                for (int x = 0; x < 3; ++x)
+                    w[x] += cor[x];
+                if (!(w.norm() > 0.0)) continue;
+                if (const auto q = sphere_exit(p, w.normalized(), radius))
+                    points[std::size_t(count++)] = *q;
+            }
+    }
+    Vec3 centre = Vec3::Zero();
+    for (int i = 0; i < count; ++i)
+        centre += points[std::size_t(i)];
+    centre /= double(count);
+    double r = 0.0;
+    for (int i = 0; i < count; ++i)
+        r = std::max(r, (points[std::size_t(i)] - centre).norm());
+    r += kCullMargin_mm;
+    return Eigen::Vector4d(centre.x(), centre.y(), centre.z(), r);
+}
+
+void FastIntegrator::build_shadow_culling(const SensorFrame& frame) {
+    m_cull_ball.clear();
+    m_cull_first.assign(1, 0);
+    m_cull_markers.clear();
+    m_marker_balls.clear();
+    m_fold_cones.clear();
+    if (m_guess.empty()) return;
+    const LightCache& c = *m_cache;
+    const std::size_t leds = std::size_t(c.leds);
+    const auto nf = std::size_t(frame.coating.F.rows());
+    m_cull_ball.assign(nf * leds, Eigen::Vector4d(0.0, 0.0, 0.0, -1.0));
+    m_cull_first.assign(nf * leds + 1, 0);
+    auto balls_of_markers = marker_balls(frame);
+    if (!balls_of_markers) return; // markers without their grouping: no culling
+    m_marker_balls = std::move(*balls_of_markers);
+    m_fold_cones = fold_cones(frame, m_edges, m_triangle_edges, c.coating_triangles);
+    // Each triangle's ball per LED (culling_ball); then the markers whose balls meet it and
+    // the folds whose cones meet its cone.
+    const auto markers = std::uint32_t(m_marker_balls.size());
+    const std::array<std::vector<double>, 4> balls = ball_arrays(m_marker_balls);
+    const std::vector<ConeAngle> angles = cone_angles(m_fold_cones);
     // Per triangle, its LEDs' lists one after the other (one allocation a triangle, not one
     // per triangle and LED: tens of thousands), and each list's length.
     std::vector<std::vector<std::uint32_t>> lists(nf);
@@ -255,66 +359,13 @@ void FastIntegrator::build_shadow_culling(const SensorFrame& frame) {
         meets.resize(markers);
         list.clear();
         for (std::size_t k = 0; k < leds; ++k) {
-            std::array<Vec3, 15> points;
-            int count = 0;
-            bool lit = true;
-            for (int a = 0; a < 3; ++a) {
-                const Vec3 p = vertex(t[a]);
-                points[std::size_t(count++)] = p;
-                const double radius = m_radius[t[a]];
-                lit = lit && radius > 0.0;
-                const float* cor = m_shadow.data() + 3 * (std::size_t(t[a]) * leds + k);
-                for (const double u1 : {-0.5, 0.5})
-                    for (const double u2 : {-0.5, 0.5}) {
-                        Vec3 w = guessed_direction(t[a], int(k), u1, u2);
-                        for (int x = 0; x < 3; ++x)
-                            w[x] += cor[x];
-                        if (!(w.norm() > 0.0)) continue;
-                        if (const auto q = sphere_exit(p, w.normalized(), radius))
-                            points[std::size_t(count++)] = *q;
-                    }
-            }
-            if (!lit) continue;
-            Vec3 centre = Vec3::Zero();
-            for (int i = 0; i < count; ++i)
-                centre += points[std::size_t(i)];
-            centre /= double(count);
-            double r = 0.0;
-            for (int i = 0; i < count; ++i)
-                r = std::max(r, (points[std::size_t(i)] - centre).norm());
-            r += kCullMargin_mm;
-            m_cull_ball[f * leds + k] = Eigen::Vector4d(centre.x(), centre.y(), centre.z(), r);
+            const auto ball = culling_ball(frame, t, k);
+            if (!ball) continue;
+            m_cull_ball[f * leds + k] = *ball;
             const std::size_t before = list.size();
-            {
-                const double *bx = balls[0].data(), *by = balls[1].data(), *bz = balls[2].data(),
-                             *br = balls[3].data();
-                const double cx = centre.x(), cy = centre.y(), cz = centre.z(), grow = r + 1e-9;
-                const std::uint32_t n = markers; // a local bound: the loop vectorises
-                std::uint32_t* out = meets.data();
-                for (std::uint32_t m = 0; m < n; ++m) {
-                    const double reach = br[m] + grow; // round-off: never narrower
-                    const double dx = bx[m] - cx, dy = by[m] - cy, dz = bz[m] - cz;
-                    out[m] = dx * dx + dy * dy + dz * dz <= reach * reach;
-                }
-                for (std::uint32_t m = 0; m < n; ++m)
-                    if (out[m]) list.push_back(m);
-            }
-            // The ball's directions lie within a = asin(r / |centre|) of the centre's (all
-            // directions where the ball holds the origin).
-            const double distance = centre.norm();
-            const bool everywhere = !(r < distance);
-            const double sin_a = everywhere ? 1.0 : r / distance;
-            const double cos_a = std::sqrt(std::max(0.0, 1.0 - sin_a * sin_a));
-            const double a = everywhere ? std::numbers::pi : std::asin(sin_a);
-            const Vec3 towards = centre / distance;
-            for (std::size_t i = 0; i < m_fold_cones.size(); ++i) {
-                const ConeAngle& b = cone_angles[i];
-                // Round-off only widens the test (1e-12), so a fold is never left out.
-                if (everywhere || a + b.angle >= std::numbers::pi ||
-                    m_fold_cones[i].head<3>().dot(towards) >=
-                        cos_a * b.cos_b - sin_a * b.sin_b - 1e-12)
-                    list.push_back(markers + std::uint32_t(i));
-            }
+            const Vec3 centre = ball->head<3>();
+            add_markers_meeting(balls, centre, ball->w(), meets, list);
+            add_folds_meeting(m_fold_cones, angles, centre, ball->w(), markers, list);
             lengths[f * leds + k] = std::uint32_t(list.size() - before);
         }
         lists[f].assign(list.begin(), list.end());

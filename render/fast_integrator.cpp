@@ -225,7 +225,7 @@ LanesN<N> FastIntegrator::shadow_transmittance(const EmbreeScene& scene, const V
     // (and is the noise of the field's outer ring); it happens to offset the light the cache's
     // rim vertices gather from under the frame (ShadingModel::crosses_mount), so neither is
     // removed alone.
-    // Where the frame's share is taken off G_k (LightCacheSettings::frame_share), not again.
+    // Where the frame's share is taken off G_k (tabulate_frame_share), not again.
     return m_shading.transmittance(scene, *exit, p, lanes, kHitGap_mm, !frame_apart);
 }
 
@@ -616,8 +616,7 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
         // camera ray's reflection (`reflected`), below kUnshadowedReflection, no shadow rays.
         const auto layers = [&](const Vec3& o, const Vec3& d, double tnear, const RayHit& hit,
                                 double weight, bool reflected = false) {
-            const bool unshadowed =
-                reflected && m_settings.unshadowed_reflections && weight < kUnshadowedReflection;
+            const bool unshadowed = reflected && weight < kUnshadowedReflection;
             return inside(scene, o, d, tnear, l, lambdas[i], *rng[i],
                           unshadowed ? kNoShadowRays : shadow[i], &hit, split, weight);
         };

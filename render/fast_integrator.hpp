@@ -55,9 +55,9 @@
 /// Per camera sample: the camera ray meets the inner surface and splits deterministically:
 /// (1 - F) refracts into the layers, F reflects into the cavity and is followed to the LED it
 /// may hit or the dome wall it meets (which it enters with (1 - F') and is shaded like a
-/// refracted ray; the further reflection F F' is left out; with
-/// LightCacheSettings::unshadowed_reflections a reflection whose share is below
-/// kUnshadowedReflection is shaded without shadow rays). In the layers the ray crosses the
+/// refracted ray; the further reflection F F' is left out; a reflection whose share is below
+/// kUnshadowedReflection is shaded without shadow rays: from a camera at the dome's centre it
+/// runs back across the cavity to the far wall near the rim plane, where no marker lies). In the layers the ray crosses the
 /// markers (Beer-Lambert; an outer marker scatters the share `outer_marker_scatter_fraction`
 /// of what enters it, shaded with the light above the marker layer) to the coating, where the
 /// cache is interpolated with the hit's barycentric coordinates (V_k quadratically: the
@@ -73,7 +73,7 @@
 /// contact, 0.008 rad with the correction (tests/render/test_fast.cpp).
 /// Near the rim the sphere model's shadow paths leave the layers below the rim plane, and the
 /// frame's plane blocks some (an artefact that offsets the cache's light from under the
-/// frame). With LightCacheSettings::frame_share, the share of LED k's light so blocked is
+/// frame). So the share of LED k's light so blocked is
 /// taken per frame at the corners and edge midpoints of the triangles that had one at rest
 /// (8 x 8 LED points each, the shadow rays' own paths), interpolated as G_k and taken off it;
 /// the shadow rays to LED k from those triangles leave the plane out: the same mean without
@@ -131,7 +131,7 @@ inline constexpr double kCacheBsdfPerNee = 4.0;
 /// The most shadow rays one camera sample traces from its coating hit (ShadowDraw::rays).
 inline constexpr int kMaxShadowRaysPerSample = 4;
 
-/// LightCacheSettings::unshadowed_reflections: the largest share of a camera sample (F, or
+/// The largest share of a camera sample (F, or
 /// F (1 - F') through the far wall) whose reflection off the inner surface is shaded without
 /// shadow rays; a larger one (grazing incidence, a surface tilted by a press) traces them.
 inline constexpr double kUnshadowedReflection = 0.1;
@@ -143,7 +143,7 @@ inline constexpr double kUnshadowedReflection = 0.1;
 /// `further`. The renderer stratifies them jointly over a pixel's shadow rays
 /// (shadow_uniforms); u_led < 0: that ray's three drawn from the pixel's stream. rays 0: none,
 /// the LEDs' direct light taken unshadowed and not apart (no DirectPart): the camera ray's
-/// reflection off the inner surface, LightCacheSettings::unshadowed_reflections.
+/// reflection off the inner surface (kUnshadowedReflection).
 struct ShadowDraw {
     double u_led = -1.0, u1 = 0.0, u2 = 0.0;
     int rays = 1;
@@ -301,6 +301,12 @@ public:
     /// G_k as a sample at barycentric (u, v) of coating triangle `prim` takes it (on `normal`):
     /// the corners' frame_direct linearly plus the edges' quadratic terms (for tests).
     double direct_at(std::uint32_t prim, double u, double v, const Vec3& normal, int k) const;
+    /// Whether direct_at takes the frame's share of LED k's light off on coating triangle
+    /// `prim` (tabulate_frame_share; for tests).
+    bool frame_share_taken(std::uint32_t prim, int k) const {
+        return !m_frame_triangle.empty() &&
+               m_frame_triangle[std::size_t(prim) * std::size_t(m_cache->leds) + std::size_t(k)];
+    }
 
 private:
     /// What a ray in the cavity does at the surface it meets (radiance16's levels): it
@@ -326,6 +332,26 @@ private:
                        std::span<const Vec3> directions, bool cavity_only, bool reflect,
                        std::span<RayHit> first, std::span<Level> near) const;
     template <int N> struct Lookup;
+    /// What build_cache's steps share: the sensor at rest, its scenes with and without the
+    /// markers (`bare`: the coating and inner surface), the coating's normals and the outer
+    /// markers' inner face above each vertex they cover (0 where none does).
+    struct CacheGeometry {
+        const SensorFrame& rest;
+        const EmbreeScene& full;
+        const EmbreeScene& bare;
+        const std::vector<Vec3>& normals;
+        std::vector<double> above_mm;
+    };
+    /// build_cache's per-vertex step: each vertex's LED light (area_flux) and indirect light
+    /// at the coating and above the outer marker layer, path-traced.
+    void cache_vertex_light(const CacheGeometry& g, const render::LightCacheSettings& settings,
+                            const SensorSpectra* spectra, double led_scale,
+                            LightCache& cache) const;
+    /// build_cache's edge step: the coating's edges and the LED light's quadratic term along
+    /// each (LightCache::direct_edge).
+    void cache_edge_terms(const CacheGeometry& g, const render::LightCacheSettings& settings,
+                          LightCache& cache, std::vector<std::array<std::uint32_t, 2>>& edges,
+                          std::vector<std::uint32_t>& triangle_edges) const;
     /// The point LEDs' connections at each vertex of `rest`'s coating (a hair off it, as
     /// set_frame takes them) on `bare` (its coating and inner surface), [vertex * leds + k];
     /// `point_rest`: if given, set to their light (LightCache::point_rest).
@@ -372,7 +398,7 @@ private:
     /// the path may cross the rim plane.
     bool path_clear(std::uint32_t prim, int k, const Vec3& p, const Vec3& q,
                     bool frame_apart) const;
-    /// LightCacheSettings::frame_share, once per cache on the sensor at rest (`bare`: its
+    /// The frame's share, once per cache on the sensor at rest (`bare`: its
     /// coating and inner surface): which (triangle, LED) pairs take the frame's share apart
     /// (m_frame_triangle) and the corners' and edges' pairs each frame takes it at.
     void tabulate_frame_share(const SensorFrame& rest, const EmbreeScene& bare);
@@ -391,6 +417,11 @@ private:
     template <int N>
     std::optional<Vec3> shadow_exit(const Lookup<N>& at, const Vec3& p, int k, double u1,
                                     double u2) const;
+    /// The shadow-ray culling's ball of coating triangle `t` (its 3 vertices) and LED k: its
+    /// corners and where the guessed paths from its corners to the LED's corners leave the
+    /// sphere, plus kCullMargin_mm; none where a corner has no sphere below it.
+    std::optional<Eigen::Vector4d> culling_ball(const SensorFrame& frame, const std::uint32_t* t,
+                                                std::size_t k) const;
     /// Per frame (LightCacheSettings::cull_shadows): the markers' balls, the coating's inward
     /// folds, and each coating triangle's ball per LED with the markers and folds near it.
     void build_shadow_culling(const SensorFrame& frame);
@@ -442,7 +473,7 @@ private:
     /// Where the coating folds inwards: each such edge's cone of directions from the origin
     /// (unit axis, chord to its ends); in m_cull_markers after the markers (index - markers).
     std::vector<Eigen::Vector4d> m_fold_cones;
-    /// The frame's share (LightCacheSettings::frame_share; empty: none, or off), this
+    /// The frame's share of the LEDs' light near the rim (empty: no inner surface), this
     /// frame's: of LED k's light at each coating vertex, [vertex * leds + k], the fraction of
     /// its points whose shadow path crosses the frame's plane (frame_share_at); per edge,
     /// [edge * leds + k], the same at its midpoint less the mean of its ends' (the quadratic

@@ -34,6 +34,119 @@ FastIntegrator::FastIntegrator(const ShadingModel& shading, const PathIntegrator
     }
 }
 
+namespace {
+
+/// The outer markers' inner face above each coating vertex they cover (its distance along
+/// the normal, 0 where none covers it).
+std::vector<double> outer_marker_heights(const SensorFrame& rest, const EmbreeScene& full,
+                                         const std::vector<Vec3>& normals) {
+    const int nv = int(rest.coating.V.rows());
+    std::vector<double> above_mm(std::size_t(nv), 0.0);
+    tbb::parallel_for(0, nv, [&](int v) {
+        const Vec3 n = normals[std::size_t(v)];
+        const Vec3 p = rest.coating.V.row(v).cast<double>().transpose() + kHitGap_mm * n;
+        for (double t = 0.0; t < 2.0;) {
+            const RayHit hit = full.closest_hit(p, n, t, 2.0);
+            if (!hit.hit() || hit.kind != SurfaceKind::outer_marker) break;
+            t = hit.t_mm + kHitGap_mm;
+            if (hit.normal.dot(n) > 0.0) { // leaving the marker: its inner face
+                above_mm[std::size_t(v)] = hit.t_mm + kHitGap_mm;
+                break;
+            }
+        }
+    });
+    return above_mm;
+}
+
+/// Where no marker covers a vertex: the median height of the covered ones (0: none covered).
+double median_height(const std::vector<double>& above_mm) {
+    std::vector<double> heights;
+    for (double h : above_mm)
+        if (h > 0.0) heights.push_back(h);
+    std::sort(heights.begin(), heights.end());
+    return heights.empty() ? 0.0 : heights[heights.size() / 2];
+}
+
+/// Smoothing: the indirect light is smooth over millimetres, the estimate of each vertex
+/// heavy-tailed (rare long paths that reach an LED). A Gaussian of `sigma` (3D distance at
+/// rest, cut at 3 sigma), weighted by the vertices' tributary areas, preserves the field's
+/// integral and takes the per-vertex noise down. `coating`: the field at the coating, where
+/// covered and uncovered vertices hold different values and are smoothed apart.
+void smooth_indirect(const SensorFrame& rest, const std::vector<double>& above_mm, double sigma,
+                     int lanes, bool coating, std::vector<float>& field) {
+    const int nv = int(rest.coating.V.rows());
+    const std::vector<double> area = vertex_areas(rest.coating);
+    const double cutoff2 = 9.0 * sigma * sigma;
+    std::vector<float> smooth(field.size(), 0.0f);
+    tbb::parallel_for(0, nv, [&](int v) {
+        const Vec3 pv = rest.coating.V.row(v).cast<double>().transpose();
+        // Local linear regression (a + b . (x - x_v), weighted): unbiased for a
+        // field that varies linearly, such as the fall-off towards the rim.
+        Eigen::Matrix4d M = Eigen::Matrix4d::Zero();
+        Eigen::Matrix<double, 4, kCacheLambdas> rhs =
+            Eigen::Matrix<double, 4, kCacheLambdas>::Zero();
+        double weight = 0.0;
+        for (int w = 0; w < nv; ++w) {
+            // Covered and uncovered vertices hold different coating values.
+            if (coating &&
+                (above_mm[std::size_t(w)] > 0.0) != (above_mm[std::size_t(v)] > 0.0))
+                continue;
+            const Vec3 dx = rest.coating.V.row(w).cast<double>().transpose() - pv;
+            const double d2 = dx.squaredNorm();
+            if (d2 > cutoff2) continue;
+            const double k = area[std::size_t(w)] * std::exp(-0.5 * d2 / (sigma * sigma));
+            const Eigen::Vector4d basis(1.0, dx.x(), dx.y(), dx.z());
+            M += k * basis * basis.transpose();
+            weight += k;
+            for (int j = 0; j < lanes; ++j)
+                rhs.col(j) += (k * field[std::size_t(w) * lanes + j]) * basis;
+        }
+        // A little ridge on the slope: the points lie near a surface, so the slope
+        // along its normal is undetermined.
+        const double ridge = 1e-2 * weight * sigma * sigma;
+        for (int a = 1; a < 4; ++a)
+            M(a, a) += ridge;
+        const Eigen::Matrix<double, 4, kCacheLambdas> coef = M.ldlt().solve(rhs);
+        for (int j = 0; j < lanes; ++j)
+            smooth[std::size_t(v) * lanes + j] = float(std::max(0.0, coef(0, j)));
+    });
+    field.swap(smooth);
+}
+
+/// A covered vertex's coating value: its light above the marker times the ratio coating /
+/// above of its uncovered neighbours (the grazing light their neighbouring markers filter),
+/// so that uncovered coating interpolates uncovered values (a covered hit uses its own
+/// marker's filter on indirect_above instead).
+void covered_from_neighbours(const SensorFrame& rest, const std::vector<double>& above_mm,
+                             LightCache& cache) {
+    const int nv = cache.vertices, lanes = cache.lanes;
+    std::vector<std::vector<int>> ring{std::size_t(nv)};
+    for (Eigen::Index f = 0; f < rest.coating.F.rows(); ++f)
+        for (int a = 0; a < 3; ++a) {
+            const int i = int(rest.coating.F(f, a)), j = int(rest.coating.F(f, (a + 1) % 3));
+            ring[std::size_t(i)].push_back(j);
+            ring[std::size_t(j)].push_back(i);
+        }
+    for (int v = 0; v < nv; ++v) {
+        if (!(above_mm[std::size_t(v)] > 0.0)) continue;
+        for (int j = 0; j < lanes; ++j) {
+            double ratio = 0.0;
+            int count = 0;
+            for (int w : ring[std::size_t(v)]) {
+                const float up = cache.indirect_above[std::size_t(w) * lanes + j];
+                if (above_mm[std::size_t(w)] > 0.0 || !(up > 0.0f)) continue;
+                ratio += cache.indirect[std::size_t(w) * lanes + j] / up;
+                ++count;
+            }
+            cache.indirect[std::size_t(v) * lanes + j] =
+                cache.indirect_above[std::size_t(v) * lanes + j] *
+                float(count > 0 ? ratio / count : 1.0);
+        }
+    }
+}
+
+} // namespace
+
 void FastIntegrator::build_cache(const SensorFrame& rest,
                                  const render::LightCacheSettings& settings,
                                  const SensorSpectra* spectra, double led_scale) {
@@ -60,7 +173,41 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
     cache->coating_triangles.assign(rest.coating.F.data(),
                                     rest.coating.F.data() + rest.coating.F.size());
     const std::vector<Vec3> normals = coating_normals(rest.coating);
+    const CacheGeometry geometry{rest, full, bare, normals,
+                                 outer_marker_heights(rest, full, normals)};
+    std::vector<PointLedPaths> rest_paths = point_paths(rest, bare, &cache->point_rest);
+    cache_vertex_light(geometry, settings, spectra, led_scale, *cache);
+    std::vector<std::array<std::uint32_t, 2>> edges;
+    std::vector<std::uint32_t> triangle_edges;
+    cache_edge_terms(geometry, settings, *cache, edges, triangle_edges);
+    if (settings.smoothing_mm > 0.0) {
+        smooth_indirect(rest, geometry.above_mm, settings.smoothing_mm, cache->lanes, true,
+                        cache->indirect);
+        smooth_indirect(rest, geometry.above_mm, settings.smoothing_mm, cache->lanes, false,
+                        cache->indirect_above);
+    }
+    covered_from_neighbours(rest, geometry.above_mm, *cache);
+    cache->direct_flux = direct_flux(rest.coating, normals, cache->direct, leds);
+    cache->build_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    m_cache = std::move(cache);
+    m_settings = settings;
+    m_edges = std::move(edges);
+    m_triangle_edges = std::move(triangle_edges);
+    m_rest_paths = std::move(rest_paths);
+    tabulate_frame_share(rest, bare);
+    m_direct.clear(); // set_frame brings the frame's data up to date
+}
 
+void FastIntegrator::cache_vertex_light(const CacheGeometry& g,
+                                        const render::LightCacheSettings& settings,
+                                        const SensorSpectra* spectra, double led_scale,
+                                        LightCache& cache) const {
+    const SensorFrame& rest = g.rest;
+    const EmbreeScene &full = g.full, &bare = g.bare;
+    const std::vector<Vec3>& normals = g.normals;
+    const std::vector<double>& above_mm = g.above_mm;
+    const int nv = cache.vertices, leds = cache.leds;
     // Lanes per unit LED emission: the indirect term scales with each sample's LED lanes.
     // The cache's fixed wavelengths are its own lanes, whatever a sample's hero lanes are.
     using CacheLanes = LanesN<kCacheLambdas>;
@@ -74,31 +221,9 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
         spectral_optics = spectral_lanes<kCacheLambdas>(*spectra, lambda, led_scale);
         spectral_optics.led = CacheLanes::Ones();
     }
-    // The outer markers' inner face above each vertex they cover (its distance along the
-    // normal, 0 where none covers it).
-    std::vector<double> above_mm(std::size_t(nv), 0.0);
-    tbb::parallel_for(0, nv, [&](int v) {
-        const Vec3 n = normals[std::size_t(v)];
-        const Vec3 p = rest.coating.V.row(v).cast<double>().transpose() + kHitGap_mm * n;
-        for (double t = 0.0; t < 2.0;) {
-            const RayHit hit = full.closest_hit(p, n, t, 2.0);
-            if (!hit.hit() || hit.kind != SurfaceKind::outer_marker) break;
-            t = hit.t_mm + kHitGap_mm;
-            if (hit.normal.dot(n) > 0.0) { // leaving the marker: its inner face
-                above_mm[std::size_t(v)] = hit.t_mm + kHitGap_mm;
-                break;
-            }
-        }
-    });
-    std::vector<PointLedPaths> rest_paths = point_paths(rest, bare, &cache->point_rest);
-    // Vertices no marker covers: the median height of the covered ones.
-    std::vector<double> heights;
-    for (double h : above_mm)
-        if (h > 0.0) heights.push_back(h);
-    std::sort(heights.begin(), heights.end());
-    const double typical_above_mm = heights.empty() ? 0.0 : heights[heights.size() / 2];
-    const int lanes = cache->lanes;
-    cache->indirect_above.assign(cache->indirect.size(), 0.0f);
+    const double typical_above_mm = median_height(above_mm);
+    const int lanes = cache.lanes;
+    cache.indirect_above.assign(cache.indirect.size(), 0.0f);
     tbb::parallel_for(0, nv, [&](int v) {
         PixelRng rng(0x11C4CE, std::uint64_t(v));
         const Vec3 n = normals[std::size_t(v)];
@@ -110,7 +235,7 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
             const Vec3 flux =
                 area_flux(bare, p, n, k, radius, settings, std::uint64_t(v) * leds + k);
             for (int a = 0; a < 3; ++a)
-                cache->direct[(std::size_t(v) * leds + k) * 3 + a] = float(flux[a]);
+                cache.direct[(std::size_t(v) * leds + k) * 3 + a] = float(flux[a]);
         }
         // The indirect light at the coating and above the outer marker layer; a covered
         // vertex's coating value is its unfiltered one (inside() filters per sample).
@@ -132,8 +257,8 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
                     out[j] = float(sum[j] / settings.paths_per_vertex);
             }
         };
-        float* coating = cache->indirect.data() + std::size_t(v) * lanes;
-        float* above = cache->indirect_above.data() + std::size_t(v) * lanes;
+        float* coating = cache.indirect.data() + std::size_t(v) * lanes;
+        float* above = cache.indirect_above.data() + std::size_t(v) * lanes;
         const double h = above_mm[std::size_t(v)];
         mean_indirect(p + (h > 0.0 ? h : typical_above_mm) * n, above);
         if (h > 0.0 || typical_above_mm == 0.0)
@@ -141,13 +266,22 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
         else
             mean_indirect(p, coating);
     });
+}
+
+void FastIntegrator::cache_edge_terms(const CacheGeometry& g,
+                                      const render::LightCacheSettings& settings,
+                                      LightCache& cache,
+                                      std::vector<std::array<std::uint32_t, 2>>& edges,
+                                      std::vector<std::uint32_t>& triangle_edges) const {
+    const SensorFrame& rest = g.rest;
+    const EmbreeScene& bare = g.bare;
+    const std::vector<Vec3>& normals = g.normals;
+    const int nv = cache.vertices, leds = cache.leds;
     // The direct light's quadratic term along each edge: at the midpoint, less the mean of the
     // ends (the LEDs near the rim make G_k curve within a triangle: linear interpolation
     // alone leaves the rim about 2 % dark at rest).
-    std::vector<std::array<std::uint32_t, 2>> edges;
-    std::vector<std::uint32_t> triangle_edges;
-    coating_edges(cache->coating_triangles, edges, triangle_edges);
-    cache->direct_edge.assign(edges.size() * std::size_t(leds) * 3, 0.0f);
+    coating_edges(cache.coating_triangles, edges, triangle_edges);
+    cache.direct_edge.assign(edges.size() * std::size_t(leds) * 3, 0.0f);
     tbb::parallel_for(0, int(edges.size()), [&](int e) {
         const auto [a, b] = edges[std::size_t(e)];
         const Vec3 n = (normals[a] + normals[b]).normalized();
@@ -158,94 +292,13 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
         for (int k = 0; k < leds; ++k) {
             const Vec3 flux = area_flux(bare, p, n, k, radius, settings,
                                         (std::uint64_t(nv) + std::uint64_t(e)) * leds + k);
-            const float* ga = cache->direct.data() + (std::size_t(a) * leds + k) * 3;
-            const float* gb = cache->direct.data() + (std::size_t(b) * leds + k) * 3;
-            float* out = cache->direct_edge.data() + (std::size_t(e) * leds + k) * 3;
+            const float* ga = cache.direct.data() + (std::size_t(a) * leds + k) * 3;
+            const float* gb = cache.direct.data() + (std::size_t(b) * leds + k) * 3;
+            float* out = cache.direct_edge.data() + (std::size_t(e) * leds + k) * 3;
             for (int i = 0; i < 3; ++i)
                 out[i] = float(flux[i] - 0.5 * (double(ga[i]) + double(gb[i])));
         }
     });
-    // Smoothing: the indirect light is smooth over millimetres, the estimate of each vertex
-    // heavy-tailed (rare long paths that reach an LED). A Gaussian of settings.smoothing_mm
-    // (3D distance at rest, cut at 3 sigma), weighted by the vertices' tributary areas,
-    // preserves the field's integral and takes the per-vertex noise down.
-    if (settings.smoothing_mm > 0.0) {
-        const std::vector<double> area = vertex_areas(rest.coating);
-        const double sigma = settings.smoothing_mm, cutoff2 = 9.0 * sigma * sigma;
-        for (std::vector<float>* field : {&cache->indirect, &cache->indirect_above}) {
-            std::vector<float> smooth(field->size(), 0.0f);
-            tbb::parallel_for(0, nv, [&](int v) {
-                const Vec3 pv = rest.coating.V.row(v).cast<double>().transpose();
-                // Local linear regression (a + b . (x - x_v), weighted): unbiased for a
-                // field that varies linearly, such as the fall-off towards the rim.
-                Eigen::Matrix4d M = Eigen::Matrix4d::Zero();
-                Eigen::Matrix<double, 4, kCacheLambdas> rhs =
-                    Eigen::Matrix<double, 4, kCacheLambdas>::Zero();
-                double weight = 0.0;
-                for (int w = 0; w < nv; ++w) {
-                    // Covered and uncovered vertices hold different coating values.
-                    if (field == &cache->indirect &&
-                        (above_mm[std::size_t(w)] > 0.0) != (above_mm[std::size_t(v)] > 0.0))
-                        continue;
-                    const Vec3 dx = rest.coating.V.row(w).cast<double>().transpose() - pv;
-                    const double d2 = dx.squaredNorm();
-                    if (d2 > cutoff2) continue;
-                    const double k = area[std::size_t(w)] * std::exp(-0.5 * d2 / (sigma * sigma));
-                    const Eigen::Vector4d basis(1.0, dx.x(), dx.y(), dx.z());
-                    M += k * basis * basis.transpose();
-                    weight += k;
-                    for (int j = 0; j < lanes; ++j)
-                        rhs.col(j) += (k * (*field)[std::size_t(w) * lanes + j]) * basis;
-                }
-                // A little ridge on the slope: the points lie near a surface, so the slope
-                // along its normal is undetermined.
-                const double ridge = 1e-2 * weight * sigma * sigma;
-                for (int a = 1; a < 4; ++a)
-                    M(a, a) += ridge;
-                const Eigen::Matrix<double, 4, kCacheLambdas> coef = M.ldlt().solve(rhs);
-                for (int j = 0; j < lanes; ++j)
-                    smooth[std::size_t(v) * lanes + j] = float(std::max(0.0, coef(0, j)));
-            });
-            field->swap(smooth);
-        }
-    }
-    // A covered vertex's coating value: its light above the marker times the ratio coating /
-    // above of its uncovered neighbours (the grazing light their neighbouring markers filter),
-    // so that uncovered coating interpolates uncovered values (a covered hit uses its own
-    // marker's filter on indirect_above instead).
-    std::vector<std::vector<int>> ring{std::size_t(nv)};
-    for (Eigen::Index f = 0; f < rest.coating.F.rows(); ++f)
-        for (int a = 0; a < 3; ++a) {
-            const int i = int(rest.coating.F(f, a)), j = int(rest.coating.F(f, (a + 1) % 3));
-            ring[std::size_t(i)].push_back(j);
-            ring[std::size_t(j)].push_back(i);
-        }
-    for (int v = 0; v < nv; ++v) {
-        if (!(above_mm[std::size_t(v)] > 0.0)) continue;
-        for (int j = 0; j < lanes; ++j) {
-            double ratio = 0.0;
-            int count = 0;
-            for (int w : ring[std::size_t(v)]) {
-                const float up = cache->indirect_above[std::size_t(w) * lanes + j];
-                if (above_mm[std::size_t(w)] > 0.0 || !(up > 0.0f)) continue;
-                ratio += cache->indirect[std::size_t(w) * lanes + j] / up;
-                ++count;
-            }
-            cache->indirect[std::size_t(v) * lanes + j] =
-                cache->indirect_above[std::size_t(v) * lanes + j] *
-                float(count > 0 ? ratio / count : 1.0);
-        }
-    }
-    cache->direct_flux = direct_flux(rest.coating, normals, cache->direct, leds);
-    cache->build_s =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    m_cache = std::move(cache);
-    m_settings = settings;
-    m_edges = std::move(edges);
-    m_triangle_edges = std::move(triangle_edges);
-    m_rest_paths = std::move(rest_paths);
-    tabulate_frame_share(rest, bare);
-    m_direct.clear(); // set_frame brings the frame's data up to date
 }
 
 std::vector<PointLedPaths> FastIntegrator::point_paths(const SensorFrame& rest,
@@ -322,7 +375,7 @@ void FastIntegrator::tabulate_frame_share(const SensorFrame& rest, const EmbreeS
     m_frame_triangle.clear();
     m_frame_vertex_pairs.clear();
     m_frame_edge_pairs.clear();
-    if (!m_settings.frame_share || !bare.has_interface()) return;
+    if (!bare.has_interface()) return;
     const std::size_t nv = std::size_t(rest.coating.V.rows()), leds = std::size_t(m_cache->leds);
     const std::vector<Vec3> normals = coating_normals(rest.coating);
     // At rest the frame's correction to the sphere model is the tessellation's: the shares

@@ -4,6 +4,7 @@
 
 namespace chromasim::render {
 
+template <Integrator I>
 detail::Rgb Renderer::Impl::sample_pixel(int x, int y, int nx, int ny,
                                          const RenderSettings& settings, double scale,
                                          detail::Rgb* sum2, int& inside) const {
@@ -17,8 +18,8 @@ detail::Rgb Renderer::Impl::sample_pixel(int x, int y, int nx, int ny,
             const Draw d = draw(x, y, sy * nx + sx, nx, ny, rng, seeds);
             if (!d.direction) continue;
             ++inside;
-            const detail::Rgb value = sample_rgb(scene, camera.origin_mm(), *d.direction,
-                                                 settings.integrator, d.u_lambda, rng);
+            const detail::Rgb value =
+                sample_rgb<I>(scene, camera.origin_mm(), *d.direction, d.u_lambda, rng);
             sum += value;
             if (sum2) *sum2 += (value * scale).square();
         }
@@ -197,8 +198,7 @@ void Renderer::Impl::reflected_leds(int x, int y, int pixels, const RenderSettin
                                     std::span<LedSums> out, std::size_t budget_bytes) const {
     const int count = settings.reflected_led_samples_per_pixel;
     std::array<std::uint8_t, kMaxBatchPixels> skip{};
-    if (settings.cull_reflected_leds)
-        leds_out_of_reach(x, y, pixels, std::span(skip.data(), std::size_t(pixels)));
+    leds_out_of_reach(x, y, pixels, std::span(skip.data(), std::size_t(pixels)));
     std::array<Vec3, 16> directions;
     std::array<int, 16> owner;
     std::array<double, 16> fresnel;
@@ -343,10 +343,12 @@ void Renderer::Impl::batches(int x, int y, int pixels, int nx, int ny,
     }
 }
 
+template <Integrator I>
 detail::Rgb Renderer::Impl::sample_rgb(const detail::EmbreeScene& in, const Vec3& origin,
-                                       const Vec3& direction, Integrator integrator,
-                                       double u_lambda, detail::PixelRng& rng) const {
-    const bool path_traced = integrator == Integrator::path;
+                                       const Vec3& direction, double u_lambda,
+                                       detail::PixelRng& rng) const {
+    static_assert(I != Integrator::fast, "the fast integrator samples in packets");
+    constexpr bool path_traced = I == Integrator::path;
     if (hero_sets.empty()) { // RGB mode
         const auto lanes = shading.rgb_lanes();
         return path_traced ? detail::Rgb(path.radiance(in, origin, direction, lanes, rng).head<3>())
@@ -358,5 +360,17 @@ detail::Rgb Renderer::Impl::sample_rgb(const detail::EmbreeScene& in, const Vec3
                                                : shading.radiance(in, origin, direction, h.lanes);
     return detail::Rgb(h.to_rgb * radiance.matrix());
 }
+
+template detail::Rgb Renderer::Impl::sample_pixel<Integrator::direct>(int, int, int, int,
+                                                                     const RenderSettings&,
+                                                                     double, detail::Rgb*,
+                                                                     int&) const;
+template detail::Rgb Renderer::Impl::sample_pixel<Integrator::path>(int, int, int, int,
+                                                                   const RenderSettings&, double,
+                                                                   detail::Rgb*, int&) const;
+template detail::Rgb Renderer::Impl::sample_rgb<Integrator::path>(const detail::EmbreeScene&,
+                                                                 const Vec3&, const Vec3&,
+                                                                 double,
+                                                                 detail::PixelRng&) const;
 
 } // namespace chromasim::render

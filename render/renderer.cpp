@@ -163,7 +163,7 @@ void Renderer::set_exposure_reference(const SensorFrame& undeformed) {
         for (int i = 0; i < kPathsPerBlock; ++i) {
             const double u_lambda = m.wavelengths ? (i + rng.uniform()) / kPathsPerBlock : 0.0;
             partial[std::size_t(job)] +=
-                m.sample_rgb(apex, origin, w, Integrator::path, u_lambda, rng);
+                m.sample_rgb<Integrator::path>(apex, origin, w, u_lambda, rng);
         }
     });
     double reference = 0.0;
@@ -294,7 +294,7 @@ struct Renderer::Impl::Counts {
     Counts(const Impl& m, const RenderSettings& settings)
         : fast(settings.integrator == Integrator::fast), n(settings.samples_per_pixel) {
         std::tie(nx, ny) = detail::strata_grid(n);
-        batch = batch_at(settings, n);
+        batch = batch_at(n);
         n_led = fast ? settings.reflected_led_samples_per_pixel : 0;
         n_mirror = std::max(settings.reflection_samples_per_pixel, n);
         n_edge = settings.edge_samples_per_pixel;
@@ -303,12 +303,11 @@ struct Renderer::Impl::Counts {
         if (mirrors || rims) levels = m.pixel_levels(mirrors, rims);
         std::tie(nx_mirror, ny_mirror) = detail::strata_grid(std::max(n_mirror, 1));
         std::tie(nx_edge, ny_edge) = detail::strata_grid(std::max(n_edge, 1));
-        edge_batch = batch_at(settings, n_edge);
-        mirror_batch = batch_at(settings, n_mirror);
+        edge_batch = batch_at(n_edge);
+        mirror_batch = batch_at(n_mirror);
     }
-    int batch_at(const RenderSettings& settings, int count) const {
-        return fast && settings.batch_pixels ? std::max(1, kMaxBatchPixels / std::max(count, 1))
-                                             : 1;
+    int batch_at(int count) const {
+        return fast ? std::max(1, kMaxBatchPixels / std::max(count, 1)) : 1;
     }
 };
 
@@ -457,7 +456,17 @@ struct Renderer::Impl::Writer {
 
 /// Row y's pixels, sampled in runs of up to a batch of one count (the fast integrator), or
 /// one by one (direct and path), and written.
-void Renderer::Impl::render_row(int y, const RenderSettings& settings, const Counts& c,
+Renderer::Impl::AnySampler Renderer::Impl::sampler_for(Integrator integrator) {
+    switch (integrator) {
+    case Integrator::path: return Sampler<Integrator::path>{};
+    case Integrator::fast: return Sampler<Integrator::fast>{};
+    case Integrator::direct: break;
+    }
+    return Sampler<Integrator::direct>{};
+}
+
+template <Integrator I>
+void Renderer::Impl::render_row(Sampler<I>, int y, const RenderSettings& settings, const Counts& c,
                                 std::size_t budget, Writer& write) const {
     std::array<detail::Rgb, kMaxBatchPixels> sums, sum2;
     std::array<DirectSums, kMaxBatchPixels> direct;
@@ -480,8 +489,8 @@ void Renderer::Impl::render_row(int y, const RenderSettings& settings, const Cou
         const auto some = [&](auto& a, bool wanted) {
             return wanted ? std::span(a.data(), std::size_t(pixels)) : std::span<detail::Rgb>{};
         };
-        const bool leds_apart = c.fast && level == 2 && c.n_led > 0;
-        if (c.fast) {
+        const bool leds_apart = I == Integrator::fast && level == 2 && c.n_led > 0;
+        if constexpr (I == Integrator::fast) {
             sample_pixels_fast(
                 x, y, pixels, px_n, py_n, settings, write.scale,
                 {some(sums, true), some(sum2, settings.variance),
@@ -495,8 +504,8 @@ void Renderer::Impl::render_row(int y, const RenderSettings& settings, const Cou
                 budget);
         } else {
             sum2[0] = detail::Rgb::Zero();
-            sums[0] = sample_pixel(x, y, c.nx, c.ny, settings, write.scale,
-                                   settings.variance ? &sum2[0] : nullptr, inside[0]);
+            sums[0] = sample_pixel<I>(x, y, c.nx, c.ny, settings, write.scale,
+                                      settings.variance ? &sum2[0] : nullptr, inside[0]);
         }
         for (int j = 0; j < pixels; ++j)
             write(x + j, y, sums[std::size_t(j)],
@@ -530,10 +539,14 @@ Image Renderer::render(const RenderSettings& settings) const {
     std::unique_lock kept_lock(m.kept_mutex, std::defer_lock);
     const std::size_t budget = m.prepare_kept(settings, counts, kept_lock);
     Impl::Writer write(m, settings, counts, image);
-    tbb::parallel_for(tbb::blocked_range<int>(0, image.height), [&](const auto& rows) {
-        for (int y = rows.begin(); y != rows.end(); ++y)
-            m.render_row(y, settings, counts, budget, write);
-    });
+    std::visit(
+        [&](auto sampler) {
+            tbb::parallel_for(tbb::blocked_range<int>(0, image.height), [&](const auto& rows) {
+                for (int y = rows.begin(); y != rows.end(); ++y)
+                    m.render_row(sampler, y, settings, counts, budget, write);
+            });
+        },
+        Impl::sampler_for(settings.integrator));
     if (write.filter) write.filter_shadows(counts);
     return image;
 }

@@ -31,6 +31,7 @@
 #include <string>
 #include <tuple>
 #include <utility>
+#include <variant>
 #include <vector>
 
 namespace chromasim::render {
@@ -131,6 +132,7 @@ struct Renderer::Impl {
     /// per cell of the pixel's multi-jittered grid, the wavelength strata paired with them by a
     /// per-pixel permutation. `sum2` gets the squares of the scaled samples, `inside` the
     /// number of samples inside the field. (The fast integrator's pixels: sample_pixels_fast.)
+    template <Integrator I>
     detail::Rgb sample_pixel(int x, int y, int nx, int ny, const RenderSettings& settings,
                              double scale, detail::Rgb* sum2, int& inside) const;
 
@@ -259,13 +261,12 @@ struct Renderer::Impl {
     void sample_pixels_fast(int x, int y, int pixels, int nx, int ny,
                             const RenderSettings& settings, double scale, const PixelSums& out,
                             KeptLevel level, std::size_t budget_bytes) const;
-    /// RenderSettings::cull_reflected_leds: the pixel's mirrored footprint on the LEDs' plane
-    /// may bulge past its corners' quadrilateral (the inner surface is curved): the LEDs are
-    /// grown by kReflectionMargin_mm plus this share of the quadrilateral's diameter.
+    /// The LED rays' culling (leds_out_of_reach): the pixel's mirrored footprint on the LEDs'
+    /// plane may bulge past its corners' quadrilateral (the inner surface is curved): the LEDs
+    /// are grown by kReflectionMargin_mm plus this share of the quadrilateral's diameter.
     static constexpr double kLedCullSpread = 0.25;
     /// Whether each of `pixels` neighbouring pixels of row y from x provably mirrors no LED
-    /// (RenderSettings::cull_reflected_leds; reflected_leds then traces none of its rays:
-    /// they would all miss): the rays through its 4 corners meet the inner surface, and their
+    /// (reflected_leds then traces none of its rays: they would all miss): the rays through its 4 corners meet the inner surface, and their
     /// reflections (the interpolated normal, as FastIntegrator::reflected_leds16 reflects)
     /// cross the LEDs' plane as a strictly convex quadrilateral that meets no LED's rectangle
     /// grown by kReflectionMargin_mm plus kLedCullSpread times its diameter
@@ -294,8 +295,9 @@ struct Renderer::Impl {
     /// Camera RGB (before exposure) of one sample along the ray: the RGB mode's lanes, or 16
     /// hero wavelengths from u_lambda (a tabulated set), through the direct or the path
     /// integrator (the fast integrator takes a pixel's samples together: sample_pixels_fast).
+    template <Integrator I>
     detail::Rgb sample_rgb(const detail::EmbreeScene& in, const Vec3& origin, const Vec3& direction,
-                           Integrator integrator, double u_lambda, detail::PixelRng& rng) const;
+                           double u_lambda, detail::PixelRng& rng) const;
 
     /// Each pixel's count class (render()'s `levels`): 2 where an LED is mirrored (with
     /// `mirrors`), 1 on a marker's rim (with `rims`: markers with triangles, render() checks),
@@ -336,8 +338,20 @@ struct Renderer::Impl {
     struct Writer;
     std::size_t prepare_kept(const RenderSettings& settings, const Counts& counts,
                              std::unique_lock<std::mutex>& lock) const;
-    void render_row(int y, const RenderSettings& settings, const Counts& counts, std::size_t budget,
-                    Writer& write) const;
+    /// The integrators as the pixel loop sees them, one type each (the integrator interface):
+    /// render() picks one per image (sampler_for, std::visit) and runs render_row for it, so
+    /// the loop over pixels exists once and no pixel, sample or ray asks which integrator it
+    /// is in. Direct and path take one pixel at a time through sample_pixel<I>; fast takes
+    /// runs of pixels of one count in packets of 16 (sample_pixels_fast).
+    template <Integrator I> struct Sampler {
+        static constexpr Integrator integrator = I;
+    };
+    using AnySampler = std::variant<Sampler<Integrator::direct>, Sampler<Integrator::path>,
+                                    Sampler<Integrator::fast>>;
+    static AnySampler sampler_for(Integrator integrator);
+    template <Integrator I>
+    void render_row(Sampler<I>, int y, const RenderSettings& settings, const Counts& counts,
+                    std::size_t budget, Writer& write) const;
 
     int triangles_per_marker = 0;
 

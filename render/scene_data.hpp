@@ -161,28 +161,9 @@ struct LightCacheSettings {
     /// against the bounding balls of the markers near its triangle's paths, listed per
     /// frame), and start each shadow ray's refraction solve from a per-vertex guess (Newton).
     /// The culling is exact; the Newton solves stop within about 1e-5 rad of the full solve on
-    /// average (kShadowStepTolerance, render/fast_common.hpp). Off only to measure what
-    /// it saves (bench render --no-shadow-cull).
+    /// average (kShadowStepTolerance, render/fast_common.hpp). Off: every shadow ray traced,
+    /// its solve over the whole bracket, the reference the culling is tested against.
     bool cull_shadows = true;
-    /// Not part of the stored cache: near the rim the shadow rays' sphere model leaves the
-    /// layers below the rim plane, so the frame's plane blocks some of them (an artefact that
-    /// offsets the cache's light from under the frame). On: per frame, the share of each
-    /// LED's light it blocks is counted over 64 LED points at the corners and edge midpoints
-    /// of the coating triangles where it blocked any at rest, and taken off the LEDs' light
-    /// there, where the shadow rays then leave the plane out: the same mean without the noise
-    /// the blocked rays make in the field's outer ring. Off only to measure it (bench render
-    /// --no-frame-share).
-    bool frame_share = true;
-    /// Not part of the stored cache: the camera ray's reflection off the inner surface (the
-    /// Fresnel share F of the sample, 2.8 % at normal incidence) is shaded with the LEDs'
-    /// direct light unshadowed, no shadow ray of its own, wherever its share is below
-    /// kUnshadowedReflection (10 %). From a camera at the dome's centre the reflection runs
-    /// back across the cavity to the far wall near the rim plane, where no marker lies, so
-    /// leaving its shadow rays out moves the converged image by a few hundredths of a percent
-    /// of white RMS, even where a press tilts the inner surface towards the lit side walls.
-    /// Off: each such reflection traces its shadow rays (bench render
-    /// --reflection-shadow-rays).
-    bool unshadowed_reflections = true;
 };
 
 /// The fast integrator's per-sensor light cache on the coating vertices (plain data, structure
@@ -222,12 +203,6 @@ struct RenderSettings {
     bool marker_ids = false; ///< the marker seen through each pixel's centre, per layer
     bool variance = false;   ///< per-pixel variance estimate of the mean
     Integrator integrator = Integrator::direct;
-    /// Fast integrator below 16 samples per pixel: trace the samples of up to 16 / n
-    /// neighbouring pixels of a row together, so that their rays go to Embree as packets of 16
-    /// (at 4 spp a pixel's 4 rays alone are too few for a packet). Each pixel keeps its own
-    /// stream and strata, so the image is the same bytes either way; false: each pixel alone
-    /// (for tests and `bench render`).
-    bool batch_pixels = true;
     /// Fast integrator: the shadow filter's standard deviation, px; 0: none. The LEDs'
     /// direct light in a pixel is, per group of LEDs (one per LED up to kMaxShadowGroups),
     /// its unshadowed value (no noise from the shadow rays) times the fraction of the group's
@@ -287,14 +262,6 @@ struct RenderSettings {
     /// 0: the term stays in the samples. A mirrored pixel takes at least samples_per_pixel
     /// samples.
     int reflected_led_samples_per_pixel = 0;
-    /// Fast integrator, with reflected_led_samples_per_pixel: trace none of those rays in a
-    /// pixel that provably mirrors no LED (the rays through its 4 corners, reflected off the
-    /// inner surface, cross the LEDs' plane as a convex quadrilateral that stays clear of
-    /// every LED's rectangle grown by kReflectionMargin_mm plus a quarter of the
-    /// quadrilateral's diameter: its rays would all miss, so the image is the same bytes).
-    /// At 224 px it skips about a third of those pixels; false: trace them all (for tests and
-    /// `bench render --no-led-cull`).
-    bool cull_reflected_leds = true;
     /// Fast integrator: the most memory (MiB) the camera samples may keep from one render to
     /// the next. A pixel's samples at each of its counts (samples_per_pixel, the rims', the
     /// mirrored pixels', the LED rays': each sample's direction and hero-wavelength set, each

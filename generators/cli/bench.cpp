@@ -2,6 +2,7 @@
 // whole pipeline.
 #include "generators/validation/bench.hpp"
 #include "generators/cli/command.hpp"
+#include "generators/spec/stage_params.hpp"
 
 #include <iostream>
 
@@ -112,32 +113,11 @@ void add_render_fast_options(CLI::App* command, gen::RenderBenchOptions& o) {
         "fast integrator: keep the rest ratio of area to point LED light on every vertex");
     command->add_flag("--indirect-scale", o.light_cache.scale_indirect,
                       "fast integrator: scale the cached indirect light on every frame by "
-                      "the coating's LED light over rest (render.fast.scale_indirect)");
-    command->add_flag("!--no-shadow-cull", o.light_cache.cull_shadows,
-                      "fast integrator: trace every shadow ray, also those that provably "
-                      "meet no marker (the same image; to measure what the culling saves)");
-    command->add_flag("!--reflection-shadow-rays", o.light_cache.unshadowed_reflections,
-                      "fast integrator: let the camera ray's reflection off the inner "
-                      "surface trace its shadow rays, instead of taking the LEDs' light "
-                      "there unshadowed where it is below a tenth of the sample (to "
-                      "measure what leaving them out changes and saves)");
-    command->add_flag("!--no-frame-share", o.light_cache.frame_share,
-                      "fast integrator: let each shadow ray near the rim test the frame's "
-                      "plane, instead of taking the share it blocks off the LEDs' light "
-                      "once per cache (about the same mean, more noise in the field's "
-                      "outer ring; to measure what the share saves)");
-    command->add_flag("!--no-led-cull", o.cull_reflected_leds,
-                      "fast integrator: trace the LED rays (--reflected-led-spp) also in "
-                      "the pixels that provably mirror no LED (the same image; to measure "
-                      "what skipping them saves)");
+                      "the coating's LED light over rest (an alternative kept to measure it)");
     command->add_flag("!--no-camera-cache", o.keep_camera_samples,
                       "fast integrator: draw the camera samples anew for every render "
                       "instead of keeping them from the first (the same image; to measure "
                       "what keeping them saves)");
-    command->add_flag("!--no-batch-pixels", o.batch_pixels,
-                      "fast integrator: trace each pixel's samples alone, never with its "
-                      "neighbours' in one packet (the same image; to measure what the "
-                      "batching saves below 16 spp)");
     command
         ->add_option("--shadow-filter", o.shadow_filter_px,
                      "fast integrator: the shadow filters to time, px, each at every spp "
@@ -147,14 +127,14 @@ void add_render_fast_options(CLI::App* command, gen::RenderBenchOptions& o) {
         ->add_option("--reflection-spp", o.reflection_spp,
                      "fast integrator: the samples per pixel to time where the inner surface "
                      "mirrors an LED, each at every spp and filter "
-                     "(render.fast.reflection_samples_per_pixel; 0: none extra); the reference "
+                     "(set by render.quality; 0: none extra); the reference "
                      "has none")
         ->check(CLI::Range(0, 4096));
     command
         ->add_option("--edge-spp", o.edge_spp,
                      "fast integrator: the samples per pixel to time on the markers' rims, each "
                      "at every spp, filter and reflection count "
-                     "(render.fast.edge_samples_per_pixel; 0: none extra); the reference has "
+                     "(set by render.quality; 0: none extra); the reference has "
                      "none")
         ->check(CLI::Range(0, 4096));
     command
@@ -162,28 +142,42 @@ void add_render_fast_options(CLI::App* command, gen::RenderBenchOptions& o) {
                      "fast integrator: the rays per pixel to time for the LEDs seen by "
                      "reflection in the inner surface, apart, where an LED is mirrored, each at "
                      "every spp, filter, reflection and rim count "
-                     "(render.fast.reflected_led_samples_per_pixel; 0: in the samples); the "
+                     "(set by render.quality; 0: in the samples); the "
                      "reference has none")
         ->check(CLI::Range(0, 4096));
     command
         ->add_option("--shadow-rays", o.shadow_rays_per_pixel,
                      "fast integrator: the fewest shadow rays a pixel to time (at least one "
                      "and at most 4 a sample), each at every spp, filter, reflection, rim and "
-                     "LED-ray count (render.fast.shadow_rays_per_pixel; 0: one a sample); the "
+                     "LED-ray count (set by render.quality; 0: one a sample); the "
                      "reference has one a sample")
         ->check(CLI::Range(0, 4096));
     command
         ->add_option("--fast-wavelengths", o.fast_wavelengths,
                      "fast integrator, spectral mode: the hero wavelengths a sample carries to "
                      "time, 8 or 16 (0: 16 at 1 spp, else 8, the default), each at every other "
-                     "setting (render.fast.wavelengths_per_sample); the reference has 16")
+                     "setting (set by render.quality); the reference has 16")
         ->check(CLI::IsMember({0, 8, 16}));
     command
         ->add_option("--shadow-filter-rim", o.shadow_filter_rim_px,
                      "fast integrator: the shadow filter's widths on the markers' rims to time, "
-                     "px, each at every filter (render.fast.shadow_filter_rim_px; none given: "
+                     "px, each at every filter (set by render.quality; none given: "
                      "the filter's own)")
         ->check(CLI::Range(0.0, 8.0));
+}
+
+/// `bench render --quality NAME`: the preset's counts for the options left out.
+void apply_quality(const CLI::App& command, const gen::QualityPreset& q,
+                   gen::RenderBenchOptions& o) {
+    const auto given = [&](const char* name) { return command.get_option(name)->count() > 0; };
+    if (!given("--edge-spp")) o.edge_spp = {q.edge_samples_per_pixel};
+    if (!given("--reflection-spp")) o.reflection_spp = {q.reflection_samples_per_pixel};
+    if (!given("--reflected-led-spp")) o.reflected_led_spp = {q.reflected_led_samples_per_pixel};
+    if (!given("--shadow-rays"))
+        o.shadow_rays_per_pixel = {q.shadow_rays_per_sample * o.samples_per_pixel.front()};
+    if (!given("--fast-wavelengths")) o.fast_wavelengths = {q.wavelengths_per_sample};
+    if (!given("--shadow-filter-rim")) o.shadow_filter_rim_px = {q.shadow_filter_rim_px};
+    if (!given("--shadow-filter")) o.shadow_filter_px = {1.0};
 }
 
 void add_render(CLI::App* bench, Action& action) {
@@ -191,8 +185,18 @@ void add_render(CLI::App* bench, Action& action) {
     auto* command = bench->add_subcommand("render", "samples per pixel vs error and time");
     add_render_frame_options(command, *options);
     add_render_fast_options(command, *options);
-    on_chosen(command, action, options, [](const gen::RenderBenchOptions& opts) {
-        gen::bench_render(opts, std::cout);
+    auto quality = std::make_shared<std::string>();
+    command
+        ->add_option("--quality", *quality,
+                     "fast integrator: take render.quality's counts (rims, mirrored pixels, LED "
+                     "rays, shadow rays with the first --spp, wavelengths, rim filter) where "
+                     "their options are not given, and a 1 px shadow filter unless "
+                     "--shadow-filter is")
+        ->check(CLI::IsMember({"draft", "default", "high"}));
+    on_chosen(command, action, options, [command, quality](const gen::RenderBenchOptions& opts) {
+        gen::RenderBenchOptions o = opts;
+        if (!quality->empty()) apply_quality(*command, gen::quality_preset(*quality), o);
+        gen::bench_render(o, std::cout);
         return 0;
     });
 }

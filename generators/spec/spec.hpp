@@ -142,27 +142,14 @@ struct Spec {
         double exposure = 1.0;
         bool spectral = true; ///< hero-wavelength spectral mode; false: RGB approximation
         std::string integrator = "fast"; ///< direct | path | fast
-        /// The fast integrator's light cache (render::LightCacheSettings).
+        /// draft | default | high: the fast integrator's per-pixel-class sample counts
+        /// (stage_params.hpp: QualityPreset).
+        std::string quality = "default";
+        /// The fast integrator's expert keys.
         struct Fast {
-            int paths_per_vertex = 1024;
-            int direct_samples = 16;
-            double smoothing_mm = 0.75;
-            bool refresh_direct = true;
-            double refresh_threshold = 1.0;
-            bool scale_indirect = false;
-            double shadow_filter_px = 1.0; ///< render::RenderSettings::shadow_filter_px
-            /// render::RenderSettings::shadow_filter_rim_px
-            double shadow_filter_rim_px = 0.5;
-            /// render::RenderSettings::reflection_samples_per_pixel
-            int reflection_samples_per_pixel = 4;
-            /// render::RenderSettings::edge_samples_per_pixel
-            int edge_samples_per_pixel = 6;
-            /// render::RenderSettings::reflected_led_samples_per_pixel
-            int reflected_led_samples_per_pixel = 32;
-            /// render::RenderSettings::shadow_rays_per_pixel
-            int shadow_rays_per_pixel = 0;
-            /// render::RenderSettings::fast_wavelengths: "auto" (0) | "8" | "16"
-            std::string wavelengths_per_sample = "auto";
+            int paths_per_vertex = 1024;   ///< render::LightCacheSettings::paths_per_vertex
+            double refresh_threshold = 1.0; ///< render::LightCacheSettings::refresh_threshold
+            double shadow_filter_px = 1.0;  ///< render::RenderSettings::shadow_filter_px
         } fast;
         /// The camera sensor model (render/sensor_model.hpp); the PNG only, the EXR stays the
         /// noise-free render.

@@ -1,5 +1,6 @@
 #include "generators/spec/spec_schema.hpp"
 #include "generators/spec/spec_table.hpp"
+#include "generators/spec/stage_params.hpp"
 
 #include <algorithm>
 #include <charconv>
@@ -472,6 +473,9 @@ std::string schema_markdown() {
     for (const SchemaRule& r : spec_rules()) {
         out += "- `" + r.key + "`: " + r.allowed + ".\n";
     }
+    out += "\nQuality presets: the fast integrator's extra samples that `render.quality` sets (a "
+           "count at most `render.samples_per_pixel` adds none):\n\n" +
+           quality_presets_markdown();
     return out;
 }
 

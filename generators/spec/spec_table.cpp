@@ -562,81 +562,29 @@ void add_render(std::vector<SchemaEntry>& out) {
                          CHROMASIM_FIELD(render.integrator)));
 }
 
-/// render.fast: the fast integrator's light cache and sample allocation.
+/// render.quality and render.fast: the fast integrator's preset and its expert keys.
 void add_render_fast(std::vector<SchemaEntry>& out) {
+    out.push_back(choice("render.quality", "default", {"draft", "default", "high"},
+                         "Fast integrator: the extra samples for the costly pixels (the markers' "
+                         "rims, the LEDs mirrored in the inner surface) and the shadows, as listed "
+                         "under Quality presets. Draft is for a first look, high for figures.",
+                         CHROMASIM_FIELD(render.quality)));
     out.push_back(integer("render.fast.paths_per_vertex", 1024, closed(1, 65536), "",
                           "Fast integrator: paths per coating vertex for the cached indirect "
                           "light, traced once per sensor and kept with --cache-dir. More lowers "
                           "the cache's fixed-pattern noise, at a longer cache build.",
                           CHROMASIM_FIELD(render.fast.paths_per_vertex)));
-    out.push_back(number("render.fast.smoothing_mm", 0.75, closed(0, 10), "mm",
-                         "Fast integrator: width (standard deviation, mm) of the local linear "
-                         "regression that smooths the cached indirect light over the coating; 0: "
-                         "none. Lower it only with many more paths per vertex.",
-                         CHROMASIM_FIELD(render.fast.smoothing_mm)));
-    out.push_back(integer("render.fast.direct_samples", 16, closed(1, 4096), "",
-                          "Fast integrator: LED points per LED per coating vertex for the "
-                          "cached unshadowed LED light.",
-                          CHROMASIM_FIELD(render.fast.direct_samples)));
-    out.push_back(boolean("render.fast.refresh_direct", true,
-                          "Fast integrator: per frame, re-estimate a coating vertex's LED light on "
-                          "the frame's own surfaces where a contact changed it by more than "
-                          "render.fast.refresh_threshold. Turning it off keeps the rest value "
-                          "everywhere: faster, and far off the path integrator under deep presses.",
-                          CHROMASIM_FIELD(render.fast.refresh_direct)));
     out.push_back(number("render.fast.refresh_threshold", 1.0, closed(0, 10), "",
-                         "Fast integrator: the relative change of a vertex's point-LED light from "
-                         "rest above which render.fast.refresh_direct re-estimates it on the "
-                         "frame; 0: every vertex whose light changed. docs/VALIDATION.md gives "
-                         "its error against the path integrator under a press.",
+                         "Fast integrator: the relative change of a vertex's LED light under a "
+                         "contact above which it is estimated anew on the frame; 0: every "
+                         "vertex whose light changed. Lower costs more time per frame.",
                          CHROMASIM_FIELD(render.fast.refresh_threshold)));
-    out.push_back(boolean("render.fast.scale_indirect", false,
-                          "Fast integrator: per frame, scale the cached indirect light by the "
-                          "LEDs' unshadowed flux onto the coating over rest; false keeps the rest "
-                          "value, which is closer to the path integrator (docs/VALIDATION.md).",
-                          CHROMASIM_FIELD(render.fast.scale_indirect)));
     out.push_back(number(
         "render.fast.shadow_filter_px", 1.0, closed(0, render::kMaxShadowFilterPx), "px",
         "Fast integrator: standard deviation (px) of the Gaussian over neighbouring pixels that "
         "averages the share of each LED's light passing the markers' shadows; 0: none. Widen it "
         "for larger images or fewer samples, narrow it at many samples.",
         CHROMASIM_FIELD(render.fast.shadow_filter_px)));
-    out.push_back(number(
-        "render.fast.shadow_filter_rim_px", 0.5, closed(0, render::kMaxShadowFilterPx), "px",
-        "Fast integrator: the shadow filter's standard deviation (px) on the markers' rims (the "
-        "pixels of render.fast.edge_samples_per_pixel); 0: each rim pixel uses its own samples. "
-        "Kept narrow so a marker's shadow edge stays sharp.",
-        CHROMASIM_FIELD(render.fast.shadow_filter_rim_px)));
-    out.push_back(integer(
-        "render.fast.reflection_samples_per_pixel", 4, closed(0, 1024), "",
-        "Fast integrator: samples per pixel where the inner surface mirrors an LED (and in those "
-        "pixels' neighbours), at most render.samples_per_pixel; 0: no extra. Chosen from the "
-        "geometry before sampling, so the image stays unbiased.",
-        CHROMASIM_FIELD(render.fast.reflection_samples_per_pixel)));
-    out.push_back(integer(
-        "render.fast.edge_samples_per_pixel", 6, closed(0, 1024), "",
-        "Fast integrator: samples per pixel on the markers' rims (pixels whose corners see "
-        "different markers), at most render.samples_per_pixel; 0: no extra. Chosen from the "
-        "geometry before sampling, so the image stays unbiased.",
-        CHROMASIM_FIELD(render.fast.edge_samples_per_pixel)));
-    out.push_back(integer(
-        "render.fast.reflected_led_samples_per_pixel", 32, closed(0, 1024), "",
-        "Fast integrator: rays per pixel of their own for the LEDs seen by reflection in the inner "
-        "surface, in the pixels where one is mirrored; 0: those LEDs stay in the camera samples. "
-        "Their small bright images are most of those pixels' noise.",
-        CHROMASIM_FIELD(render.fast.reflected_led_samples_per_pixel)));
-    out.push_back(integer(
-        "render.fast.shadow_rays_per_pixel", 0, closed(0, 4096), "",
-        "Fast integrator: the fewest shadow rays a pixel traces, spread over its samples, one to 4 "
-        "a sample; 0: one a sample. Raise it (best a multiple of render.samples_per_pixel) to cut "
-        "the shadows' noise without more camera samples.",
-        CHROMASIM_FIELD(render.fast.shadow_rays_per_pixel)));
-    out.push_back(choice(
-        "render.fast.wavelengths_per_sample", "auto", {"auto", "8", "16"},
-        "Fast integrator, spectral mode: hero wavelengths per camera sample; auto: 16 at 1 sample "
-        "per pixel, else 8. A pixel's samples split the wavelengths' strata, so 2 samples of 8 are "
-        "about as noisy in colour as one of 16.",
-        CHROMASIM_FIELD(render.fast.wavelengths_per_sample)));
 }
 
 /// outputs: which files a dataset holds.

@@ -12,6 +12,7 @@
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <set>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -212,6 +213,16 @@ void read_list(SpecReader& r, const std::string& name, const YAML::Node& key_nod
     }
 }
 
+/// render.fast keys that render.quality replaced; a spec that still has one is told so.
+bool is_retired_fast_key(const std::string& name) {
+    static const std::set<std::string> retired{
+        "direct_samples",        "smoothing_mm",          "refresh_direct",
+        "scale_indirect",        "shadow_filter_rim_px",  "reflection_samples_per_pixel",
+        "edge_samples_per_pixel", "reflected_led_samples_per_pixel",
+        "shadow_rays_per_pixel", "wavelengths_per_sample"};
+    return retired.count(name) > 0;
+}
+
 [[noreturn]] void unknown_key(const SpecReader& r, const YAML::Node& key_node,
                               const std::string& key, const std::string& name,
                               const std::string& section) {
@@ -219,6 +230,10 @@ void read_list(SpecReader& r, const std::string& name, const YAML::Node& key_nod
     std::string hint = near.empty() ? "" : " (did you mean '" + near + "'?)";
     if (name.find('.') != std::string::npos) {
         hint = " (a dotted key is written nested: one mapping per dot)";
+    }
+    if (section == "render.fast" && is_retired_fast_key(name)) {
+        hint = " (render.quality sets it now: draft, default or high; docs/SPEC.md lists what "
+               "each sets)";
     }
     throw SpecError(where(r.file, key_node.Mark()) + ": " + key + ": unknown key '" + name + "'" +
                     hint + "; allowed " + keys_allowed_in(section));

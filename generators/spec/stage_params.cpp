@@ -5,6 +5,7 @@
 #include "render/fisheye_camera.hpp"
 
 #include <algorithm>
+#include <sstream>
 #include <stdexcept>
 #include <vector>
 
@@ -139,6 +140,37 @@ render::Integrator integrator_of(const std::string& name) {
                             : render::Integrator::direct;
 }
 
+const std::vector<QualityPreset>& quality_presets() {
+    static const std::vector<QualityPreset> presets{
+        {"draft", 0, 0, 16, 0, 0, 0.5},
+        {"default", 6, 4, 32, 0, 0, 0.5},
+        {"high", 12, 8, 64, 2, 16, 0.5},
+    };
+    return presets;
+}
+
+const QualityPreset& quality_preset(const std::string& name) {
+    for (const QualityPreset& p : quality_presets())
+        if (name == p.name) return p;
+    throw std::invalid_argument("render.quality '" + name + "' is not draft, default or high");
+}
+
+std::string quality_presets_markdown() {
+    std::ostringstream out;
+    out << "| render.quality | rim samples | mirrored-LED pixels' samples | LED rays there | "
+           "shadow rays a sample | wavelengths a sample | rim filter, px |\n"
+           "|---|---|---|---|---|---|---|\n";
+    for (const QualityPreset& p : quality_presets()) {
+        out << "| `" << p.name << "` | " << p.edge_samples_per_pixel << " | "
+            << p.reflection_samples_per_pixel << " | " << p.reflected_led_samples_per_pixel
+            << " | " << std::max(p.shadow_rays_per_sample, 1) << " | "
+            << (p.wavelengths_per_sample ? std::to_string(p.wavelengths_per_sample)
+                                         : std::string("16 at 1 spp, else 8"))
+            << " | " << p.shadow_filter_rim_px << " |\n";
+    }
+    return out.str();
+}
+
 render::RenderSettings render_settings(const Spec& spec) {
     render::RenderSettings s;
     s.samples_per_pixel = spec.render.samples_per_pixel;
@@ -147,24 +179,20 @@ render::RenderSettings render_settings(const Spec& spec) {
     s.variance = spec.outputs.variance;
     s.integrator = integrator_of(spec.render.integrator);
     s.shadow_filter_px = spec.render.fast.shadow_filter_px;
-    s.shadow_filter_rim_px = spec.render.fast.shadow_filter_rim_px;
-    s.reflection_samples_per_pixel = spec.render.fast.reflection_samples_per_pixel;
-    s.edge_samples_per_pixel = spec.render.fast.edge_samples_per_pixel;
-    s.reflected_led_samples_per_pixel = spec.render.fast.reflected_led_samples_per_pixel;
-    s.shadow_rays_per_pixel = spec.render.fast.shadow_rays_per_pixel;
-    const std::string& lanes = spec.render.fast.wavelengths_per_sample; // auto | 8 | 16
-    s.fast_wavelengths = lanes == "auto" ? 0 : std::stoi(lanes);
+    const QualityPreset& q = quality_preset(spec.render.quality);
+    s.shadow_filter_rim_px = q.shadow_filter_rim_px;
+    s.reflection_samples_per_pixel = q.reflection_samples_per_pixel;
+    s.edge_samples_per_pixel = q.edge_samples_per_pixel;
+    s.reflected_led_samples_per_pixel = q.reflected_led_samples_per_pixel;
+    s.shadow_rays_per_pixel = q.shadow_rays_per_sample * s.samples_per_pixel;
+    s.fast_wavelengths = q.wavelengths_per_sample;
     return s;
 }
 
 render::LightCacheSettings light_cache_settings(const Spec& spec) {
     render::LightCacheSettings s;
     s.paths_per_vertex = spec.render.fast.paths_per_vertex;
-    s.direct_samples = spec.render.fast.direct_samples;
-    s.smoothing_mm = spec.render.fast.smoothing_mm;
-    s.refresh_direct = spec.render.fast.refresh_direct;
     s.refresh_threshold = spec.render.fast.refresh_threshold;
-    s.scale_indirect = spec.render.fast.scale_indirect;
     return s;
 }
 

@@ -21,7 +21,26 @@ render::OpticsParams optics_params(const Spec& spec);
 render::OpticsParams rgb_optics(const render::OpticsParams& optics, double marker_path_mm);
 /// The integrator a render.integrator value names (direct, path or fast; anything else: direct).
 render::Integrator integrator_of(const std::string& name);
-/// samples per pixel, seed, extra channels and integrator of the spec.
+/// One render.quality preset: the fast integrator's sample counts for its costly pixels
+/// (render::RenderSettings has what each count does). A count at most samples_per_pixel
+/// adds nothing.
+struct QualityPreset {
+    const char* name;
+    int edge_samples_per_pixel;          ///< on the markers' rims
+    int reflection_samples_per_pixel;    ///< where the inner surface mirrors an LED
+    int reflected_led_samples_per_pixel; ///< rays for the mirrored LEDs, in those pixels
+    int shadow_rays_per_sample;          ///< 0: one a sample; n: n * samples_per_pixel a pixel
+    int wavelengths_per_sample;          ///< 0: 16 at 1 sample per pixel, else 8
+    double shadow_filter_rim_px;         ///< the shadow filter on the rims
+};
+/// draft, default and high, in that order.
+const std::vector<QualityPreset>& quality_presets();
+/// The preset a render.quality value names (the spec's choice list guarantees one).
+const QualityPreset& quality_preset(const std::string& name);
+/// The presets as a Markdown table, for docs/SPEC.md.
+std::string quality_presets_markdown();
+
+/// samples per pixel, seed, extra channels, integrator and render.quality of the spec.
 render::RenderSettings render_settings(const Spec& spec);
 /// The fast integrator's light cache settings (render.fast.*).
 render::LightCacheSettings light_cache_settings(const Spec& spec);

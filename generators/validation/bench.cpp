@@ -294,8 +294,6 @@ render::RenderSettings bench_settings(const RenderBenchOptions& o, int spp, std:
     s.samples_per_pixel = spp;
     s.seed = seed;
     s.integrator = integrator_of(integrator);
-    s.batch_pixels = o.batch_pixels;
-    s.cull_reflected_leds = o.cull_reflected_leds;
     if (!o.keep_camera_samples) s.camera_cache_mb = 0.0;
     return s;
 }

@@ -59,12 +59,6 @@ struct RenderBenchOptions {
     /// Seed of the rendered reference (the timed renders use 7). Two references with
     /// different seeds measure the reference's noise without trusting its variance channel.
     std::uint64_t reference_seed = 1;
-    /// Fast integrator below 16 spp: neighbouring pixels' samples in one packet
-    /// (RenderSettings::batch_pixels; false: each pixel alone, the same image).
-    bool batch_pixels = true;
-    /// Fast integrator: skip the LED rays of pixels that provably mirror no LED
-    /// (RenderSettings::cull_reflected_leds; false: trace them, the same image).
-    bool cull_reflected_leds = true;
     /// Fast integrator: keep the camera samples at the main count from render to render
     /// (RenderSettings::camera_cache_mb; false: 0, drawn anew each render, the same image).
     bool keep_camera_samples = true;

@@ -245,7 +245,7 @@ TEST_CASE("an unknown key is named with its position and the allowed keys", "[ge
     CHECK(error_of("render:\n  widht_px: 300\n") ==
           "bad.yaml:2:3: render.widht_px: unknown key 'widht_px' (did you mean 'width_px'?); "
           "allowed keys in 'render': width_px, height_px, samples_per_pixel, exposure, spectral, "
-          "integrator, fast, sensor");
+          "integrator, quality, fast, sensor");
     CHECK(error_of("name: x\nfrobnicate: 1\n") ==
           "bad.yaml:2:1: frobnicate: unknown key 'frobnicate'; allowed keys at the top level: "
           "name, seed, sensor, objects, friction, fingers, protocol, sampling, splits, render, "
@@ -293,7 +293,7 @@ TEST_CASE("a value of the wrong type is rejected", "[generators][spec]") {
         CHECK(error_of("render: 5\n") ==
               "bad.yaml:1:9: render: value '5' is a single value, not a mapping; allowed: a "
               "mapping with keys in 'render': width_px, height_px, samples_per_pixel, exposure, "
-              "spectral, integrator, fast, sensor");
+              "spectral, integrator, quality, fast, sensor");
     }
     SECTION("anything but true or false for a bool") {
         CHECK(error_of("outputs:\n  images: yes\n") ==
@@ -487,10 +487,12 @@ TEST_CASE("the render.sensor keys reach the sensor model", "[generators][spec]")
     }
 }
 
-TEST_CASE("the render.fast keys reach the renderer's settings", "[generators][spec]") {
+TEST_CASE("render.quality and the render.fast keys reach the renderer's settings",
+          "[generators][spec]") {
+    using chromasim::render::RenderSettings;
     SECTION("the defaults") {
-        const chromasim::render::RenderSettings r =
-            render_settings(parse_spec("render: {integrator: fast}\n", "ok.yaml"));
+        const Spec spec = parse_spec("render: {integrator: fast}\n", "ok.yaml");
+        const RenderSettings r = render_settings(spec);
         CHECK(r.integrator == chromasim::render::Integrator::fast);
         CHECK(r.shadow_filter_px == 1.0);
         CHECK(r.shadow_filter_rim_px == 0.5);
@@ -500,31 +502,40 @@ TEST_CASE("the render.fast keys reach the renderer's settings", "[generators][sp
         CHECK(r.shadow_rays_per_pixel == 0);
         CHECK(r.fast_wavelengths == 0); // auto: 16 at 1 spp, else 8
         CHECK(chromasim::render::fast_wavelengths_of(r) == 8);
+        const chromasim::render::LightCacheSettings c = light_cache_settings(spec);
+        CHECK(c.paths_per_vertex == 1024);
+        CHECK(c.refresh_threshold == 1.0);
     }
-    SECTION("every key is passed on") {
-        const chromasim::render::RenderSettings r = render_settings(
-            parse_spec("render:\n  integrator: fast\n  samples_per_pixel: 3\n  fast:\n"
-                       "    shadow_filter_px: 1.5\n    shadow_filter_rim_px: 0.25\n"
-                       "    reflection_samples_per_pixel: 6\n    edge_samples_per_pixel: 10\n"
-                       "    reflected_led_samples_per_pixel: 16\n    shadow_rays_per_pixel: 6\n"
-                       "    wavelengths_per_sample: 16\n",
-                       "ok.yaml"));
+    SECTION("each preset, and the expert keys") {
+        const Spec high = parse_spec("render:\n  quality: high\n  samples_per_pixel: 3\n  fast:\n"
+                                     "    shadow_filter_px: 1.5\n    paths_per_vertex: 256\n"
+                                     "    refresh_threshold: 0.5\n",
+                                     "ok.yaml");
+        const RenderSettings r = render_settings(high);
         CHECK(r.samples_per_pixel == 3);
         CHECK(r.shadow_filter_px == 1.5);
-        CHECK(r.shadow_filter_rim_px == 0.25);
-        CHECK(r.reflection_samples_per_pixel == 6);
-        CHECK(r.edge_samples_per_pixel == 10);
-        CHECK(r.reflected_led_samples_per_pixel == 16);
-        CHECK(r.shadow_rays_per_pixel == 6);
+        CHECK(r.edge_samples_per_pixel == 12);
+        CHECK(r.reflection_samples_per_pixel == 8);
+        CHECK(r.reflected_led_samples_per_pixel == 64);
+        CHECK(r.shadow_rays_per_pixel == 6); // 2 a sample
         CHECK(r.fast_wavelengths == 16);
+        CHECK(light_cache_settings(high).paths_per_vertex == 256);
+        CHECK(light_cache_settings(high).refresh_threshold == 0.5);
+        const RenderSettings d = render_settings(parse_spec("render: {quality: draft}\n", "ok.yaml"));
+        CHECK(d.edge_samples_per_pixel == 0);
+        CHECK(d.reflection_samples_per_pixel == 0);
+        CHECK(d.reflected_led_samples_per_pixel == 16);
     }
-    SECTION("out of range values are rejected with what is allowed") {
-        CHECK(error_of("render:\n  fast:\n    shadow_rays_per_pixel: -2\n") ==
-              "bad.yaml:3:28: render.fast.shadow_rays_per_pixel: value '-2' is out of range; "
-              "allowed: integer in [0, 4096]");
-        CHECK_THAT(error_of("render:\n  fast:\n    wavelengths_per_sample: 12\n"),
-                   StartsWith("bad.yaml:3:29: render.fast.wavelengths_per_sample: value '12'") &&
-                       EndsWith("allowed: one of auto, 8, 16"));
+    SECTION("bad values, and a key the preset replaced, are refused with what is allowed") {
+        CHECK_THAT(error_of("render:\n  quality: best\n"),
+                   StartsWith("bad.yaml:2:12: render.quality: value 'best'") &&
+                       EndsWith("allowed: one of draft, default, high"));
+        CHECK_THAT(error_of("render:\n  fast:\n    edge_samples_per_pixel: 6\n"),
+                   StartsWith("bad.yaml:3:5: render.fast.edge_samples_per_pixel: unknown key") &&
+                       Contains("render.quality sets it now"));
+        CHECK(error_of("render:\n  fast:\n    refresh_threshold: -2\n") ==
+              "bad.yaml:3:24: render.fast.refresh_threshold: value '-2' is out of range; "
+              "allowed: number in [0, 10]");
     }
 }
 
