@@ -129,25 +129,6 @@ template <int N> LanesN<N> diffuse_transmittance(const LanesN<N>& tau) {
     return area;
 }
 
-/// The LEDs' unshadowed flux onto the coating, per unit LED emission: sum over vertices of
-/// tributary area times sum_k max(0, n . V_k). `vectors`: V_k per vertex and LED,
-/// [(vertex * leds + k) * 3].
-[[maybe_unused]] double direct_flux(const SurfaceMesh& mesh, const std::vector<Vec3>& normals,
-                                    const std::vector<float>& vectors, int leds) {
-    const std::vector<double> area = vertex_areas(mesh);
-    double flux = 0.0;
-    for (std::size_t v = 0; v < area.size(); ++v) {
-        double g = 0.0;
-        for (int k = 0; k < leds; ++k) {
-            const float* V = vectors.data() + (v * std::size_t(leds) + std::size_t(k)) * 3;
-            g += std::max(0.0,
-                          normals[v].x() * V[0] + normals[v].y() * V[1] + normals[v].z() * V[2]);
-        }
-        flux += area[v] * g;
-    }
-    return flux;
-}
-
 /// The coating's edges, each once, in the order the triangles first name them, and each
 /// triangle's three (edge i from corner i to corner i + 1 mod 3).
 [[maybe_unused]] void coating_edges(const std::vector<std::uint32_t>& triangles,

@@ -140,13 +140,6 @@ void FastIntegrator::set_frame(const SensorFrame& frame, const EmbreeScene& scen
                 m_direct_edge[i + std::size_t(x)] = scale * c.direct_edge[i + std::size_t(x)];
         }
     update_frame_share(frame);
-    // With scale_indirect, the indirect light follows the LEDs' light the coating receives:
-    // this frame's unshadowed flux onto the coating over the rest cache's.
-    m_indirect_scale = 1.0;
-    if (m_settings.scale_indirect && c.direct_flux > 0.0) {
-        const double now = direct_flux(frame.coating, normals, m_direct, c.leds);
-        if (std::isfinite(now)) m_indirect_scale = now / c.direct_flux;
-    }
 }
 
 namespace {

@@ -312,7 +312,7 @@ LanesN<N> FastIntegrator::inside(const EmbreeScene& scene, const Vec3& origin, c
             // The cached indirect light at the hit: the level above the markers only where a
             // marker is involved (E_ind / pi per unit LED emission, at the lanes).
             const auto cached = [&](const std::vector<float>& level) -> LanesN<N> {
-                return m_indirect_scale * spectral_at(level, at.triangle, at.weights, lambdas);
+                return spectral_at(level, at.triangle, at.weights, lambdas);
             };
             const LanesN<N> above =
                 chord > 0.0 || pending > 0 ? cached(m_cache->indirect_above) : LanesN<N>::Zero();

@@ -42,11 +42,8 @@
 /// LED's vector is weighted by MIS between the Chains, the point LED's is not, so they point
 /// differently.) Also per frame: the radius of the inner surface below each vertex (one ray);
 /// per vertex and LED, the refracted solve's direction less the sphere model's (the shadow
-/// rays' correction). The indirect light is the cache's, or with
-/// LightCacheSettings::scale_indirect (off by default) the cache's times one factor per frame:
-/// the LEDs' unshadowed flux onto the coating (the frame's G_k on its normals times its
-/// vertices' areas) over the same at rest (in a cavity whose losses are mostly its fixed black
-/// base, the interreflected light follows the light put in). With
+/// rays' correction). The indirect light is the cache's, at rest: the path integrator finds a
+/// press's indirect light within 1 % of rest (tests/render/test_fast.cpp). With
 /// LightCacheSettings::refresh_direct, where the point LED's light at a vertex changed by more
 /// than `refresh_threshold` of its rest value (near a contact), the rest relation is stale:
 /// the vertex's light from that LED is estimated anew as the cache does (`direct_samples`
@@ -294,10 +291,6 @@ public:
     /// Pre-condition: a cache.
     int shadow_groups() const { return std::min(m_cache->leds, kMaxShadowGroups); }
 
-    /// The factor on the cached indirect light for this frame (LightCacheSettings::
-    /// scale_indirect; 1 at rest). Pre-condition: set_frame.
-    double indirect_scale() const { return m_indirect_scale; }
-
     /// G_k as a sample at barycentric (u, v) of coating triangle `prim` takes it (on `normal`):
     /// the corners' frame_direct linearly plus the edges' quadratic terms (for tests).
     double direct_at(std::uint32_t prim, double u, double v, const Vec3& normal, int k) const;
@@ -448,9 +441,6 @@ private:
     std::vector<float> m_direct_edge;
     std::vector<std::array<std::uint32_t, 2>> m_edges; ///< the coating's edges (their ends)
     std::vector<std::uint32_t> m_triangle_edges;       ///< each triangle's three edges
-    /// The frame's indirect light over the cache's: the LEDs' unshadowed flux onto the
-    /// coating, this frame's over rest (LightCache::direct_flux); 1 at rest or when off.
-    double m_indirect_scale = 1.0;
     std::vector<float> m_radius; ///< the sphere model's inner radius below each vertex, mm
     /// Per vertex and LED k, [(vertex * leds + k) * 3]: the frame's refracted connection to
     /// the LED's centre (the Newton solve on the deformed inner surface) less the sphere

@@ -187,7 +187,6 @@ void FastIntegrator::build_cache(const SensorFrame& rest,
                         cache->indirect_above);
     }
     covered_from_neighbours(rest, geometry.above_mm, *cache);
-    cache->direct_flux = direct_flux(rest.coating, normals, cache->direct, leds);
     cache->build_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     m_cache = std::move(cache);
@@ -332,8 +331,8 @@ void FastIntegrator::adopt_cache(LightCache cache, const render::LightCacheSetti
         cache.vertices >= 0 && cache.direct.size() == nv * std::size_t(m_path.led_count()) * 3 &&
         cache.point_rest.size() == cache.direct.size() &&
         cache.indirect.size() == nv * std::size_t(lanes) &&
-        cache.indirect_above.size() == cache.indirect.size() && std::isfinite(cache.direct_flux) &&
-        cache.direct_flux >= 0.0 && cache.coating_triangles.size() % 3 == 0;
+        cache.indirect_above.size() == cache.indirect.size() &&
+        cache.coating_triangles.size() % 3 == 0;
     std::vector<std::array<std::uint32_t, 2>> edges;
     std::vector<std::uint32_t> triangle_edges;
     if (sized) coating_edges(cache.coating_triangles, edges, triangle_edges);

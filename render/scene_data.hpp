@@ -150,12 +150,6 @@ struct LightCacheSettings {
     /// the area LED's ratio to it at rest, which goes stale where the surface bends.
     bool refresh_direct = true;
     double refresh_threshold = 1.0;
-    /// Per frame, not part of the stored cache: scale the cached indirect light by the LEDs'
-    /// unshadowed flux onto the coating on this frame over rest (LightCache::direct_flux).
-    /// Off by default: the path integrator finds a press's indirect light within 0.5 % of
-    /// rest, while this scale follows the cache's point-LED flux, which misses light a
-    /// deformed surface passes.
-    bool scale_indirect = false;
     /// Per frame, not part of the stored cache: skip the fast integrator's shadow rays that
     /// provably meet no marker, fold of the coating or the frame (each ray's path tested
     /// against the bounding balls of the markers near its triangle's paths, listed per
@@ -186,9 +180,6 @@ struct LightCache {
     /// LED's light at the edge's midpoint less the mean of its two ends' (edges numbered as
     /// coating_edges finds them). A sample adds it with the edge's quadratic bubble function.
     std::vector<float> direct_edge;
-    /// The LEDs' unshadowed flux onto the coating at rest (the `direct` vectors on the vertex
-    /// normals, summed over the LEDs, times the vertices' areas), per unit LED emission.
-    double direct_flux = 0.0;
     std::vector<std::uint32_t> coating_triangles; ///< the coating's triangles (3 per), for checks
     double build_s = 0.0;                         ///< wall time of the build
 };

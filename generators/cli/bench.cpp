@@ -111,9 +111,6 @@ void add_render_fast_options(CLI::App* command, gen::RenderBenchOptions& o) {
     command->add_flag(
         "!--no-refresh", o.light_cache.refresh_direct,
         "fast integrator: keep the rest ratio of area to point LED light on every vertex");
-    command->add_flag("--indirect-scale", o.light_cache.scale_indirect,
-                      "fast integrator: scale the cached indirect light on every frame by "
-                      "the coating's LED light over rest (an alternative kept to measure it)");
     command->add_flag("!--no-camera-cache", o.keep_camera_samples,
                       "fast integrator: draw the camera samples anew for every render "
                       "instead of keeping them from the first (the same image; to measure "

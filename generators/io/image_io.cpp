@@ -12,6 +12,9 @@ namespace chromasim::generators {
 
 namespace {
 
+/// The PNGs' zlib level (0 to 9).
+constexpr int kPngCompressionLevel = 1;
+
 /// "name.tmp.ext" beside `path`: OpenImageIO picks the format from the extension.
 std::filesystem::path temporary_name(const std::filesystem::path& path) {
     return path.parent_path() / (path.stem().string() + ".tmp" + path.extension().string());
@@ -57,6 +60,9 @@ void write_png8(const std::filesystem::path& final_path, const Image8& image) {
         OIIO::ImageSpec spec(image.width, image.height, image.channels, OIIO::TypeDesc::UINT8);
         spec.attribute("oiio:ColorSpace", "sRGB");
         spec.attribute("Software", "chromasim " CHROMASIM_VERSION);
+        // zlib's fastest level: a 224 px image writes about 4 times faster than at the
+        // default level 6, for files about a tenth larger (the same pixels).
+        spec.attribute("png:compressionLevel", kPngCompressionLevel);
         if (!out->open(path.string(), spec) ||
             !out->write_image(OIIO::TypeDesc::UINT8, image.data.data()) || !out->close())
             throw std::runtime_error("cannot write " + path.string() + ": " + out->geterror());

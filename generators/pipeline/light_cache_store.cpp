@@ -16,7 +16,7 @@ namespace {
 
 constexpr std::string_view kMagic = "CSLCACH1";
 /// Bump when the cache's algorithm or layout changes without a chromasim version change.
-constexpr int kLayout = 4; // 2: direct_edge; 3: direct_flux; 4: the fixed MIS ratio 4
+constexpr int kLayout = 5;
 
 /// Builds the key from typed fields: each is hashed with its size, then its raw bytes.
 struct KeyHash {
@@ -122,7 +122,7 @@ std::optional<render::LightCache> load_light_cache(const fs::path& dir, std::uin
     // check (provide_light_cache rebuilds when it refuses).
     if (!(get(in, c.vertices) && get(in, c.leds) && get(in, c.lanes) && get(in, c.build_s) &&
           get(in, c.direct) && get(in, c.indirect) && get(in, c.indirect_above) &&
-          get(in, c.point_rest) && get(in, c.direct_edge) && get(in, c.direct_flux) &&
+          get(in, c.point_rest) && get(in, c.direct_edge) &&
           get(in, c.coating_triangles) && in.empty())) {
         if (problem) *problem = path.string() + ": truncated payload";
         return std::nullopt;
@@ -142,7 +142,6 @@ bool save_light_cache(const fs::path& dir, std::uint64_t key, const render::Ligh
     put(payload, c.indirect_above);
     put(payload, c.point_rest);
     put(payload, c.direct_edge);
-    put(payload, c.direct_flux);
     put(payload, c.coating_triangles);
     return mechanics::write_cache_file(light_cache_file(dir, key), kMagic, key, payload, problem);
 }

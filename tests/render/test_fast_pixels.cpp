@@ -439,7 +439,8 @@ TEST_CASE("fast integrator: the pixels on a marker's rim take edge_samples_per_p
             const bool rim =
                 corner(x + 1, y) != c || corner(x, y + 1) != c || corner(x + 1, y + 1) != c;
             rims += rim;
-            // The rule up to 0.22.0: the centre's ids differ from one of its 8 neighbours'.
+            // The centres' rule, for comparison: the centre's ids differ from one of its 8
+            // neighbours'.
             bool wide = false;
             for (int dy = -1; dy <= 1; ++dy)
                 for (int dx = -1; dx <= 1; ++dx) {
