@@ -253,9 +253,9 @@ void check_settings(const RenderSettings& settings) {
                                     std::to_string(settings.shadow_rays_per_pixel) +
                                     " is invalid; allowed: integer >= 0 (0: one a sample)");
     }
-    if (settings.edge_samples_per_pixel < 0) {
-        throw std::invalid_argument("RenderSettings: edge_samples_per_pixel = " +
-                                    std::to_string(settings.edge_samples_per_pixel) +
+    if (settings.rim_samples_per_pixel < 0) {
+        throw std::invalid_argument("RenderSettings: rim_samples_per_pixel = " +
+                                    std::to_string(settings.rim_samples_per_pixel) +
                                     " is invalid; allowed: integer >= 0 (0: none extra)");
     }
     if (settings.fast_wavelengths != 0 && settings.fast_wavelengths != detail::kFastSpectralLanes &&
@@ -286,10 +286,10 @@ struct Renderer::Impl::Counts {
     int n = 1, nx = 1, ny = 1, batch = 1;
     /// The LEDs by reflection apart (reflected_led_samples_per_pixel); the mirrored pixels'
     /// count, at least n; the rims'.
-    int n_led = 0, n_mirror = 1, n_edge = 0;
+    int n_led = 0, n_mirror = 1, n_rim = 0;
     bool mirrors = false, rims = false;
     std::vector<std::uint8_t> levels;
-    int nx_mirror = 1, ny_mirror = 1, nx_edge = 1, ny_edge = 1, edge_batch = 1, mirror_batch = 1;
+    int nx_mirror = 1, ny_mirror = 1, nx_rim = 1, ny_rim = 1, rim_batch = 1, mirror_batch = 1;
 
     Counts(const Impl& m, const RenderSettings& settings)
         : fast(settings.integrator == Integrator::fast), n(settings.samples_per_pixel) {
@@ -297,13 +297,13 @@ struct Renderer::Impl::Counts {
         batch = batch_at(n);
         n_led = fast ? settings.reflected_led_samples_per_pixel : 0;
         n_mirror = std::max(settings.reflection_samples_per_pixel, n);
-        n_edge = settings.edge_samples_per_pixel;
+        n_rim = settings.rim_samples_per_pixel;
         mirrors = fast && (n_mirror > n || n_led > 0);
-        rims = fast && n_edge > n && m.triangles_per_marker > 0;
+        rims = fast && n_rim > n && m.triangles_per_marker > 0;
         if (mirrors || rims) levels = m.pixel_levels(mirrors, rims);
         std::tie(nx_mirror, ny_mirror) = detail::strata_grid(std::max(n_mirror, 1));
-        std::tie(nx_edge, ny_edge) = detail::strata_grid(std::max(n_edge, 1));
-        edge_batch = batch_at(n_edge);
+        std::tie(nx_rim, ny_rim) = detail::strata_grid(std::max(n_rim, 1));
+        rim_batch = batch_at(n_rim);
         mirror_batch = batch_at(n_mirror);
     }
     int batch_at(int count) const {
@@ -324,7 +324,7 @@ std::size_t Renderer::Impl::prepare_kept(const RenderSettings& settings, const C
     if (!store) return budget;
     // At a budget of 0 this frees what is kept.
     keep_for(kMainLevel, settings.seed, c.n, shadow_rays(settings, c.n), budget);
-    const int rim = c.rims ? c.n_edge : 0, mirror = c.mirrors ? c.n_mirror : 0;
+    const int rim = c.rims ? c.n_rim : 0, mirror = c.mirrors ? c.n_mirror : 0;
     keep_for(kRimLevel, settings.seed, rim, rim ? shadow_rays(settings, rim) : 0, budget);
     keep_for(kMirrorLevel, settings.seed, mirror, mirror ? shadow_rays(settings, mirror) : 0,
              budget);
@@ -475,17 +475,17 @@ void Renderer::Impl::render_row(Sampler<I>, int y, const RenderSettings& setting
     const int width = camera.width_px();
     const std::size_t row = std::size_t(y) * width;
     for (int x = 0; x < width;) {
-        // Runs of up to `batch` pixels (`mirror_batch` where an LED is mirrored, `edge_batch`
+        // Runs of up to `batch` pixels (`mirror_batch` where an LED is mirrored, `rim_batch`
         // on the markers' rims), up to the next pixel of another count.
         const int level = c.levels.empty() ? 0 : c.levels[row + x];
         int pixels = std::min(level == 2   ? c.mirror_batch
-                              : level == 1 ? c.edge_batch
+                              : level == 1 ? c.rim_batch
                                            : c.batch,
                               width - x);
         for (int j = 1; j < pixels && !c.levels.empty(); ++j)
             if (c.levels[row + x + j] != level) pixels = j;
-        const int px_n = level == 2 ? c.nx_mirror : level == 1 ? c.nx_edge : c.nx;
-        const int py_n = level == 2 ? c.ny_mirror : level == 1 ? c.ny_edge : c.ny;
+        const int px_n = level == 2 ? c.nx_mirror : level == 1 ? c.nx_rim : c.nx;
+        const int py_n = level == 2 ? c.ny_mirror : level == 1 ? c.ny_rim : c.ny;
         const auto some = [&](auto& a, bool wanted) {
             return wanted ? std::span(a.data(), std::size_t(pixels)) : std::span<detail::Rgb>{};
         };

@@ -307,7 +307,7 @@ struct Renderer::Impl {
     ///   crosses the LEDs' plane within kReflectionMargin_mm of an LED plus the pixel's reach
     ///   there (half the largest distance to its 4 neighbours' crossings), and their 8
     ///   neighbours.
-    /// - Rims (RenderSettings::edge_samples_per_pixel): the pixels whose 4 corners' markers
+    /// - Rims (RenderSettings::rim_samples_per_pixel): the pixels whose 4 corners' markers
     ///   (marker_ids_row: the first of each layer before the coating, along the camera ray
     ///   refracted at the inner surface as the samples are, so that the rims stay in place
     ///   where a press tilts the surface) are not all the same: a marker's rim crosses the

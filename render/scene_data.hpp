@@ -204,7 +204,7 @@ struct RenderSettings {
     /// edges by about this much. The variance channel stays that of the unfiltered pixel.
     double shadow_filter_px = 0.0;
     /// Fast integrator, with the shadow filter and the markers' rims found
-    /// (edge_samples_per_pixel above samples_per_pixel): the filter's standard deviation in
+    /// (rim_samples_per_pixel above samples_per_pixel): the filter's standard deviation in
     /// the rims' pixels, px (0: each pools its own samples alone); none: shadow_filter_px
     /// there too. The LEDs sit beside the camera, so a marker's shadow on the coating nearly
     /// coincides with its image and the transmittance changes at a rim just as the view
@@ -238,7 +238,7 @@ struct RenderSettings {
     /// that: a choice from the frame's geometry, made before any sample, so each pixel is
     /// exactly the pixel of a render at its count. The markers' rims hold most of the image's
     /// error at a few samples per pixel.
-    int edge_samples_per_pixel = 0;
+    int rim_samples_per_pixel = 0;
     /// Fast integrator: in the pixels where an LED is mirrored (those of
     /// reflection_samples_per_pixel), the LEDs seen by reflection in the inner surface are
     /// estimated apart, from this many camera rays per pixel (stratified over the pixel, a

@@ -128,7 +128,7 @@ void add_render_fast_options(CLI::App* command, gen::RenderBenchOptions& o) {
                      "has none")
         ->check(CLI::Range(0, 4096));
     command
-        ->add_option("--edge-spp", o.edge_spp,
+        ->add_option("--rim-spp", o.rim_spp,
                      "fast integrator: the samples per pixel to time on the markers' rims, each "
                      "at every spp, filter and reflection count "
                      "(set by render.quality; 0: none extra); the reference has "
@@ -167,7 +167,7 @@ void add_render_fast_options(CLI::App* command, gen::RenderBenchOptions& o) {
 void apply_quality(const CLI::App& command, const gen::QualityPreset& q,
                    gen::RenderBenchOptions& o) {
     const auto given = [&](const char* name) { return command.get_option(name)->count() > 0; };
-    if (!given("--edge-spp")) o.edge_spp = {q.edge_samples_per_pixel};
+    if (!given("--rim-spp")) o.rim_spp = {q.rim_samples_per_pixel};
     if (!given("--reflection-spp")) o.reflection_spp = {q.reflection_samples_per_pixel};
     if (!given("--reflected-led-spp")) o.reflected_led_spp = {q.reflected_led_samples_per_pixel};
     if (!given("--shadow-rays"))

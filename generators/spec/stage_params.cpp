@@ -161,7 +161,7 @@ std::string quality_presets_markdown() {
            "shadow rays a sample | wavelengths a sample | rim filter, px |\n"
            "|---|---|---|---|---|---|---|\n";
     for (const QualityPreset& p : quality_presets()) {
-        out << "| `" << p.name << "` | " << p.edge_samples_per_pixel << " | "
+        out << "| `" << p.name << "` | " << p.rim_samples_per_pixel << " | "
             << p.reflection_samples_per_pixel << " | " << p.reflected_led_samples_per_pixel
             << " | " << std::max(p.shadow_rays_per_sample, 1) << " | "
             << (p.wavelengths_per_sample ? std::to_string(p.wavelengths_per_sample)
@@ -182,7 +182,7 @@ render::RenderSettings render_settings(const Spec& spec) {
     const QualityPreset& q = quality_preset(spec.render.quality);
     s.shadow_filter_rim_px = q.shadow_filter_rim_px;
     s.reflection_samples_per_pixel = q.reflection_samples_per_pixel;
-    s.edge_samples_per_pixel = q.edge_samples_per_pixel;
+    s.rim_samples_per_pixel = q.rim_samples_per_pixel;
     s.reflected_led_samples_per_pixel = q.reflected_led_samples_per_pixel;
     s.shadow_rays_per_pixel = q.shadow_rays_per_sample * s.samples_per_pixel;
     s.fast_wavelengths = q.wavelengths_per_sample;

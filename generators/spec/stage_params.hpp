@@ -26,7 +26,7 @@ render::Integrator integrator_of(const std::string& name);
 /// adds nothing.
 struct QualityPreset {
     const char* name;
-    int edge_samples_per_pixel;          ///< on the markers' rims
+    int rim_samples_per_pixel;          ///< on the markers' rims
     int reflection_samples_per_pixel;    ///< where the inner surface mirrors an LED
     int reflected_led_samples_per_pixel; ///< rays for the mirrored LEDs, in those pixels
     int shadow_rays_per_sample;          ///< 0: one a sample; n: n * samples_per_pixel a pixel

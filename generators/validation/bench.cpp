@@ -392,7 +392,7 @@ std::vector<Knobs> knob_grid(const RenderBenchOptions& o, const std::string& int
     for (const double filter : knob(o.shadow_filter_px))
         for (const std::optional<double>& rim_filter : rim_filters)
             for (const int mirror : knob(o.reflection_spp))
-                for (const int edge : knob(o.edge_spp))
+                for (const int edge : knob(o.rim_spp))
                     for (const int led : knob(o.reflected_led_spp))
                         for (const int shadow_rays : knob(o.shadow_rays_per_pixel))
                             for (const int lanes : wavelengths)
@@ -408,7 +408,7 @@ render::RenderSettings knob_settings(const RenderBenchOptions& o, const Knobs& k
     rs.shadow_filter_px = k.filter;
     rs.shadow_filter_rim_px = k.rim_filter;
     rs.reflection_samples_per_pixel = k.mirror;
-    rs.edge_samples_per_pixel = k.edge;
+    rs.rim_samples_per_pixel = k.edge;
     rs.reflected_led_samples_per_pixel = k.led;
     rs.shadow_rays_per_pixel = k.shadow_rays;
     if (k.wavelengths >= 0) rs.fast_wavelengths = k.wavelengths;

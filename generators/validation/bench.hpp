@@ -73,9 +73,9 @@ struct RenderBenchOptions {
     /// filter. The reference never has them.
     std::vector<int> reflection_spp{0};
     /// Fast integrator: the samples per pixel to time on the markers' rims
-    /// (RenderSettings::edge_samples_per_pixel; 0: none extra), each at every spp, filter and
+    /// (RenderSettings::rim_samples_per_pixel; 0: none extra), each at every spp, filter and
     /// reflection count. The reference never has them.
-    std::vector<int> edge_spp{0};
+    std::vector<int> rim_spp{0};
     /// Fast integrator: the rays per pixel to time for the LEDs seen by reflection, apart
     /// (RenderSettings::reflected_led_samples_per_pixel; 0: in the samples), each at every
     /// spp, filter, reflection and rim count. The reference never has them.

@@ -497,7 +497,7 @@ TEST_CASE("render.quality and the render.fast keys reach the renderer's settings
         CHECK(r.shadow_filter_px == 1.0);
         CHECK(r.shadow_filter_rim_px == 0.5);
         CHECK(r.reflection_samples_per_pixel == 4);
-        CHECK(r.edge_samples_per_pixel == 6);
+        CHECK(r.rim_samples_per_pixel == 6);
         CHECK(r.reflected_led_samples_per_pixel == 32);
         CHECK(r.shadow_rays_per_pixel == 0);
         CHECK(r.fast_wavelengths == 0); // auto: 16 at 1 spp, else 8
@@ -514,7 +514,7 @@ TEST_CASE("render.quality and the render.fast keys reach the renderer's settings
         const RenderSettings r = render_settings(high);
         CHECK(r.samples_per_pixel == 3);
         CHECK(r.shadow_filter_px == 1.5);
-        CHECK(r.edge_samples_per_pixel == 12);
+        CHECK(r.rim_samples_per_pixel == 12);
         CHECK(r.reflection_samples_per_pixel == 8);
         CHECK(r.reflected_led_samples_per_pixel == 64);
         CHECK(r.shadow_rays_per_pixel == 6); // 2 a sample
@@ -522,7 +522,7 @@ TEST_CASE("render.quality and the render.fast keys reach the renderer's settings
         CHECK(light_cache_settings(high).paths_per_vertex == 256);
         CHECK(light_cache_settings(high).refresh_threshold == 0.5);
         const RenderSettings d = render_settings(parse_spec("render: {quality: draft}\n", "ok.yaml"));
-        CHECK(d.edge_samples_per_pixel == 0);
+        CHECK(d.rim_samples_per_pixel == 0);
         CHECK(d.reflection_samples_per_pixel == 0);
         CHECK(d.reflected_led_samples_per_pixel == 16);
     }

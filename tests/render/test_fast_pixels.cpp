@@ -36,9 +36,9 @@ TEST_CASE("fast integrator: a pixel's bytes do not depend on the neighbours trac
             settings.variance = true;
             settings.marker_ids = true;
             const Image plain = renderer.render(settings);
-            settings.edge_samples_per_pixel = spp + 3;
+            settings.rim_samples_per_pixel = spp + 3;
             const Image cut = renderer.render(settings);
-            settings.edge_samples_per_pixel = spp + 4;
+            settings.rim_samples_per_pixel = spp + 4;
             const Image cut_again = renderer.render(settings);
             // The rims: their count differs between the last two (the runs do not).
             const std::size_t pixels = plain.rgb.size() / 3;
@@ -100,7 +100,7 @@ TEST_CASE("fast integrator: the camera samples kept from render to render give t
             settings.shadow_rays_per_pixel = step.shadow_rays;
             // With the rims, the mirrored pixels, the LED rays and the filter: each count's
             // samples kept apart.
-            settings.edge_samples_per_pixel = 5;
+            settings.rim_samples_per_pixel = 5;
             settings.reflection_samples_per_pixel = 8;
             settings.reflected_led_samples_per_pixel = 16;
             settings.shadow_filter_px = 1.0;
@@ -390,7 +390,7 @@ TEST_CASE("the LED culling's quadrilateral test tells a quadrilateral clear of a
 
 // Each is as a render at that count would have it, exactly those whose corners' markers
 // differ; the other pixels keep their bytes.
-TEST_CASE("fast integrator: the pixels on a marker's rim take edge_samples_per_pixel",
+TEST_CASE("fast integrator: the pixels on a marker's rim take rim_samples_per_pixel",
           "[render][fast]") {
     const SensorFrame rest = dome_with_box_markers();
     const SensorFrame pressed = pressed_flat(rest);
@@ -405,7 +405,7 @@ TEST_CASE("fast integrator: the pixels on a marker's rim take edge_samples_per_p
     settings.samples_per_pixel = 6;
     const Image six = renderer.render(settings);
     settings.samples_per_pixel = 2;
-    settings.edge_samples_per_pixel = 6;
+    settings.rim_samples_per_pixel = 6;
     const Image both = renderer.render(settings);
     const auto same = [](const Image& a, const Image& b, std::size_t p) {
         for (std::size_t c = 3 * p; c < 3 * p + 3; ++c)
@@ -466,12 +466,12 @@ TEST_CASE("fast integrator: the pixels on a marker's rim take edge_samples_per_p
     CHECK(rims < 0.7 * centre_rule);
     // At most samples_per_pixel (0 included): none take more, the same bytes.
     for (const int n : {0, 2}) {
-        settings.edge_samples_per_pixel = n;
+        settings.rim_samples_per_pixel = n;
         CHECK(renderer.render(settings).rgb == two.rgb);
     }
-    settings.edge_samples_per_pixel = -1;
+    settings.rim_samples_per_pixel = -1;
     CHECK_THROWS_WITH(renderer.render(settings),
-                      Catch::Contains("edge_samples_per_pixel = -1 is invalid"));
+                      Catch::Contains("rim_samples_per_pixel = -1 is invalid"));
 }
 
 // It changes them only where the rims are found.
@@ -484,7 +484,7 @@ TEST_CASE("fast integrator: the shadow filter's own width on the markers' rims c
     small_cache_on(renderer, rest, pressed);
     RenderSettings settings{2, 5};
     settings.integrator = Integrator::fast;
-    settings.edge_samples_per_pixel = 6;
+    settings.rim_samples_per_pixel = 6;
     settings.shadow_filter_px = 1.0;
     const Image plain = renderer.render(settings);
     // The rims' pixels: those that take 6 (their bytes differ from a 2-spp render's without
@@ -492,7 +492,7 @@ TEST_CASE("fast integrator: the shadow filter's own width on the markers' rims c
     RenderSettings unfiltered = settings;
     unfiltered.shadow_filter_px = 0.0;
     const Image rims_at_six = renderer.render(unfiltered);
-    unfiltered.edge_samples_per_pixel = 0;
+    unfiltered.rim_samples_per_pixel = 0;
     const Image at_two = renderer.render(unfiltered);
     const std::size_t pixels = plain.rgb.size() / 3;
     std::vector<bool> rim(pixels);
@@ -518,7 +518,7 @@ TEST_CASE("fast integrator: the shadow filter's own width on the markers' rims c
         CHECK(rims_changed > rim_count / 4);
     }
     // Without the rims found (none take more samples) it changes nothing.
-    settings.edge_samples_per_pixel = 0;
+    settings.rim_samples_per_pixel = 0;
     settings.shadow_filter_rim_px.reset();
     const Image without = renderer.render(settings);
     settings.shadow_filter_rim_px = 0.4;
