@@ -189,7 +189,7 @@ void add_render(CLI::App* bench, Action& action) {
                      "rays, shadow rays with the first --spp, wavelengths, rim filter) where "
                      "their options are not given, and a 1 px shadow filter unless "
                      "--shadow-filter is")
-        ->check(CLI::IsMember({"draft", "default", "high"}));
+        ->check(CLI::IsMember(gen::quality_names()));
     on_chosen(command, action, options, [command, quality](const gen::RenderBenchOptions& opts) {
         gen::RenderBenchOptions o = opts;
         if (!quality->empty()) apply_quality(*command, gen::quality_preset(*quality), o);

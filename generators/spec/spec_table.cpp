@@ -4,6 +4,7 @@
 // says what the keys are.
 #include "generators/spec/spec_table.hpp"
 
+#include "generators/spec/stage_params.hpp"
 #include "render/fisheye_camera.hpp"
 #include "render/sensor_model.hpp"
 
@@ -564,7 +565,7 @@ void add_render(std::vector<SchemaEntry>& out) {
 
 /// render.quality and render.fast: the fast integrator's preset and its expert keys.
 void add_render_fast(std::vector<SchemaEntry>& out) {
-    out.push_back(choice("render.quality", "default", {"draft", "default", "high"},
+    out.push_back(choice("render.quality", "default", quality_names(),
                          "Fast integrator: the extra samples for the costly pixels (the markers' "
                          "rims, the LEDs mirrored in the inner surface) and the shadows, as listed "
                          "under Quality presets. Draft is for a first look, high for figures.",

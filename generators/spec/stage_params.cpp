@@ -149,6 +149,13 @@ const std::vector<QualityPreset>& quality_presets() {
     return presets;
 }
 
+std::vector<std::string> quality_names() {
+    std::vector<std::string> names;
+    for (const QualityPreset& p : quality_presets())
+        names.emplace_back(p.name);
+    return names;
+}
+
 const QualityPreset& quality_preset(const std::string& name) {
     for (const QualityPreset& p : quality_presets())
         if (name == p.name) return p;

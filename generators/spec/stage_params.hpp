@@ -35,6 +35,8 @@ struct QualityPreset {
 };
 /// draft, default and high, in that order.
 const std::vector<QualityPreset>& quality_presets();
+/// The presets' names, in that order (render.quality's choices).
+std::vector<std::string> quality_names();
 /// The preset a render.quality value names (the spec's choice list guarantees one).
 const QualityPreset& quality_preset(const std::string& name);
 /// The presets as a Markdown table, for docs/SPEC.md.
