@@ -73,7 +73,61 @@ struct BlockModel::Impl {
     std::unique_ptr<ElasticBody> body;
     Eigen::MatrixXd compliance; ///< the body's, plus the far field's rank-3 part
     BlockStats stats;
+
+    /// Top face: tributary areas; candidates within the contact radius. Base (and with the far
+    /// field, the sides): clamped. Returns the candidate nodes; `clamped` per node.
+    std::vector<int> find_candidates(std::vector<bool>& clamped);
+    /// Adds the far field's part to the compliance: per unit total force along x, y, z, the
+    /// clamped boundary takes the half-space field and the inside follows (K_ff u_f = -K_fc
+    /// u_c); the candidates' displacement R_b is added to every column of force component b.
+    void add_far_field(const std::vector<int>& candidates, const std::vector<bool>& clamped);
 };
+
+std::vector<int> BlockModel::Impl::find_candidates(std::vector<bool>& clamped) {
+    const std::vector<double> area =
+        tributary_areas(mesh, interface_faces(mesh, 1, -1),
+                        [](const Eigen::Vector3d& p) { return std::abs(p.z()) <= 1e-9; });
+    std::vector<int> candidates;
+    clamped.assign(std::size_t(mesh.V.rows()), false);
+    const double r_max = params.contact_radius_mm;
+    const double side = params.half_width_mm * (1 - 1e-12);
+    for (int v = 0; v < mesh.V.rows(); ++v) {
+        const bool on_side = std::abs(mesh.V(v, 0)) >= side || std::abs(mesh.V(v, 1)) >= side;
+        clamped[std::size_t(v)] =
+            mesh.V(v, 2) <= -params.depth_mm + 1e-9 || (params.far_field && on_side);
+        const double r2 = mesh.V(v, 0) * mesh.V(v, 0) + mesh.V(v, 1) * mesh.V(v, 1);
+        if (area[v] > 0 && r2 <= r_max * r_max) {
+            candidates.push_back(v);
+            candidate_area.push_back(area[v]);
+        }
+    }
+    candidate_X.resize(Eigen::Index(candidates.size()), 3);
+    for (std::size_t i = 0; i < candidates.size(); ++i)
+        candidate_X.row(Eigen::Index(i)) = mesh.V.row(candidates[i]);
+    return candidates;
+}
+
+void BlockModel::Impl::add_far_field(const std::vector<int>& candidates,
+                                     const std::vector<bool>& clamped) {
+    const Eigen::SparseMatrix<double> K =
+        assemble_stiffness(mesh, {params.material}, params.volumetric);
+    for (int b = 0; b < 3; ++b) {
+        Eigen::VectorXd u_boundary = Eigen::VectorXd::Zero(3 * mesh.V.rows());
+        for (int v = 0; v < mesh.V.rows(); ++v)
+            if (clamped[std::size_t(v)])
+                u_boundary.segment<3>(3 * v) =
+                    half_space_green(mesh.V.row(v).transpose(), params.material.E_MPa,
+                                     params.material.nu)
+                        .col(b);
+        const Eigen::VectorXd u = body->solve(-(K * u_boundary)) + u_boundary;
+        for (std::size_t i = 0; i < candidates.size(); ++i)
+            for (int a = 0; a < 3; ++a) {
+                const double r = u(3 * candidates[i] + a);
+                for (std::size_t j = 0; j < candidates.size(); ++j)
+                    compliance(3 * Eigen::Index(i) + a, 3 * Eigen::Index(j) + b) += r;
+            }
+    }
+}
 
 BlockModel::BlockModel(const BlockParams& params) : m_impl(std::make_unique<Impl>()) {
     Impl& m = *m_impl;
@@ -90,56 +144,15 @@ BlockModel::BlockModel(const BlockParams& params) : m_impl(std::make_unique<Impl
     m.stats.nodes = int(m.mesh.V.rows());
     m.stats.tets = int(m.mesh.T.rows());
 
-    // Top face: tributary areas; candidates within the contact radius. Base: clamped.
-    const std::vector<double> area =
-        tributary_areas(m.mesh, interface_faces(m.mesh, 1, -1),
-                        [](const Eigen::Vector3d& p) { return std::abs(p.z()) <= 1e-9; });
-    std::vector<int> candidates;
-    std::vector<bool> clamped(std::size_t(m.mesh.V.rows()));
-    const double r_max = params.contact_radius_mm;
-    const double side = params.half_width_mm * (1 - 1e-12);
-    for (int v = 0; v < m.mesh.V.rows(); ++v) {
-        const bool on_side = std::abs(m.mesh.V(v, 0)) >= side || std::abs(m.mesh.V(v, 1)) >= side;
-        clamped[std::size_t(v)] =
-            m.mesh.V(v, 2) <= -params.depth_mm + 1e-9 || (params.far_field && on_side);
-        const double r2 = m.mesh.V(v, 0) * m.mesh.V(v, 0) + m.mesh.V(v, 1) * m.mesh.V(v, 1);
-        if (area[v] > 0 && r2 <= r_max * r_max) {
-            candidates.push_back(v);
-            m.candidate_area.push_back(area[v]);
-        }
-    }
-    m.candidate_X.resize(Eigen::Index(candidates.size()), 3);
-    for (std::size_t i = 0; i < candidates.size(); ++i)
-        m.candidate_X.row(Eigen::Index(i)) = m.mesh.V.row(candidates[i]);
+    std::vector<bool> clamped;
+    const std::vector<int> candidates = m.find_candidates(clamped);
     m.stats.candidates = int(candidates.size());
     t0 = std::chrono::steady_clock::now();
     m.body = std::make_unique<ElasticBody>(m.mesh, std::vector<Material>{params.material}, clamped,
                                            candidates, std::vector<int>{}, Embedding{},
                                            params.volumetric);
     m.compliance = m.body->compliance();
-    if (params.far_field) {
-        // Per unit total force along x, y, z: the boundary takes the half-space field, the
-        // inside follows (K_ff u_f = -K_fc u_c); the candidates' displacement R_b is then
-        // added to every column of force component b.
-        const Eigen::SparseMatrix<double> K =
-            assemble_stiffness(m.mesh, {params.material}, params.volumetric);
-        for (int b = 0; b < 3; ++b) {
-            Eigen::VectorXd u_boundary = Eigen::VectorXd::Zero(3 * m.mesh.V.rows());
-            for (int v = 0; v < m.mesh.V.rows(); ++v)
-                if (clamped[std::size_t(v)])
-                    u_boundary.segment<3>(3 * v) =
-                        half_space_green(m.mesh.V.row(v).transpose(), params.material.E_MPa,
-                                         params.material.nu)
-                            .col(b);
-            const Eigen::VectorXd u = m.body->solve(-(K * u_boundary)) + u_boundary;
-            for (std::size_t i = 0; i < candidates.size(); ++i)
-                for (int a = 0; a < 3; ++a) {
-                    const double r = u(3 * candidates[i] + a);
-                    for (std::size_t j = 0; j < candidates.size(); ++j)
-                        m.compliance(3 * Eigen::Index(i) + a, 3 * Eigen::Index(j) + b) += r;
-                }
-        }
-    }
+    if (params.far_field) m.add_far_field(candidates, clamped);
     m.stats.precompute_s = seconds_since(t0);
 }
 

@@ -55,6 +55,14 @@ struct DomeModel::Impl {
 
     void solve_hyperelastic(const ContactLoad& load, const ObjectShape& object,
                             const FrameResult* previous, FrameResult& r) const;
+    /// The contact and stick areas and whether the contact reached the candidates' edge.
+    void contact_areas(FrameResult& r) const;
+    /// The pressure and traction of every candidate (FrameRequest::surface).
+    void surface_stresses(FrameResult& r) const;
+    /// The observed surfaces and markers from the full field (the neo-Hookean frames).
+    void observed_from_field(const FrameRequest& request, FrameResult& r) const;
+    /// The observed surfaces and markers from the responses (the linear frames).
+    void observed_from_responses(const FrameRequest& request, FrameResult& r) const;
     std::unique_ptr<ElasticBody> body;
     PrecomputeStats stats;
 
@@ -274,6 +282,61 @@ void DomeModel::Impl::solve_hyperelastic(const ContactLoad& load, const ObjectSh
     r.node_displacement_mm = Eigen::Map<const Points>(u.data(), mesh.V.rows(), 3);
 }
 
+void DomeModel::Impl::contact_areas(FrameResult& r) const {
+    for (int j : r.contact.active) {
+        r.contact_area_mm2 += candidate_area_mm2[j];
+        r.at_candidate_edge = r.at_candidate_edge || candidate_edge[j];
+    }
+    for (int j : r.contact.active)
+        if (r.contact.state[std::size_t(j)] == NodeContact::stick)
+            r.stick_area_mm2 += candidate_area_mm2[std::size_t(j)];
+}
+
+void DomeModel::Impl::surface_stresses(FrameResult& r) const {
+    const Eigen::Index n = Eigen::Index(candidates.size());
+    r.pressure_MPa.resize(n);
+    r.traction_MPa.resize(n, 2);
+    for (Eigen::Index j = 0; j < n; ++j) {
+        const double area = candidate_area_mm2[std::size_t(j)];
+        r.pressure_MPa(j) = -r.contact.forces_N(j, 2) / area;
+        r.traction_MPa.row(j) = r.contact.forces_N.row(j).head<2>() / area;
+    }
+}
+
+void DomeModel::Impl::observed_from_field(const FrameRequest& request, FrameResult& r) const {
+    const Points& U = r.node_displacement_mm;
+    if (request.coating) {
+        r.coating_displacement_mm.resize(Eigen::Index(coating.nodes.size()), 3);
+        for (std::size_t i = 0; i < coating.nodes.size(); ++i)
+            r.coating_displacement_mm.row(Eigen::Index(i)) = U.row(coating.nodes[i]);
+    }
+    if (request.inner_surface) {
+        r.inner_surface_displacement_mm.resize(Eigen::Index(inner.nodes.size()), 3);
+        for (std::size_t i = 0; i < inner.nodes.size(); ++i)
+            r.inner_surface_displacement_mm.row(Eigen::Index(i)) = U.row(inner.nodes[i]);
+    }
+    if (request.markers) {
+        r.marker_points_mm = markers.points;
+        for (std::size_t p = 0; p < marker_embedding.tet.size(); ++p)
+            for (int a = 0; a < 4; ++a)
+                r.marker_points_mm.row(Eigen::Index(p)) +=
+                    marker_embedding.weights[p](a) * U.row(mesh.T(marker_embedding.tet[p], a));
+    }
+}
+
+void DomeModel::Impl::observed_from_responses(const FrameRequest& request, FrameResult& r) const {
+    if (request.full_field)
+        r.node_displacement_mm = body->full_displacement(r.contact.forces_N, r.contact.active);
+    if (!request.coating && !request.inner_surface && !request.markers) return;
+    const Points u = body->observed_displacement(r.contact.forces_N, r.contact.active);
+    const Eigen::Index n_coating = Eigen::Index(coating.nodes.size());
+    const Eigen::Index n_inner = Eigen::Index(inner.nodes.size());
+    if (request.coating) r.coating_displacement_mm = u.topRows(n_coating);
+    if (request.inner_surface) r.inner_surface_displacement_mm = u.middleRows(n_coating, n_inner);
+    if (request.markers)
+        r.marker_points_mm = markers.points + u.bottomRows(u.rows() - n_coating - n_inner);
+}
+
 FrameResult DomeModel::solve(const ContactLoad& load, const FrameRequest& request,
                              const ObjectShape& object, const FrameResult* previous) const {
     const Impl& m = *m_impl;
@@ -285,23 +348,8 @@ FrameResult DomeModel::solve(const ContactLoad& load, const FrameRequest& reques
         r.contact = solve_contact_path(m.body->compliance(), object, m.candidate_X, load,
                                        m.options.load_path, previous ? &previous->contact : nullptr,
                                        m.options.contact);
-    for (int j : r.contact.active) {
-        r.contact_area_mm2 += m.candidate_area_mm2[j];
-        r.at_candidate_edge = r.at_candidate_edge || m.candidate_edge[j];
-    }
-    for (int j : r.contact.active)
-        if (r.contact.state[std::size_t(j)] == NodeContact::stick)
-            r.stick_area_mm2 += m.candidate_area_mm2[std::size_t(j)];
-    if (request.surface) {
-        const Eigen::Index n = Eigen::Index(m.candidates.size());
-        r.pressure_MPa.resize(n);
-        r.traction_MPa.resize(n, 2);
-        for (Eigen::Index j = 0; j < n; ++j) {
-            const double area = m.candidate_area_mm2[std::size_t(j)];
-            r.pressure_MPa(j) = -r.contact.forces_N(j, 2) / area;
-            r.traction_MPa.row(j) = r.contact.forces_N.row(j).head<2>() / area;
-        }
-    }
+    m.contact_areas(r);
+    if (request.surface) m.surface_stresses(r);
     if (request.strain) {
         std::call_once(m.strain_once, [&m] {
             m.strain = std::make_unique<SurfaceStrainSampler>(m.candidate_X, m.candidate_F,
@@ -309,38 +357,10 @@ FrameResult DomeModel::solve(const ContactLoad& load, const FrameRequest& reques
         });
         r.strain = m.strain->sample(r.contact.displacement_mm);
     }
-    if (hyperelastic) { // observed points from the full field
-        const Points& U = r.node_displacement_mm;
-        if (request.coating) {
-            r.coating_displacement_mm.resize(Eigen::Index(m.coating.nodes.size()), 3);
-            for (std::size_t i = 0; i < m.coating.nodes.size(); ++i)
-                r.coating_displacement_mm.row(Eigen::Index(i)) = U.row(m.coating.nodes[i]);
-        }
-        if (request.inner_surface) {
-            r.inner_surface_displacement_mm.resize(Eigen::Index(m.inner.nodes.size()), 3);
-            for (std::size_t i = 0; i < m.inner.nodes.size(); ++i)
-                r.inner_surface_displacement_mm.row(Eigen::Index(i)) = U.row(m.inner.nodes[i]);
-        }
-        if (request.markers) {
-            r.marker_points_mm = m.markers.points;
-            for (std::size_t p = 0; p < m.marker_embedding.tet.size(); ++p)
-                for (int a = 0; a < 4; ++a)
-                    r.marker_points_mm.row(Eigen::Index(p)) +=
-                        m.marker_embedding.weights[p](a) *
-                        U.row(m.mesh.T(m.marker_embedding.tet[p], a));
-        }
-        return r;
-    }
-    if (request.full_field)
-        r.node_displacement_mm = m.body->full_displacement(r.contact.forces_N, r.contact.active);
-    if (!request.coating && !request.inner_surface && !request.markers) return r;
-    const Points u = m.body->observed_displacement(r.contact.forces_N, r.contact.active);
-    const Eigen::Index n_coating = Eigen::Index(m.coating.nodes.size());
-    const Eigen::Index n_inner = Eigen::Index(m.inner.nodes.size());
-    if (request.coating) r.coating_displacement_mm = u.topRows(n_coating);
-    if (request.inner_surface) r.inner_surface_displacement_mm = u.middleRows(n_coating, n_inner);
-    if (request.markers)
-        r.marker_points_mm = m.markers.points + u.bottomRows(u.rows() - n_coating - n_inner);
+    if (hyperelastic)
+        m.observed_from_field(request, r);
+    else
+        m.observed_from_responses(request, r);
     return r;
 }
 

@@ -1,8 +1,9 @@
 #pragma once
-/// The fast integrator's internals shared by its three files: fast_light_cache.cpp (the
+/// The fast integrator's internals shared by its four files: fast_light_cache.cpp (the
 /// light cache, built once per sensor, and the frame's share near the rim),
-/// fast_frame.cpp (a frame's update and its shadow-ray culling) and fast_integrator.cpp
-/// (the samples). Include only from those.
+/// fast_frame.cpp (a frame's update and its shadow-ray culling), fast_integrator.cpp (a
+/// sample's walk, shading and shadow rays) and fast_camera.cpp (the camera packets).
+/// Include only from those.
 #include "render/fast_integrator.hpp"
 
 #include <algorithm>
@@ -49,7 +50,7 @@ constexpr int kFrameShareGrid = 8;
 /// referred to, not copied, per sample).
 constexpr ShadowDraw kNoShadowRays{.rays = 0};
 constexpr ShadowDraw kStreamShadowRay{};
-/// radiance16 sends a level's rays to Embree as one packet from this many on, else one by one.
+/// radiance16 sends a bounce's rays to Embree as one packet from this many on, else one by one.
 constexpr std::size_t kMinPacket = 4;
 
 /// Where the ray from p (outside the sphere of radius R about the origin) along the unit w

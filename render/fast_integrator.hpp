@@ -2,7 +2,8 @@
 /// The fast integrator: the path integrator's light transport with the light that barely
 /// changes between frames computed once per sensor (the light cache) and rays spent only on
 /// what moves. The code: fast_light_cache.cpp (the light cache), fast_frame.cpp (a frame's
-/// update and shadow-ray culling), fast_integrator.cpp (the samples), fast_common.hpp.
+/// update and shadow-ray culling), fast_integrator.cpp (a sample's walk through the layers,
+/// shading and shadow rays), fast_camera.cpp (the camera packets), fast_common.hpp.
 ///
 /// Split. The radiance a camera ray brings back from the coating point x (or from an outer
 /// marker it enters) is albedo / pi times the irradiance there, and that irradiance is
@@ -23,11 +24,11 @@
 ///     close and G_k curves within a 1.2 mm triangle, so linear interpolation alone leaves
 ///     the rim about 2 % dark at rest);
 ///   - the indirect irradiance / pi by path tracing on the dome with its markers
-///     (PathIntegrator::indirect, `paths_per_vertex` paths) at two levels: at the coating, and
+///     (PathIntegrator::indirect, `paths_per_vertex` paths) at two heights: at the coating, and
 ///     above the outer marker layer (where the markers' inner faces are). A vertex an outer
-///     marker covers gets its above value at both levels (times the uncovered neighbours'
-///     coating / above ratio at the coating level), so that uncovered coating interpolates
-///     uncovered values. Each level is then smoothed by local linear regression with a
+///     marker covers gets its above value at both heights (times the uncovered neighbours'
+///     coating / above ratio at the coating height), so that uncovered coating interpolates
+///     uncovered values. Each height is then smoothed by local linear regression with a
 ///     Gaussian of `smoothing_mm` (single paths that reach an LED after several reflections
 ///     make each vertex's estimate heavy-tailed);
 ///   - all per unit of LED emission; spectral: the indirect term at 16 fixed wavelengths, 400
@@ -54,14 +55,14 @@
 /// may hit or the dome wall it meets (which it enters with (1 - F') and is shaded like a
 /// refracted ray; the further reflection F F' is left out; a reflection whose share is below
 /// kUnshadowedReflection is shaded without shadow rays: from a camera at the dome's centre it
-/// runs back across the cavity to the far wall near the rim plane, where no marker lies). In the layers the ray crosses the
-/// markers (Beer-Lambert; an outer marker scatters the share `outer_marker_scatter_fraction`
-/// of what enters it, shaded with the light above the marker layer) to the coating, where the
-/// cache is interpolated with the hit's barycentric coordinates (V_k quadratically: the
-/// corners' values linearly plus each edge's term times its bubble 4 w_i w_j, scaled per
-/// frame by the change of the edge's ends) and G_k taken on the hit triangle's normal. Below an
-/// outer marker the indirect term is the light above it times (1 - scatter fraction) times the
-/// marker's diffuse transmittance 2 E_3(a t), t its thickness along the normal. T_k: the mean
+/// runs back across the cavity to the far wall near the rim plane, where no marker lies). In the
+/// layers the ray crosses the markers (Beer-Lambert; an outer marker scatters the share
+/// `outer_marker_scatter_fraction` of what enters it, shaded with the light above the marker layer)
+/// to the coating, where the cache is interpolated with the hit's barycentric coordinates (V_k
+/// quadratically: the corners' values linearly plus each edge's term times its bubble 4 w_i w_j,
+/// scaled per frame by the change of the edge's ends) and G_k taken on the hit triangle's normal.
+/// Below an outer marker the indirect term is the light above it times (1 - scatter fraction) times
+/// the marker's diffuse transmittance 2 E_3(a t), t its thickness along the normal. T_k: the mean
 /// of the sample's shadow rays (ShadowDraw), each to a point on one LED drawn with probability
 /// G_k / sum G, along the sphere model's refraction through the inner surface below the point
 /// (SphereRefraction: by Newton from the frame's per-vertex guess with
@@ -207,12 +208,12 @@ public:
     /// (a stream per vertex).
     void build_cache(const SensorFrame& undeformed, const render::LightCacheSettings& settings,
                      const SensorSpectra* spectra, double led_scale);
-    /// Uses a cache built before (read from disk: generators/pipeline/light_cache_store.hpp) instead
-    /// of building one; frames must then match its coating (check_topology).
-    /// `settings`: those it was built with, and the per-frame refresh. `undeformed`: the
-    /// sensor at rest it was built on, where the point LEDs' connections are found again
-    /// (point_paths: as long as a frame update). Throws std::invalid_argument (and keeps the
-    /// cache in use, if any) when its coating is not the cache's.
+    /// Uses a cache built before (read from disk: generators/pipeline/light_cache_store.hpp)
+    /// instead of building one; frames must then match its coating (check_topology). `settings`:
+    /// those it was built with, and the per-frame refresh. `undeformed`: the sensor at rest it was
+    /// built on, where the point LEDs' connections are found again (point_paths: as long as a frame
+    /// update). Throws std::invalid_argument (and keeps the cache in use, if any) when its coating
+    /// is not the cache's.
     void adopt_cache(LightCache cache, const render::LightCacheSettings& settings,
                      const SensorFrame& undeformed);
     bool has_cache() const { return m_cache != nullptr; }
@@ -302,28 +303,28 @@ public:
     }
 
 private:
-    /// What a ray in the cavity does at the surface it meets (radiance16's levels): it
+    /// What a ray in the cavity does at the surface it meets (radiance16's bounces): it
     /// brings back an LED's light (`led`), nothing (the black frame, a miss, the back of the
     /// inner surface), the layers' light straight (`straight`: a surface other than the inner
     /// one), or it splits at the inner surface into the refraction (1 - F) and the reflection F.
     enum class Then { nothing, led, straight, split };
-    struct Level {
+    struct Bounce {
         Then then = Then::nothing;
         Vec3 p = Vec3::Zero(); ///< where it splits
         double F = 0.0;
         bool refract = false, reflect = false;
         Vec3 refracted = Vec3::Zero(), reflected = Vec3::Zero();
     };
-    /// The level of the ray from o along d (from tnear) whose first hit is `hit`; `reflect`:
+    /// The bounce of the ray from o along d (from tnear) whose first hit is `hit`; `reflect`:
     /// whether a split follows the reflection too (the camera's rays; not their reflections).
-    Level classify(const Vec3& o, const Vec3& d, double tnear, const RayHit& hit,
-                   bool reflect) const;
+    Bounce classify(const Vec3& o, const Vec3& d, double tnear, const RayHit& hit,
+                    bool reflect) const;
     /// The first step of radiance16, reflected_leds16 and marker_ids16: the camera rays from
     /// `origin` along `directions` (up to 16) as one packet, against the inner surface alone
-    /// where `cavity_only`, into first[i], and their levels (classify, `reflect`) into near[i].
-    void camera_levels(const EmbreeScene& scene, const Vec3& origin,
-                       std::span<const Vec3> directions, bool cavity_only, bool reflect,
-                       std::span<RayHit> first, std::span<Level> near) const;
+    /// where `cavity_only`, into first[i], and their bounces (classify, `reflect`) into near[i].
+    void camera_bounces(const EmbreeScene& scene, const Vec3& origin,
+                        std::span<const Vec3> directions, bool cavity_only, bool reflect,
+                        std::span<RayHit> first, std::span<Bounce> near) const;
     template <int N> struct Lookup;
     /// What build_cache's steps share: the sensor at rest, its scenes with and without the
     /// markers (`bare`: the coating and inner surface), the coating's normals and the outer

@@ -85,7 +85,7 @@ public:
     /// noisy estimator the tests compare next-event estimation with.
     explicit PathIntegrator(const ShadingModel& shading, bool next_event = true);
 
-    /// Radiance along the camera ray (origin, unit direction), per lane, in the direct model's
+    /// Radiance along the camera ray (origin, unit direction), per lane, in the preview's
     /// units (LED intensity per mm^2 per sr).
     template <int N>
     LanesN<N> radiance(const EmbreeScene& scene, const Vec3& origin_mm, const Vec3& direction,

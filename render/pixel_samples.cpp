@@ -62,9 +62,9 @@ Renderer::Impl::fast_draw(int x, int y, int k, int nx, int ny, detail::PixelRng&
     return std::make_pair(*d.direction, hero);
 }
 
-void Renderer::Impl::keep_for(KeptLevel level, std::uint64_t seed, int count, int rays,
+void Renderer::Impl::keep_for(SampleClass sample_class, std::uint64_t seed, int count, int rays,
                               std::size_t budget_bytes) const {
-    KeptSamples& k = kept[level];
+    KeptSamples& k = kept[sample_class];
     std::size_t pixels =
         budget_bytes > 0 && count > 0 ? std::size_t(camera.width_px()) * camera.height_px() : 0;
     if (k.seed == seed && k.count == count && k.rays == rays && k.pixel.size() == pixels) return;
@@ -82,9 +82,10 @@ void Renderer::Impl::keep_for(KeptLevel level, std::uint64_t seed, int count, in
 }
 
 std::optional<Renderer::Impl::PixelDraws>
-Renderer::Impl::pixel_draws(KeptLevel level, int x, int y, std::uint64_t seed, int count, int rays,
-                            std::size_t budget_bytes, std::vector<double>& scratch) const {
-    KeptSamples& k = kept[level]; // keep_for: for this seed, count and rays
+Renderer::Impl::pixel_draws(SampleClass sample_class, int x, int y, std::uint64_t seed, int count,
+                            int rays, std::size_t budget_bytes,
+                            std::vector<double>& scratch) const {
+    KeptSamples& k = kept[sample_class]; // keep_for: for this seed, count and rays
     const std::size_t index = pixel_index(x, y);
     const bool keep = budget_bytes > 0 && !k.pixel.empty(); // the store, within the budget
     if (keep && k.pixel[index]) return PixelDraws{k.pixel[index].get(), count};
@@ -92,7 +93,7 @@ Renderer::Impl::pixel_draws(KeptLevel level, int x, int y, std::uint64_t seed, i
     const auto [nx, ny] = detail::strata_grid(count);
     detail::PixelRng rng(seed, index);
     const detail::PixelSeeds seeds =
-        level == kLedLevel ? detail::PixelSeeds(seed, index) : pixel_seeds(seed, x, y);
+        sample_class == kLedClass ? detail::PixelSeeds(seed, index) : pixel_seeds(seed, x, y);
     const std::size_t size = PixelDraws::size(count, rays);
     scratch.resize(size);
     for (int s = 0; s < count; ++s) {
@@ -121,15 +122,16 @@ Renderer::Impl::pixel_draws(KeptLevel level, int x, int y, std::uint64_t seed, i
 
 void Renderer::Impl::sample_pixels_fast(int x, int y, int pixels, int nx, int ny,
                                         const RenderSettings& settings, double scale,
-                                        const PixelSums& out, KeptLevel level,
+                                        const PixelSums& out, SampleClass sample_class,
                                         std::size_t budget_bytes) const {
     if (hero_sets.empty())
-        batches<detail::kRgbLanes>(x, y, pixels, nx, ny, settings, scale, out, level, budget_bytes);
+        batches<detail::kRgbLanes>(x, y, pixels, nx, ny, settings, scale, out, sample_class,
+                                   budget_bytes);
     else if (fast_wavelengths_of(settings) == detail::kFastSpectralLanes)
-        batches<detail::kFastSpectralLanes>(x, y, pixels, nx, ny, settings, scale, out, level,
-                                            budget_bytes);
+        batches<detail::kFastSpectralLanes>(x, y, pixels, nx, ny, settings, scale, out,
+                                            sample_class, budget_bytes);
     else
-        batches<detail::kSpectralLanes>(x, y, pixels, nx, ny, settings, scale, out, level,
+        batches<detail::kSpectralLanes>(x, y, pixels, nx, ny, settings, scale, out, sample_class,
                                         budget_bytes);
     if (!out.led.empty()) reflected_leds(x, y, pixels, settings, out.led, budget_bytes);
 }
@@ -218,7 +220,7 @@ void Renderer::Impl::reflected_leds(int x, int y, int pixels, const RenderSettin
         LedSums& sums = out[std::size_t(j)];
         sums = {};
         if (skip[std::size_t(j)]) continue;
-        const auto draws = pixel_draws(kLedLevel, x + j, y, settings.seed ^ kReflectedLedSeed,
+        const auto draws = pixel_draws(kLedClass, x + j, y, settings.seed ^ kReflectedLedSeed,
                                        count, 0, budget_bytes, scratch);
         if (!draws) continue;
         for (int k = 0; k < count; ++k) {
@@ -235,7 +237,7 @@ void Renderer::Impl::reflected_leds(int x, int y, int pixels, const RenderSettin
 template <int N>
 void Renderer::Impl::batches(int x, int y, int pixels, int nx, int ny,
                              const RenderSettings& settings, double scale, const PixelSums& out,
-                             KeptLevel level, std::size_t budget_bytes) const {
+                             SampleClass sample_class, std::size_t budget_bytes) const {
     const int count = nx * ny;
     const bool split = !out.direct.empty();
     const int rays = shadow_rays(settings, count);
@@ -253,7 +255,7 @@ void Renderer::Impl::batches(int x, int y, int pixels, int nx, int ny,
     std::array<std::optional<PixelDraws>, kMaxBatchPixels> draws;
     std::array<std::optional<detail::PixelRng>, kMaxBatchPixels> shade_rngs;
     for (int j = 0; j < pixels; ++j) {
-        draws[std::size_t(j)] = pixel_draws(level, x + j, y, settings.seed, count, rays,
+        draws[std::size_t(j)] = pixel_draws(sample_class, x + j, y, settings.seed, count, rays,
                                             budget_bytes, scratch[std::size_t(j)]);
         shade_rngs[std::size_t(j)].emplace(settings.seed ^ kShadeSeed, pixel_index(x + j, y));
         out.sums[std::size_t(j)] = detail::Rgb::Zero();
@@ -361,16 +363,15 @@ detail::Rgb Renderer::Impl::sample_rgb(const detail::EmbreeScene& in, const Vec3
     return detail::Rgb(h.to_rgb * radiance.matrix());
 }
 
-template detail::Rgb Renderer::Impl::sample_pixel<Integrator::direct>(int, int, int, int,
-                                                                     const RenderSettings&,
-                                                                     double, detail::Rgb*,
-                                                                     int&) const;
+template detail::Rgb Renderer::Impl::sample_pixel<Integrator::preview>(int, int, int, int,
+                                                                       const RenderSettings&,
+                                                                       double, detail::Rgb*,
+                                                                       int&) const;
 template detail::Rgb Renderer::Impl::sample_pixel<Integrator::path>(int, int, int, int,
-                                                                   const RenderSettings&, double,
-                                                                   detail::Rgb*, int&) const;
+                                                                    const RenderSettings&, double,
+                                                                    detail::Rgb*, int&) const;
 template detail::Rgb Renderer::Impl::sample_rgb<Integrator::path>(const detail::EmbreeScene&,
-                                                                 const Vec3&, const Vec3&,
-                                                                 double,
-                                                                 detail::PixelRng&) const;
+                                                                  const Vec3&, const Vec3&, double,
+                                                                  detail::PixelRng&) const;
 
 } // namespace chromasim::render

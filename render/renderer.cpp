@@ -1,7 +1,7 @@
 // The coarse render stage: every pixel value comes from Embree rays through the deformed
 // sensor; no texture or analytic shortcut stands in for geometry.
 //
-// Camera, and the direct integrator's shading model (per lane: linear RGB, or hero
+// Camera, and the preview integrator's shading model (per lane: linear RGB, or hero
 // wavelengths in spectral mode; the path and fast integrators: render/path_integrator.hpp and
 // render/fast_integrator.hpp)
 // -------------------------------------------------------------------------------------------
@@ -277,8 +277,8 @@ void check_settings(const RenderSettings& settings) {
 } // namespace
 
 /// A render's sample counts: every pixel's `samples_per_pixel`, and for the fast integrator
-/// the pixels that mirror an LED and those on a marker's rim at their own counts (`levels`:
-/// 2 where an LED is mirrored, 1 on a rim, 0 or no levels at all elsewhere; a pixel that is
+/// the pixels that mirror an LED and those on a marker's rim at their own counts (`classes`:
+/// 2 where an LED is mirrored, 1 on a rim, 0 or no classes at all elsewhere; a pixel that is
 /// both takes the mirror's count), with runs of up to 16 / count neighbouring pixels sharing
 /// packets of up to 16 samples (one pixel where the count is 16 or more).
 struct Renderer::Impl::Counts {
@@ -288,7 +288,7 @@ struct Renderer::Impl::Counts {
     /// count, at least n; the rims'.
     int n_led = 0, n_mirror = 1, n_rim = 0;
     bool mirrors = false, rims = false;
-    std::vector<std::uint8_t> levels;
+    std::vector<std::uint8_t> classes;
     int nx_mirror = 1, ny_mirror = 1, nx_rim = 1, ny_rim = 1, rim_batch = 1, mirror_batch = 1;
 
     Counts(const Impl& m, const RenderSettings& settings)
@@ -300,7 +300,7 @@ struct Renderer::Impl::Counts {
         n_rim = settings.rim_samples_per_pixel;
         mirrors = fast && (n_mirror > n || n_led > 0);
         rims = fast && n_rim > n && m.triangles_per_marker > 0;
-        if (mirrors || rims) levels = m.pixel_levels(mirrors, rims);
+        if (mirrors || rims) classes = m.pixel_classes(mirrors, rims);
         std::tie(nx_mirror, ny_mirror) = detail::strata_grid(std::max(n_mirror, 1));
         std::tie(nx_rim, ny_rim) = detail::strata_grid(std::max(n_rim, 1));
         rim_batch = batch_at(n_rim);
@@ -323,12 +323,12 @@ std::size_t Renderer::Impl::prepare_kept(const RenderSettings& settings, const C
         store ? std::size_t(std::min(settings.camera_cache_mb, 1e12) * 1024.0 * 1024.0) : 0;
     if (!store) return budget;
     // At a budget of 0 this frees what is kept.
-    keep_for(kMainLevel, settings.seed, c.n, shadow_rays(settings, c.n), budget);
+    keep_for(kMainClass, settings.seed, c.n, shadow_rays(settings, c.n), budget);
     const int rim = c.rims ? c.n_rim : 0, mirror = c.mirrors ? c.n_mirror : 0;
-    keep_for(kRimLevel, settings.seed, rim, rim ? shadow_rays(settings, rim) : 0, budget);
-    keep_for(kMirrorLevel, settings.seed, mirror, mirror ? shadow_rays(settings, mirror) : 0,
+    keep_for(kRimClass, settings.seed, rim, rim ? shadow_rays(settings, rim) : 0, budget);
+    keep_for(kMirrorClass, settings.seed, mirror, mirror ? shadow_rays(settings, mirror) : 0,
              budget);
-    keep_for(kLedLevel, settings.seed ^ kReflectedLedSeed, c.mirrors ? c.n_led : 0, 0, budget);
+    keep_for(kLedClass, settings.seed ^ kReflectedLedSeed, c.mirrors ? c.n_led : 0, 0, budget);
     return budget;
 }
 
@@ -384,7 +384,7 @@ struct Renderer::Impl::Writer {
         const double coverage = m.camera.field_coverage(x, y);
         const bool edge = coverage < 1.0; // or outside the field: no samples inside, black
         // The weight of each sample: 1 / samples inside the field (the pixel's count:
-        // samples_per_pixel, or its level's, the rims' or the mirrored pixels'; written so,
+        // samples_per_pixel, or its class's, the rims' or the mirrored pixels'; written so,
         // not as coverage / inside, to keep those pixels' bytes), coverage / inside at the
         // edge.
         const int count = edge ? inside : samples;
@@ -433,20 +433,20 @@ struct Renderer::Impl::Writer {
         }
         if (settings.marker_ids) {
             const auto [inner, outer] =
-                m.marker_ids(x, y, settings.integrator != Integrator::direct);
+                m.marker_ids(x, y, settings.integrator != Integrator::preview);
             image.inner_marker_id[p] = inner;
             image.outer_marker_id[p] = outer;
         }
     }
 
-    /// The shadow filter over the written image; the rims' pixels (levels 1) with a sigma of
+    /// The shadow filter over the written image; the rims' pixels (class 1) with a sigma of
     /// their own, where they were found.
     void filter_shadows(const Counts& c) {
         std::vector<std::uint8_t> rim_flags;
         if (c.rims && settings.shadow_filter_rim_px) {
-            rim_flags.resize(c.levels.size());
-            for (std::size_t i = 0; i < c.levels.size(); ++i)
-                rim_flags[i] = c.levels[i] == 1;
+            rim_flags.resize(c.classes.size());
+            for (std::size_t i = 0; i < c.classes.size(); ++i)
+                rim_flags[i] = c.classes[i] == 1;
         }
         detail::shadow_filter(image.width, image.height, int(groups), image.rgb, lit, chosen,
                               shadowed, settings.shadow_filter_px, rim_flags,
@@ -458,11 +458,14 @@ struct Renderer::Impl::Writer {
 /// one by one (direct and path), and written.
 Renderer::Impl::AnySampler Renderer::Impl::sampler_for(Integrator integrator) {
     switch (integrator) {
-    case Integrator::path: return Sampler<Integrator::path>{};
-    case Integrator::fast: return Sampler<Integrator::fast>{};
-    case Integrator::direct: break;
+    case Integrator::path:
+        return Sampler<Integrator::path>{};
+    case Integrator::fast:
+        return Sampler<Integrator::fast>{};
+    case Integrator::preview:
+        break;
     }
-    return Sampler<Integrator::direct>{};
+    return Sampler<Integrator::preview>{};
 }
 
 template <Integrator I>
@@ -477,19 +480,19 @@ void Renderer::Impl::render_row(Sampler<I>, int y, const RenderSettings& setting
     for (int x = 0; x < width;) {
         // Runs of up to `batch` pixels (`mirror_batch` where an LED is mirrored, `rim_batch`
         // on the markers' rims), up to the next pixel of another count.
-        const int level = c.levels.empty() ? 0 : c.levels[row + x];
-        int pixels = std::min(level == 2   ? c.mirror_batch
-                              : level == 1 ? c.rim_batch
-                                           : c.batch,
+        const int pixel_class = c.classes.empty() ? 0 : c.classes[row + x];
+        int pixels = std::min(pixel_class == 2   ? c.mirror_batch
+                              : pixel_class == 1 ? c.rim_batch
+                                                 : c.batch,
                               width - x);
-        for (int j = 1; j < pixels && !c.levels.empty(); ++j)
-            if (c.levels[row + x + j] != level) pixels = j;
-        const int px_n = level == 2 ? c.nx_mirror : level == 1 ? c.nx_rim : c.nx;
-        const int py_n = level == 2 ? c.ny_mirror : level == 1 ? c.ny_rim : c.ny;
+        for (int j = 1; j < pixels && !c.classes.empty(); ++j)
+            if (c.classes[row + x + j] != pixel_class) pixels = j;
+        const int px_n = pixel_class == 2 ? c.nx_mirror : pixel_class == 1 ? c.nx_rim : c.nx;
+        const int py_n = pixel_class == 2 ? c.ny_mirror : pixel_class == 1 ? c.ny_rim : c.ny;
         const auto some = [&](auto& a, bool wanted) {
             return wanted ? std::span(a.data(), std::size_t(pixels)) : std::span<detail::Rgb>{};
         };
-        const bool leds_apart = I == Integrator::fast && level == 2 && c.n_led > 0;
+        const bool leds_apart = I == Integrator::fast && pixel_class == 2 && c.n_led > 0;
         if constexpr (I == Integrator::fast) {
             sample_pixels_fast(
                 x, y, pixels, px_n, py_n, settings, write.scale,
@@ -498,9 +501,9 @@ void Renderer::Impl::render_row(Sampler<I>, int y, const RenderSettings& setting
                               : std::span<DirectSums>{},
                  std::span(inside.data(), std::size_t(pixels)),
                  leds_apart ? std::span(led.data(), std::size_t(pixels)) : std::span<LedSums>{}},
-                level == 2   ? kMirrorLevel
-                : level == 1 ? kRimLevel
-                             : kMainLevel,
+                pixel_class == 2   ? kMirrorClass
+                : pixel_class == 1 ? kRimClass
+                                   : kMainClass,
                 budget);
         } else {
             sum2[0] = detail::Rgb::Zero();

@@ -25,7 +25,7 @@ public:
     /// coating and inner surface, no markers) from the dome centre along polar angles 0 to
     /// 70 deg, towards an LED and between two, and scales images so that the brightest of those
     /// maps to 0.8 (times OpticsParams::exposure), headroom for brighter spots under a press.
-    /// Deterministic (fixed seeds and blocks). Without it, images use the direct integrator's
+    /// Deterministic (fixed seeds and blocks). Without it, images use the preview integrator's
     /// analytic scale.
     void set_exposure_reference(const SensorFrame& undeformed);
 
@@ -48,7 +48,7 @@ public:
     const LightCache* light_cache() const;
 
     /// Renders the current frame. Linear RGB, auto-exposed so that the undeformed dome's
-    /// brightest direction (set_exposure_reference; the direct integrator: its apex) maps to
+    /// brightest direction (set_exposure_reference; the preview integrator: its apex) maps to
     /// about 0.8 (times OpticsParams::exposure).
     Image render(const RenderSettings& settings) const;
 

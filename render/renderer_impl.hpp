@@ -1,7 +1,7 @@
 #pragma once
 /// The renderer's internals (Renderer::Impl), shared by its files: renderer.cpp (the public
 /// methods, exposure and the pixel loop), pixel_samples.cpp (each pixel's camera samples
-/// through the integrators, kept between frames) and pixel_levels.cpp (which pixels take
+/// through the integrators, kept between frames) and pixel_classes.cpp (which pixels take
 /// more samples, and the marker id channels). Include only from those.
 #include "render/renderer.hpp"
 
@@ -65,7 +65,7 @@ struct Renderer::Impl {
         if (std::isnan(d.x())) return std::nullopt;
         return d;
     }
-    double scale; ///< image value per unit radiance (analytic: the direct model's apex)
+    double scale; ///< image value per unit radiance (analytic: the preview's apex)
     /// The path integrator's scale once set_exposure_reference measured its apex.
     std::optional<double> path_scale;
     double led_scale; ///< spectral mode: relative LED intensity (mean of led_rgb)
@@ -227,7 +227,7 @@ struct Renderer::Impl {
         }
         static std::size_t size(int count, int rays) { return std::size_t(4 * count + 3 * rays); }
     };
-    /// The pixels' camera samples of one of a render's counts (KeptLevel), kept from render
+    /// The pixels' camera samples of one of a render's counts (SampleClass), kept from render
     /// to render (RenderSettings::camera_cache_mb): they depend only on the seed, the count
     /// and the shadow rays, not on the frame, and a dataset renders all its frames with its
     /// spec's seed. A pixel's are kept the first time it takes that count (each pixel is
@@ -239,39 +239,41 @@ struct Renderer::Impl {
     };
     /// The counts a fast render draws at: samples_per_pixel, the rims', the mirrored pixels'
     /// and the LED rays'.
-    enum KeptLevel { kMainLevel, kRimLevel, kMirrorLevel, kLedLevel, kKeptLevels };
+    enum SampleClass { kMainClass, kRimClass, kMirrorClass, kLedClass, kSampleClasses };
     mutable std::mutex kept_mutex;
-    mutable std::array<KeptSamples, kKeptLevels> kept;
+    mutable std::array<KeptSamples, kSampleClasses> kept;
     mutable std::atomic<std::size_t> kept_bytes{0};
-    /// Before a render: each level's store for its stream and count (emptied where they
-    /// changed; `count` 0: the level is not drawn).
-    void keep_for(KeptLevel level, std::uint64_t seed, int count, int rays,
+    /// Before a render: each sample class's store for its stream and count (emptied where they
+    /// changed; `count` 0: the class is not drawn).
+    void keep_for(SampleClass sample_class, std::uint64_t seed, int count, int rays,
                   std::size_t budget_bytes) const;
-    /// Pixel (x, y)'s samples at a level: the kept ones, else drawn now into `scratch` and
+    /// Pixel (x, y)'s samples in a class: the kept ones, else drawn now into `scratch` and
     /// kept where they fit the budget (`budget_bytes`; 0: the store is not this render's, or
     /// keeps nothing, and is not touched); none for a pixel wholly
-    /// outside the field. The LED rays (kLedLevel) draw from their own stream
+    /// outside the field. The LED rays (kLedClass) draw from their own stream
     /// (kReflectedLedSeed) with the pixel's own seeds, and keep their directions alone.
-    std::optional<PixelDraws> pixel_draws(KeptLevel level, int x, int y, std::uint64_t seed,
-                                          int count, int rays, std::size_t budget_bytes,
+    std::optional<PixelDraws> pixel_draws(SampleClass sample_class, int x, int y,
+                                          std::uint64_t seed, int count, int rays,
+                                          std::size_t budget_bytes,
                                           std::vector<double>& scratch) const;
     /// The stream of the rays for the LEDs seen by reflection: the pixel's own seed and index,
     /// the seed changed by this, so that they are independent of the pixel's samples.
     static constexpr std::uint64_t kReflectedLedSeed = 0x4C45445245464C31ull;
     void sample_pixels_fast(int x, int y, int pixels, int nx, int ny,
                             const RenderSettings& settings, double scale, const PixelSums& out,
-                            KeptLevel level, std::size_t budget_bytes) const;
+                            SampleClass sample_class, std::size_t budget_bytes) const;
     /// The LED rays' culling (leds_out_of_reach): the pixel's mirrored footprint on the LEDs'
     /// plane may bulge past its corners' quadrilateral (the inner surface is curved): the LEDs
     /// are grown by kReflectionMargin_mm plus this share of the quadrilateral's diameter.
     static constexpr double kLedCullSpread = 0.25;
     /// Whether each of `pixels` neighbouring pixels of row y from x provably mirrors no LED
-    /// (reflected_leds then traces none of its rays: they would all miss): the rays through its 4 corners meet the inner surface, and their
-    /// reflections (the interpolated normal, as FastIntegrator::reflected_leds16 reflects)
-    /// cross the LEDs' plane as a strictly convex quadrilateral that meets no LED's rectangle
-    /// grown by kReflectionMargin_mm plus kLedCullSpread times its diameter
-    /// (PathIntegrator::quad_near_led). A corner outside the field, a miss, a reflection that
-    /// never reaches the plane or a folded quadrilateral: no proof, the pixel is traced.
+    /// (reflected_leds then traces none of its rays: they would all miss): the rays through its 4
+    /// corners meet the inner surface, and their reflections (the interpolated normal, as
+    /// FastIntegrator::reflected_leds16 reflects) cross the LEDs' plane as a strictly convex
+    /// quadrilateral that meets no LED's rectangle grown by kReflectionMargin_mm plus
+    /// kLedCullSpread times its diameter (PathIntegrator::quad_near_led). A corner outside the
+    /// field, a miss, a reflection that never reaches the plane or a folded quadrilateral: no
+    /// proof, the pixel is traced.
     void leds_out_of_reach(int x, int y, int pixels, std::span<std::uint8_t> out) const;
     /// The LEDs seen by reflection in `pixels` neighbouring pixels of row y from x, apart
     /// (LedSums): RenderSettings::reflected_led_samples_per_pixel rays a pixel, each pixel's
@@ -284,12 +286,12 @@ struct Renderer::Impl {
     static constexpr int kMaxBatchPixels = 16;
     template <int N>
     void batches(int x, int y, int pixels, int nx, int ny, const RenderSettings& settings,
-                 double scale, const PixelSums& out, KeptLevel level,
+                 double scale, const PixelSums& out, SampleClass sample_class,
                  std::size_t budget_bytes) const;
 
     /// Image value per unit radiance for this integrator.
     double scale_for(const RenderSettings& settings) const {
-        return settings.integrator != Integrator::direct && path_scale ? *path_scale : scale;
+        return settings.integrator != Integrator::preview && path_scale ? *path_scale : scale;
     }
 
     /// Camera RGB (before exposure) of one sample along the ray: the RGB mode's lanes, or 16
@@ -299,7 +301,7 @@ struct Renderer::Impl {
     detail::Rgb sample_rgb(const detail::EmbreeScene& in, const Vec3& origin, const Vec3& direction,
                            double u_lambda, detail::PixelRng& rng) const;
 
-    /// Each pixel's count class (render()'s `levels`): 2 where an LED is mirrored (with
+    /// Each pixel's count class (render()'s `classes`): 2 where an LED is mirrored (with
     /// `mirrors`), 1 on a marker's rim (with `rims`: markers with triangles, render() checks),
     /// 0 elsewhere; a pixel that is both is 2.
     /// - Mirrored (RenderSettings::reflection_samples_per_pixel): the pixels whose centre's
@@ -315,7 +317,14 @@ struct Renderer::Impl {
     ///   holds no rim. A rim that enters and leaves the pixel between the same two corners is
     ///   missed: a sliver of at most w^2 / (8 r) of it for a marker of radius r px (0.04 px^2
     ///   for the markers' 3.5 px at 224 px), sampled at the pixel's own count.
-    std::vector<std::uint8_t> pixel_levels(bool mirrors, bool rims) const;
+    std::vector<std::uint8_t> pixel_classes(bool mirrors, bool rims) const;
+    /// Where each pixel centre's ray, reflected off the inner surface it meets first, crosses
+    /// the LEDs' plane (none: it meets no inner surface, or does not cross), 16 rays a packet
+    /// (from a camera in the cavity against the inner surface alone).
+    std::vector<std::optional<Vec3>> led_plane_crossings() const;
+    /// 1 where a pixel's crossing lies within kReflectionMargin_mm plus its reach of an LED.
+    std::vector<std::uint8_t>
+    mirroring_pixels(const std::vector<std::optional<Vec3>>& crossing) const;
 
     /// The markers the camera rays through the pixels' corners (i, y), i = 0 .. out.size() - 1,
     /// show, as the fast integrator's samples see them (FastIntegrator::marker_ids16: refracted
@@ -326,7 +335,7 @@ struct Renderer::Impl {
     /// The marker of each layer (index within the layer, or -1) that the ray through the
     /// pixel's centre meets first before the coating: refracted into the layers at the inner
     /// surface as the path and fast integrators' rays are (`refracted`;
-    /// FastIntegrator::marker_ids16), else straight through it as the direct integrator sees.
+    /// FastIntegrator::marker_ids16), else straight through it as the preview integrator sees.
     std::pair<std::int32_t, std::int32_t> marker_ids(int x, int y, bool refracted) const;
     /// The markers of each layer that the straight ray through image point `at` meets first
     /// before the coating (px; pixel (x, y) spans [x, x + 1) x [y, y + 1)), as the direct
@@ -343,10 +352,8 @@ struct Renderer::Impl {
     /// the loop over pixels exists once and no pixel, sample or ray asks which integrator it
     /// is in. Direct and path take one pixel at a time through sample_pixel<I>; fast takes
     /// runs of pixels of one count in packets of 16 (sample_pixels_fast).
-    template <Integrator I> struct Sampler {
-        static constexpr Integrator integrator = I;
-    };
-    using AnySampler = std::variant<Sampler<Integrator::direct>, Sampler<Integrator::path>,
+    template <Integrator I> struct Sampler { static constexpr Integrator integrator = I; };
+    using AnySampler = std::variant<Sampler<Integrator::preview>, Sampler<Integrator::path>,
                                     Sampler<Integrator::fast>>;
     static AnySampler sampler_for(Integrator integrator);
     template <Integrator I>

@@ -101,7 +101,7 @@ struct OpticsParams {
     double led_z_mm = -1.0; ///< the LEDs' emitting faces; the dome rim is the plane z = 0
     /// The path integrator's LEDs: Lambertian rectangles facing +z centred on the ring points,
     /// `led_width_mm` along the ring's tangent, `led_height_mm` along its radius (SMD 3528),
-    /// radiance led / area so that far away each matches the direct model's point LED.
+    /// radiance led / area so that far away each matches the preview's point LED.
     double led_width_mm = 3.5;
     double led_height_mm = 2.8;
     /// The rigid frame that clamps the dome covers the rim plane z = 0 from this radius outwards
@@ -126,8 +126,9 @@ struct OpticsParams {
 
 /// Light transport (render/renderer.cpp and render/path_integrator.hpp describe both).
 enum class Integrator {
-    /// Direct LED light only, straight rays, no refraction: fast, an approximation.
-    direct,
+    /// A preview: the LEDs' direct light only, straight rays, no refraction; far off the path
+    /// integrator.
+    preview,
     /// Unbiased spectral path tracing: refraction and Fresnel at the inner surface, diffuse
     /// interreflection, area LEDs with next-event estimation through the interface and MIS.
     path,
@@ -138,7 +139,7 @@ enum class Integrator {
 
 /// Work of the fast integrator's per-sensor light cache (render/fast_integrator.hpp).
 struct LightCacheSettings {
-    int paths_per_vertex = 1024; ///< indirect light: paths per coating vertex (and level)
+    int paths_per_vertex = 1024; ///< indirect light: paths per coating vertex (and height)
     int direct_samples = 16;     ///< unshadowed LED light: points per LED per coating vertex
     /// Indirect light: standard deviation of the Gaussian that smooths it over the coating,
     /// mm (0: none).
@@ -193,7 +194,7 @@ struct RenderSettings {
     /// Extra channels, computed only when asked for (Image).
     bool marker_ids = false; ///< the marker seen through each pixel's centre, per layer
     bool variance = false;   ///< per-pixel variance estimate of the mean
-    Integrator integrator = Integrator::direct;
+    Integrator integrator = Integrator::preview;
     /// Fast integrator: the shadow filter's standard deviation, px; 0: none. The LEDs'
     /// direct light in a pixel is, per group of LEDs (one per LED up to kMaxShadowGroups),
     /// its unshadowed value (no noise from the shadow rays) times the fraction of the group's
@@ -298,7 +299,7 @@ struct Image {
     std::vector<float> rgb;
     /// Per pixel: the marker (index within its layer) whose volume the ray through the pixel's
     /// centre meets first in each layer, before the coating (refracted at the inner surface as
-    /// the path and fast integrators' samples are; straight for the direct integrator); -1 for
+    /// the path and fast integrators' samples are; straight for the preview integrator); -1 for
     /// none.
     std::vector<std::int32_t> inner_marker_id, outer_marker_id;
     /// Per pixel and channel: the sample variance over the pixel's samples divided by their

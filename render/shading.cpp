@@ -15,7 +15,7 @@ namespace chromasim::render::detail {
 namespace {
 
 constexpr double kInvPi = 1.0 / std::numbers::pi;
-/// The surfaces the direct model's rays meet: all but the inner surface, which it does not
+/// The surfaces the preview's rays meet: all but the inner surface, which it does not
 /// refract at (it sees through it), so its queries leave it out.
 constexpr unsigned kSeenThroughInterface = kAllKinds & ~kind_bit(SurfaceKind::inner_surface);
 

@@ -63,13 +63,13 @@ void add_render_frame_options(CLI::App* command, gen::RenderBenchOptions& o) {
     command->add_option("--modes", o.modes, "spectral and/or rgb")
         ->delimiter(',')
         ->check(CLI::IsMember({"spectral", "rgb"}));
-    command->add_option("--integrators", o.integrators, "direct, path, fast")
+    command->add_option("--integrators", o.integrators, "preview, path, fast")
         ->delimiter(',')
-        ->check(CLI::IsMember({"direct", "path", "fast"}));
+        ->check(CLI::IsMember({"preview", "path", "fast"}));
     command
         ->add_option("--reference-integrator", o.reference_integrator,
                      "integrator of the error reference")
-        ->check(CLI::IsMember({"direct", "path", "fast"}));
+        ->check(CLI::IsMember({"preview", "path", "fast"}));
     command
         ->add_option("--reference-in", o.reference_in,
                      "read the reference from this EXR (written by --reference-out); two or "
@@ -89,8 +89,8 @@ void add_render_frame_options(CLI::App* command, gen::RenderBenchOptions& o) {
                         "reference, to measure its noise)");
 }
 
-// The fast integrator's knobs that `bench render` times.
-void add_render_fast_options(CLI::App* command, gen::RenderBenchOptions& o) {
+// The fast integrator's light-cache and camera-cache knobs that `bench render` times.
+void add_render_cache_options(CLI::App* command, gen::RenderBenchOptions& o) {
     command
         ->add_option("--cache-paths", o.light_cache.paths_per_vertex,
                      "fast integrator: light-cache paths per coating vertex")
@@ -115,6 +115,10 @@ void add_render_fast_options(CLI::App* command, gen::RenderBenchOptions& o) {
                       "fast integrator: draw the camera samples anew for every render "
                       "instead of keeping them from the first (the same image; to measure "
                       "what keeping them saves)");
+}
+
+// The fast integrator's sample counts and filters that `bench render` times, one row each.
+void add_render_count_options(CLI::App* command, gen::RenderBenchOptions& o) {
     command
         ->add_option("--shadow-filter", o.shadow_filter_px,
                      "fast integrator: the shadow filters to time, px, each at every spp "
@@ -181,7 +185,8 @@ void add_render(CLI::App* bench, Action& action) {
     auto options = std::make_shared<gen::RenderBenchOptions>();
     auto* command = bench->add_subcommand("render", "samples per pixel vs error and time");
     add_render_frame_options(command, *options);
-    add_render_fast_options(command, *options);
+    add_render_cache_options(command, *options);
+    add_render_count_options(command, *options);
     auto quality = std::make_shared<std::string>();
     command
         ->add_option("--quality", *quality,
@@ -212,7 +217,7 @@ void add_pipeline(CLI::App* bench, Action& action) {
     command
         ->add_option("--integrator", o.integrator,
                      "the slice's render.integrator (default: the spec's)")
-        ->check(CLI::IsMember({"direct", "path", "fast"}));
+        ->check(CLI::IsMember({"preview", "path", "fast"}));
     command
         ->add_option("--spp", o.samples_per_pixel,
                      "the slice's samples per pixel (default: the spec's)")

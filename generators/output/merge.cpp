@@ -2,7 +2,7 @@
 
 #include "generators/output/dataset_writer.hpp"
 #include "generators/io/file_io.hpp"
-#include "mechanics/stopwatch.hpp"
+#include "generators/io/stopwatch.hpp"
 
 #include <chrono>
 #include <optional>
@@ -205,7 +205,7 @@ MergeReport merge(const MergeOptions& options, std::ostream& log) {
         throw;
     }
     report.trials = int(records.size());
-    report.total_s = mechanics::seconds_since(t_start);
+    report.total_s = seconds_since(t_start);
     return report;
 }
 

@@ -2,13 +2,13 @@
 
 #include "generators/pipeline/progress.hpp"
 
-#include "generators/output/dataset_writer.hpp"
 #include "generators/io/file_io.hpp"
 #include "generators/io/image_io.hpp"
+#include "generators/io/stopwatch.hpp"
+#include "generators/output/dataset_writer.hpp"
 #include "generators/pipeline/light_cache_store.hpp"
-#include "generators/plan/plan.hpp"
 #include "generators/pipeline/sensor_bridge.hpp"
-#include "mechanics/stopwatch.hpp"
+#include "generators/plan/plan.hpp"
 #include "render/renderer.hpp"
 
 #include <chrono>
@@ -25,7 +25,6 @@ namespace chromasim::generators {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-using mechanics::seconds_since;
 
 void write_markers(DatasetWriter& writer, const FrameLabels& frame, const std::string& finger,
                    const mechanics::DomeModel& model, const mechanics::FrameResult& r) {
@@ -52,13 +51,12 @@ void test_kill_point() {
     if (kill_at > 0 && ++steps >= kill_at) std::raise(SIGKILL);
 }
 
-/// What every trial shares: the spec, the models and the writer.
+/// What every trial shares: each stage's settings, the models and the writer.
 struct Stages {
-    const Spec& spec;
+    const StageSettings& settings;
     const mechanics::DomeModel& model;
     render::Renderer* renderer; ///< null when no images are asked for
     const render::SensorModel* sensor;
-    render::RenderSettings settings;
     mechanics::FrameRequest request;
     DatasetWriter& writer;
     GenerateReport& report;
@@ -92,7 +90,7 @@ void write_images(Stages& s, const FrameLabels& labels, int f, FingerRun& run, b
     if (!reused || !run.rendered) { // an unmoved scene renders to the same image
         fill_sensor_frame(s.model, run.result, run.sensor_frame);
         s.renderer->set_frame(run.sensor_frame);
-        run.image = s.renderer->render(s.settings);
+        run.image = s.renderer->render(s.settings.render);
         run.rendered = true;
         ++s.report.renders;
     }
@@ -102,10 +100,10 @@ void write_images(Stages& s, const FrameLabels& labels, int f, FingerRun& run, b
     s.report.render_s += seconds_since(t0);
     t0 = Clock::now();
     const std::string finger = finger_name(f);
-    if (s.spec.outputs.images)
+    if (s.settings.outputs.images)
         write_png(s.writer.image_path(labels.split, labels.trial, finger, labels.frame, &row.image),
                   recorded ? *recorded : run.image);
-    if (s.spec.outputs.exr)
+    if (s.settings.outputs.exr)
         write_exr(
             s.writer.image_path(labels.split, labels.trial, finger, labels.frame, &row.exr, "exr"),
             run.image);
@@ -133,9 +131,9 @@ LabelRow run_finger(Stages& s, const FramePlan& frame, const FrameLabels& labels
     row.reused = reused;
     if (s.renderer) write_images(s, labels, f, run, reused, row);
     t0 = Clock::now();
-    if (s.spec.outputs.markers)
+    if (s.settings.outputs.markers)
         write_markers(s.writer, labels, finger_name(f), s.model, run.result);
-    if (s.spec.outputs.strain)
+    if (s.settings.outputs.strain)
         s.writer.write_strain(labels, finger_name(f), run.result.strain.eps_xx);
     s.report.write_s += seconds_since(t0);
     if (!row.converged) {
@@ -149,10 +147,11 @@ LabelRow run_finger(Stages& s, const FramePlan& frame, const FrameLabels& labels
 void run_trial(Stages& s, const TrialPlan& trial) {
     const GenerateReport before = s.report;
     s.writer.begin_trial(trial.split, trial.id);
-    const Spec::Object& object = s.spec.objects[std::size_t(trial.object)];
+    const ObjectSource& source = s.settings.objects[std::size_t(trial.object)];
+    const Spec::Object& object = source.object;
     std::vector<FingerRun> runs(trial.fingers.size());
     for (std::size_t f = 0; f < runs.size(); ++f)
-        runs[f].object = object_shape(s.spec, posed_object(object, trial.fingers[f]));
+        runs[f].object = object_shape(source, posed_object(object, trial.fingers[f]));
     for (const FramePlan& frame : trial.frames) {
         FrameLabels labels{trial.split,
                            trial.id,
@@ -160,7 +159,7 @@ void run_trial(Stages& s, const TrialPlan& trial) {
                            frame.time_s,
                            phase_name(frame.phase),
                            object.name,
-                           s.spec.friction[std::size_t(trial.friction)].name,
+                           s.settings.friction_names[std::size_t(trial.friction)],
                            trial.grip_N,
                            frame.load_N,
                            frame.travel_mm,
@@ -212,16 +211,15 @@ GenerateReport dataset_counts(const DatasetWriter& writer, GenerateReport report
 }
 
 /// What only the run knows, for the manifest (or a part's part.json).
-ManifestInfo manifest_info(const Spec& spec, const mechanics::DomeModel& model,
-                           int planned_trials) {
+ManifestInfo manifest_info(const mechanics::DomeModel& model, bool strain, int planned_trials) {
     ManifestInfo info;
     info.planned_trials = planned_trials;
     const auto& st = model.stats();
-    info.mesh_level = spec.sensor.mesh_level;
+    info.mesh_level = model.options().mesh_level;
     info.mesh_nodes = st.nodes;
     info.mesh_tets = st.tets;
     const mechanics::StrainGridSpec& grid = model.options().strain_grid;
-    info.strain = spec.outputs.strain;
+    info.strain = strain;
     info.strain_nx = grid.nx;
     info.strain_ny = grid.ny;
     info.strain_half_width_x_mm = grid.half_width_x_mm;
@@ -264,22 +262,23 @@ Spec::Object posed_object(const Spec::Object& object, const FingerSetup& finger)
     return posed;
 }
 
-LightCacheOutcome prepare_renderer(render::Renderer& renderer, const Spec& spec,
+LightCacheOutcome prepare_renderer(render::Renderer& renderer, const StageSettings& settings,
                                    const render::SensorFrame& rest,
-                                   const render::OpticsParams& optics,
                                    const std::filesystem::path& cache_dir) {
-    if (spec.render.integrator == "direct") return {};
+    const render::Integrator integrator = settings.render.integrator;
+    if (integrator == render::Integrator::preview) return {};
     // Auto exposure of the path and fast integrators: the path-traced bare dome at rest
     // (render/renderer.hpp); the fast integrator also needs its light cache (once per sensor).
     renderer.set_exposure_reference(rest);
-    if (spec.render.integrator != "fast") return {};
-    return provide_light_cache(renderer, rest, optics, light_cache_settings(spec), cache_dir);
+    if (integrator != render::Integrator::fast) return {};
+    return provide_light_cache(renderer, rest, settings.optics.value(), settings.light_cache,
+                               cache_dir);
 }
 
-void log_dome_model(const Spec& spec, const mechanics::DomeModel& model, double precompute_s,
+void log_dome_model(const mechanics::DomeModel& model, double precompute_s,
                     const std::filesystem::path& cache_dir, std::ostream& log) {
     const auto& st = model.stats();
-    log << "chromasim: dome mesh '" << spec.sensor.mesh_level << "': " << st.nodes << " nodes, "
+    log << "chromasim: dome mesh '" << model.options().mesh_level << "': " << st.nodes << " nodes, "
         << st.tets << " tets, " << st.candidates << " contact candidates; precomputed in "
         << precompute_s << " s (cache: " << st.cache
         << (cache_dir.empty() ? "" : ", " + cache_dir.string()) << ")\n";
@@ -295,6 +294,125 @@ std::filesystem::path default_cache_dir() {
     return {};
 }
 
+namespace {
+
+/// The plan's trials this run owns (its shard's), and of those the ones to run: an interrupted
+/// run's complete trials (checked against their records' checksums) are kept.
+struct TrialSelection {
+    std::vector<int> owned;
+    std::vector<const TrialPlan*> to_run;
+};
+
+TrialSelection select_trials(const Plan& plan, const GenerateOptions& options,
+                             DatasetWriter& writer, std::ostream& log) {
+    TrialSelection t;
+    const Shard& shard = options.shard;
+    for (const TrialPlan& trial : plan.trials) {
+        if (!shard.owns(trial.id)) continue;
+        t.owned.push_back(trial.id);
+        if (!options.resume || !writer.completed(trial.id)) t.to_run.push_back(&trial);
+    }
+    if (shard.sharded())
+        log << "chromasim: shard " << shard.text() << ": " << t.owned.size() << " of "
+            << plan.trials.size() << " trials (those with index mod " << shard.count << " = "
+            << shard.index - 1 << ")\n";
+    const std::size_t resumed = t.owned.size() - t.to_run.size();
+    if (resumed > 0)
+        log << "chromasim: " << resumed << " of " << t.owned.size()
+            << " trials already complete (checksums match); running the other " << t.to_run.size()
+            << '\n';
+    return t;
+}
+
+/// What every trial shares, computed once: the dome model and, with images, the renderer
+/// (exposure, light cache) and the camera sensor model.
+struct Precomputed {
+    std::unique_ptr<mechanics::DomeModel> model;
+    std::unique_ptr<render::Renderer> renderer;
+    std::optional<render::SensorModel> sensor;
+};
+
+void log_light_cache(const GenerateReport& report, const LightCacheOutcome& cache,
+                     const std::filesystem::path& cache_dir, std::ostream& log) {
+    if (report.light_cache_s > 0.0)
+        log << "chromasim: the fast integrator's light cache took " << report.light_cache_s
+            << " s of that ("
+            << (report.light_cache_from_file
+                    ? "read from " + cache_dir.string()
+                    : "built once per sensor; render.fast.*" +
+                          (cache_dir.empty() ? std::string() : ", saved to " + cache_dir.string()))
+            << ")\n";
+    if (!cache.note.empty()) log << "chromasim: light cache: " << cache.note << '\n';
+}
+
+Precomputed precompute(const StageSettings& settings, const std::filesystem::path& cache_dir,
+                       GenerateReport& report, std::ostream& log) {
+    const auto t0 = Clock::now();
+    Precomputed p;
+    mechanics::DomeModelOptions model_options = settings.dome;
+    model_options.cache_dir = cache_dir;
+    p.model = std::make_unique<mechanics::DomeModel>(model_options);
+    LightCacheOutcome cache;
+    if (settings.optics) {
+        p.renderer = std::make_unique<render::Renderer>(settings.camera, *settings.optics);
+        cache =
+            prepare_renderer(*p.renderer, settings, undeformed_sensor_frame(*p.model), cache_dir);
+        report.light_cache_s = cache.seconds;
+        report.light_cache_from_file = cache.from_file;
+    }
+    // The camera sensor turns the PNG's pixels into a recording; the EXR stays noise-free.
+    if (settings.sensor) p.sensor.emplace(settings.camera, *settings.sensor);
+    report.precompute_s = seconds_since(t0);
+    log_dome_model(*p.model, report.precompute_s, cache_dir, log);
+    log_light_cache(report, cache, cache_dir, log);
+    return p;
+}
+
+/// What a frame's solve must return beyond its labels: only what the outputs need.
+mechanics::FrameRequest frame_request(const StageSettings& settings) {
+    const bool render_stage = settings.optics.has_value();
+    mechanics::FrameRequest request;
+    request.coating = render_stage;
+    request.markers = render_stage || settings.outputs.markers;
+    // Only the path and fast integrators refract at the inner surface.
+    request.inner_surface =
+        render_stage && settings.render.integrator != render::Integrator::preview;
+    request.strain = settings.outputs.strain;
+    return request;
+}
+
+void log_up_to_date(const GenerateOptions& options, std::ostream& log) {
+    log << "chromasim: " << options.out_dir.string() << " already holds this "
+        << (options.shard.sharded() ? "part (same resolved spec and --shard)"
+                                    : "dataset (same resolved spec)")
+        << "; nothing to do.\n";
+}
+
+/// Runs `trials` in order; an error keeps the complete trials for --resume and says so.
+void run_trials(Stages& stages, const std::vector<const TrialPlan*>& trials,
+                const GenerateOptions& options) {
+    std::size_t frames = 0;
+    for (const TrialPlan* trial : trials)
+        frames += trial->frames.size();
+    Progress progress(stages.log, frames, options.terminal, options.quiet);
+    stages.progress = &progress;
+    try {
+        for (const TrialPlan* trial : trials)
+            run_trial(stages, *trial);
+        progress.finish();
+    } catch (const std::exception& e) {
+        progress.clear();
+        const DatasetWriter& writer = stages.writer;
+        if (writer.completed_trials() == 0) throw;
+        throw std::runtime_error(std::string(e.what()) + "\nchromasim: the " +
+                                 std::to_string(writer.completed_trials()) +
+                                 " complete trial(s) are kept in " + writer.staging().string() +
+                                 "; fix the cause, then run the same command with --resume");
+    }
+}
+
+} // namespace
+
 GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::ostream& log) {
     const auto t_start = Clock::now();
     GenerateReport report;
@@ -307,22 +425,15 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
                           : 0;
     if (slice > 0) plan.trials.resize(std::size_t(slice));
     const Shard& shard = options.shard;
-    const OutputState state = inspect_output(options.out_dir, spec, slice, shard);
-    if (state == OutputState::up_to_date && !options.overwrite) {
+    if (inspect_output(options.out_dir, spec, slice, shard) == OutputState::up_to_date &&
+        !options.overwrite) {
         report.up_to_date = true;
-        log << "chromasim: " << options.out_dir.string() << " already holds this "
-            << (shard.sharded() ? "part (same resolved spec and --shard)"
-                                : "dataset (same resolved spec)")
-            << "; nothing to do.\n";
+        log_up_to_date(options, log);
         return report;
     }
-    // Every object's file and the spectra are read before any work: a bad file stops here,
-    // nothing written.
-    for (const Spec::Object& object : spec.objects)
-        object_shape(spec, object);
-    const bool render_stage = spec.outputs.images || spec.outputs.exr;
-    std::optional<render::OpticsParams> optics;
-    if (render_stage) optics = optics_params(spec);
+    // Every file the outputs need (object meshes, spectra) is read before any work: a bad
+    // file stops here, nothing written.
+    const StageSettings settings = stage_settings(spec);
     DatasetWriter writer(options.out_dir, spec,
                          {options.overwrite, options.resume, slice, shard, true}, log);
     if (writer.assembled()) { // killed after the last write, before the rename
@@ -332,100 +443,34 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
             << " held the whole dataset; moved it into place\n";
         return report;
     }
-    // Trials an interrupted run completed, checked against their records' checksums.
-    std::vector<const TrialPlan*> to_run;
-    std::vector<int> owned; // this shard's trials (every trial when not sharded)
-    for (const TrialPlan& trial : plan.trials) {
-        if (!shard.owns(trial.id)) continue;
-        owned.push_back(trial.id);
-        if (!options.resume || !writer.completed(trial.id)) to_run.push_back(&trial);
-    }
-    if (shard.sharded())
-        log << "chromasim: shard " << shard.text() << ": " << owned.size() << " of "
-            << plan.trials.size() << " trials (those with index mod " << shard.count << " = "
-            << shard.index - 1 << ")\n";
-    report.resumed_trials = int(owned.size() - to_run.size());
-    if (report.resumed_trials > 0)
-        log << "chromasim: " << report.resumed_trials << " of " << owned.size()
-            << " trials already complete (checksums match); running the other " << to_run.size()
-            << '\n';
+    const TrialSelection trials = select_trials(plan, options, writer, log);
+    report.resumed_trials = int(trials.owned.size() - trials.to_run.size());
 
     // 2. Precompute what every trial shares: mesh, factorization, contact compliance, scene.
-    auto t0 = Clock::now();
-    mechanics::DomeModelOptions model_options = dome_options(spec);
-    model_options.cache_dir = options.cache_dir;
-    const mechanics::DomeModel model(model_options);
-    std::unique_ptr<render::Renderer> renderer;
-    std::string light_cache_note;
-    if (render_stage) {
-        renderer = std::make_unique<render::Renderer>(camera_params(spec), *optics);
-        const LightCacheOutcome cache = prepare_renderer(
-            *renderer, spec, undeformed_sensor_frame(model), *optics, options.cache_dir);
-        report.light_cache_s = cache.seconds;
-        report.light_cache_from_file = cache.from_file;
-        light_cache_note = cache.note;
-    }
-    // The camera sensor turns the PNG's pixels into a recording; the EXR stays noise-free.
-    std::optional<render::SensorModel> sensor;
-    if (spec.outputs.images && spec.render.sensor.enabled)
-        sensor.emplace(camera_params(spec), sensor_params(spec));
-    report.precompute_s = seconds_since(t0);
-    log_dome_model(spec, model, report.precompute_s, options.cache_dir, log);
-    if (report.light_cache_s > 0.0)
-        log << "chromasim: the fast integrator's light cache took " << report.light_cache_s
-            << " s of that ("
-            << (report.light_cache_from_file
-                    ? "read from " + options.cache_dir.string()
-                    : "built once per sensor; render.fast.*" +
-                          (options.cache_dir.empty() ? std::string()
-                                                     : ", saved to " + options.cache_dir.string()))
-            << ")\n";
-    if (!light_cache_note.empty()) log << "chromasim: light cache: " << light_cache_note << '\n';
+    const Precomputed pre = precompute(settings, options.cache_dir, report, log);
 
     // 3. Trials, one after the other; in each, frames: mechanics, render (only if images are
     // asked for), writers.
-    Stages stages{spec,
-                  model,
-                  renderer.get(),
-                  sensor ? &*sensor : nullptr,
-                  render_settings(spec),
-                  {},
+    Stages stages{settings,
+                  *pre.model,
+                  pre.renderer.get(),
+                  pre.sensor ? &*pre.sensor : nullptr,
+                  frame_request(settings),
                   writer,
                   report,
                   log,
                   options.quiet};
-    stages.request.coating = render_stage;
-    stages.request.markers = render_stage || spec.outputs.markers;
-    // Only the path and fast integrators refract at the inner surface.
-    stages.request.inner_surface =
-        render_stage && stages.settings.integrator != render::Integrator::direct;
-    stages.request.strain = spec.outputs.strain;
-    std::size_t frames_to_run = 0;
-    for (const TrialPlan* trial : to_run)
-        frames_to_run += trial->frames.size();
-    Progress progress(log, frames_to_run, options.terminal, options.quiet);
-    stages.progress = &progress;
-    try {
-        for (const TrialPlan* trial : to_run)
-            run_trial(stages, *trial);
-        progress.finish();
-    } catch (const std::exception& e) {
-        progress.clear();
-        if (writer.completed_trials() == 0) throw;
-        throw std::runtime_error(std::string(e.what()) + "\nchromasim: the " +
-                                 std::to_string(writer.completed_trials()) +
-                                 " complete trial(s) are kept in " + writer.staging().string() +
-                                 "; fix the cause, then run the same command with --resume");
-    }
+    run_trials(stages, trials.to_run, options);
 
     // 4. The dataset's counts, over every trial (resumed ones too), then assemble (a part:
     // seal) and rename.
     report = dataset_counts(writer, report);
-    const ManifestInfo info = manifest_info(spec, model, report.planned_trials);
-    t0 = Clock::now();
+    const auto t0 = Clock::now();
+    const ManifestInfo info =
+        manifest_info(*pre.model, settings.outputs.strain, report.planned_trials);
     if (shard.sharded())
         writer.seal_part({CHROMASIM_VERSION, CHROMASIM_ARCH, shard, spec.source_path.string(),
-                          sha256_hex(stored_spec_text(spec, slice)), slice, owned, info});
+                          sha256_hex(stored_spec_text(spec, slice)), slice, trials.owned, info});
     else
         writer.assemble(info, int(plan.trials.size()));
     test_kill_point();

@@ -4,6 +4,7 @@
 #include "generators/pipeline/light_cache_store.hpp"
 #include "generators/plan/plan.hpp"
 #include "generators/spec/spec.hpp"
+#include "generators/spec/stage_params.hpp"
 #include "mechanics/dome_model.hpp"
 #include "render/renderer.hpp"
 
@@ -66,18 +67,17 @@ LabelRow label_row(const FramePlan& f, const FingerLoad& load, const mechanics::
 /// `object` as finger `finger` of `trial` sees it: its offset and yaw (mirror, jitter).
 Spec::Object posed_object(const Spec::Object& object, const FingerSetup& finger);
 
-/// Gives `renderer` what the spec's integrator needs before its first frame: the path and fast
-/// integrators' auto exposure on `rest` (the undeformed sensor) and the fast integrator's light
-/// cache (read from or saved to `cache_dir`). Returns the light cache's outcome (empty for the
-/// direct and path integrators).
-LightCacheOutcome prepare_renderer(render::Renderer& renderer, const Spec& spec,
+/// Gives `renderer` what settings.render's integrator needs before its first frame: the path
+/// and fast integrators' auto exposure on `rest` (the undeformed sensor) and the fast
+/// integrator's light cache of settings.optics (read from or saved to `cache_dir`). Returns the
+/// light cache's outcome (empty for the direct and path integrators).
+LightCacheOutcome prepare_renderer(render::Renderer& renderer, const StageSettings& settings,
                                    const render::SensorFrame& rest,
-                                   const render::OpticsParams& optics,
                                    const std::filesystem::path& cache_dir);
 
 /// Logs the dome mesh's size, the precompute time and the cache state of `model` (one line,
 /// plus a line with the cache note if there is one).
-void log_dome_model(const Spec& spec, const mechanics::DomeModel& model, double precompute_s,
+void log_dome_model(const mechanics::DomeModel& model, double precompute_s,
                     const std::filesystem::path& cache_dir, std::ostream& log);
 
 /// Runs a validated spec: every trial of make_plan (or the first options.max_trials), each

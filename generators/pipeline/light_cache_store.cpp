@@ -1,6 +1,7 @@
 #include "generators/pipeline/light_cache_store.hpp"
 
-#include "mechanics/model_cache.hpp"
+#include "generators/io/cache_file.hpp"
+#include "generators/io/stopwatch.hpp"
 
 #include <chrono>
 #include <cstdio>
@@ -18,15 +19,8 @@ constexpr std::string_view kMagic = "CSLCACH1";
 /// Bump when the cache's algorithm or layout changes without a chromasim version change.
 constexpr int kLayout = 5;
 
-/// Builds the key from typed fields: each is hashed with its size, then its raw bytes.
-struct KeyHash {
-    std::uint64_t h = 0xcbf29ce484222325ull;
-    void bytes(const void* data, std::size_t size) {
-        const std::uint64_t n = size;
-        h = mechanics::fnv1a64(std::string_view(reinterpret_cast<const char*>(&n), sizeof n), h);
-        h = mechanics::fnv1a64(std::string_view(static_cast<const char*>(data), size), h);
-    }
-    template <class T> void value(const T& v) { bytes(&v, sizeof v); }
+/// The key's typed fields on top of CacheKey.
+struct KeyHash : CacheKey {
     void vec(const render::Vec3& v) { bytes(v.data(), 3 * sizeof(double)); }
     template <class M> void matrix(const M& m) {
         value(std::int64_t(m.rows()));
@@ -102,7 +96,7 @@ std::uint64_t light_cache_key(const render::SensorFrame& rest, const render::Opt
          {&rest.coating, &rest.inner_surface, &rest.inner_markers, &rest.outer_markers})
         k.mesh(*m);
     k.value(rest.triangles_per_marker);
-    return k.h;
+    return k.key();
 }
 
 fs::path light_cache_file(const fs::path& dir, std::uint64_t key) {
@@ -114,7 +108,7 @@ fs::path light_cache_file(const fs::path& dir, std::uint64_t key) {
 std::optional<render::LightCache> load_light_cache(const fs::path& dir, std::uint64_t key,
                                                    std::string* problem) {
     const fs::path path = light_cache_file(dir, key);
-    const std::optional<std::string> bytes = mechanics::read_cache_file(path, kMagic, key, problem);
+    const std::optional<std::string> bytes = read_cache_file(path, kMagic, key, problem);
     if (!bytes) return std::nullopt;
     std::string_view in(*bytes);
     render::LightCache c;
@@ -143,14 +137,14 @@ bool save_light_cache(const fs::path& dir, std::uint64_t key, const render::Ligh
     put(payload, c.point_rest);
     put(payload, c.direct_edge);
     put(payload, c.coating_triangles);
-    return mechanics::write_cache_file(light_cache_file(dir, key), kMagic, key, payload, problem);
+    return write_cache_file(light_cache_file(dir, key), kMagic, key, payload, problem);
 }
 
 LightCacheOutcome provide_light_cache(render::Renderer& renderer, const render::SensorFrame& rest,
                                       const render::OpticsParams& optics,
                                       const render::LightCacheSettings& settings,
                                       const fs::path& dir) {
-    const auto start = std::chrono::steady_clock::now();
+    const auto t0 = std::chrono::steady_clock::now();
     LightCacheOutcome out;
     const std::uint64_t key = dir.empty() ? 0 : light_cache_key(rest, optics, settings);
     std::optional<render::LightCache> stored;
@@ -169,7 +163,7 @@ LightCacheOutcome provide_light_cache(render::Renderer& renderer, const render::
         if (!dir.empty() && !save_light_cache(dir, key, *renderer.light_cache(), &problem))
             out.note += (out.note.empty() ? "" : "; ") + problem;
     }
-    out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    out.seconds = seconds_since(t0);
     return out;
 }
 

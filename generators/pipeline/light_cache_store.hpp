@@ -3,10 +3,9 @@
 /// optics and the cache settings, so a run (or a shard, or the next dataset of the same
 /// sensor) reads it back instead of path-tracing it again (about 6 s on the coarse mesh).
 ///
-/// One file per key in the mechanics cache's folder (`--cache-dir`), `light-<key>.bin`, in
-/// the mechanics cache's file format (mechanics/model_cache.hpp: written to a temporary name
-/// and renamed, with the key and a checksum; a torn, corrupt or foreign file is reported and
-/// rebuilt, never used). The key hashes everything the build reads: the chromasim version
+/// One file per key in the mechanics cache's folder (`--cache-dir`), `light-<key>.bin`, a
+/// checked cache file (generators/io/cache_file.hpp: a torn, corrupt or foreign file is
+/// reported and rebuilt, never used). The key hashes everything the build reads: the chromasim version
 /// and this layout, the settings, every optics value but the exposure (the spectra's values
 /// included) and the rest frame's buffers (coating, inner surface, both marker meshes). The
 /// build is deterministic, so a file and a fresh build give the same image bytes.

@@ -1,15 +1,14 @@
 #include "generators/pipeline/scene_export.hpp"
 
+#include "generators/io/file_io.hpp"
+#include "generators/io/stopwatch.hpp"
 #include "generators/pipeline/generate.hpp"
 #include "generators/pipeline/sensor_bridge.hpp"
-#include "mechanics/model_cache.hpp"
-#include "mechanics/stopwatch.hpp"
 #include "render/fisheye_camera.hpp"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <numbers>
 #include <ostream>
 #include <stdexcept>
@@ -198,18 +197,12 @@ GltfCamera stand_in_camera(const render::CameraParams& params) {
     return c;
 }
 
-std::string hex(std::uint64_t x) {
-    char text[17];
-    std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(x));
-    return text;
-}
-
 GltfExtras frame_extras(const Spec& spec, const SceneExportReport& report) {
     const LabelRow& row = report.labels;
     const int frames = report.frames;
     return {{"chromasim_version", std::string(CHROMASIM_VERSION)},
             {"spec_name", spec.name},
-            {"spec_hash", hex(mechanics::fnv1a64(stored_spec_text(spec)))},
+            {"spec_sha256", sha256_hex(stored_spec_text(spec))},
             {"trial", double(report.trial)},
             {"finger", std::string(finger_name(report.finger))},
             {"frame", double(row.frame)},
@@ -295,6 +288,7 @@ GltfScene make_gltf_scene(const render::SensorFrame& frame, const render::Camera
 }
 
 namespace {
+
 /// Throws std::out_of_range naming `option`, its value and the allowed range [0, count - 1].
 void check_index(const char* option, int value, int count, const std::string& what) {
     if (value >= 0 && value < count) return;
@@ -302,47 +296,29 @@ void check_index(const char* option, int value, int count, const std::string& wh
                             " is out of range: " + what + " " + std::to_string(count) + ", so " +
                             option + " must be in [0, " + std::to_string(count - 1) + "]");
 }
-} // namespace
 
-SceneExportReport export_scene(const Spec& spec, const SceneSelection& which,
-                               const std::filesystem::path& out, const SceneExportOptions& options,
-                               std::ostream& log) {
-    const auto t_start = Clock::now();
-    SceneExportReport report;
-    // 1. Validate, then work: the trial, finger and frame and the output path; the object's
-    // mesh file, the camera and the optics are read before the mechanics start.
-    const Plan plan = make_plan(spec);
+/// The trial `which` names, after checking its trial, finger and frame against the plan.
+const TrialPlan& selected_trial(const Plan& plan, const std::string& spec_name,
+                                const SceneSelection& which) {
     check_index("--trial", which.trial, int(plan.trials.size()),
-                "spec '" + spec.name + "' plans trials:");
+                "spec '" + spec_name + "' plans trials:");
     const TrialPlan& trial = plan.trials[std::size_t(which.trial)];
     if (which.finger < 0 || which.finger >= int(trial.fingers.size()))
         throw std::out_of_range("--finger " + std::string(finger_name(which.finger)) +
-                                " is out of range: spec '" + spec.name + "' has " +
+                                " is out of range: spec '" + spec_name + "' has " +
                                 std::to_string(trial.fingers.size()) +
                                 " fingertip(s) (fingers.count), so --finger must be left");
-    report.trial = which.trial;
-    report.finger = which.finger;
-    report.frame = which.frame;
-    report.frames = int(trial.frames.size());
-    check_index("--frame", which.frame, report.frames,
-                "trial " + std::to_string(which.trial) + " of spec '" + spec.name +
+    check_index("--frame", which.frame, int(trial.frames.size()),
+                "trial " + std::to_string(which.trial) + " of spec '" + spec_name +
                     "' plans frames:");
-    check_gltf_output_path(out);
-    const mechanics::ObjectShape object =
-        object_shape(spec, posed_object(spec.objects[std::size_t(trial.object)],
-                                        trial.fingers[std::size_t(which.finger)]));
-    const render::CameraParams camera = camera_params(spec);
-    const render::OpticsParams spectral_or_rgb = optics_params(spec);
+    return trial;
+}
 
-    // 2. The dome model (from the cache when there).
-    auto t0 = Clock::now();
-    mechanics::DomeModelOptions model_options = dome_options(spec);
-    model_options.cache_dir = options.cache_dir;
-    const mechanics::DomeModel model(model_options);
-    log_dome_model(spec, model, mechanics::seconds_since(t0), options.cache_dir, log);
-
-    // 3. The finger's frames 0 to `frame`, each from the state the previous one left, as
-    // generate solves them. Only the exported frame needs the surfaces.
+/// The finger's frames 0 to `which.frame`, each from the state the previous one left, as
+/// generate solves them; only the exported frame gets its surfaces.
+mechanics::FrameResult solve_to_frame(const mechanics::DomeModel& model, const TrialPlan& trial,
+                                      const SceneSelection& which,
+                                      const mechanics::ObjectShape& object) {
     mechanics::FrameResult r;
     const auto load = [&](int k) -> const FingerLoad& {
         return trial.frames[std::size_t(k)].fingers[std::size_t(which.finger)];
@@ -357,12 +333,46 @@ SceneExportReport export_scene(const Spec& spec, const SceneSelection& which,
             model.solve(contact_load(load(k)), request, object, k > 0 ? &r : nullptr);
         r = std::move(next);
     }
-    report.labels = label_row(trial.frames[std::size_t(which.frame)], load(which.frame), r);
+    return r;
+}
+
+} // namespace
+
+SceneExportReport export_scene(const Spec& spec, const SceneSelection& which,
+                               const std::filesystem::path& out, const SceneExportOptions& options,
+                               std::ostream& log) {
+    const auto t_start = Clock::now();
+    // 1. Validate, then work: the trial, finger and frame and the output path; the object's
+    // mesh file, the camera and the optics are read before the mechanics start.
+    const Plan plan = make_plan(spec);
+    const TrialPlan& trial = selected_trial(plan, spec.name, which);
+    SceneExportReport report;
+    report.trial = which.trial;
+    report.finger = which.finger;
+    report.frame = which.frame;
+    report.frames = int(trial.frames.size());
+    check_gltf_output_path(out);
+    const StageSettings settings = stage_settings(spec);
+    const ObjectSource& source = settings.objects[std::size_t(trial.object)];
+    const mechanics::ObjectShape object =
+        object_shape(source, posed_object(source.object, trial.fingers[std::size_t(which.finger)]));
+    const render::OpticsParams spectral_or_rgb =
+        settings.optics ? *settings.optics : optics_params(spec);
+
+    // 2. The dome model (from the cache when there), then the frames up to the exported one.
+    const auto t0 = Clock::now();
+    mechanics::DomeModelOptions model_options = settings.dome;
+    model_options.cache_dir = options.cache_dir;
+    const mechanics::DomeModel model(model_options);
+    log_dome_model(model, seconds_since(t0), options.cache_dir, log);
+    const mechanics::FrameResult r = solve_to_frame(model, trial, which, object);
+    const FramePlan& frame = trial.frames[std::size_t(which.frame)];
+    report.labels = label_row(frame, frame.fingers[std::size_t(which.finger)], r);
     if (!report.labels.converged)
         log << "chromasim: warning: frame " << which.frame << " flagged: " << report.labels.status
             << " (exported all the same; the scene extras say so)\n";
 
-    // 4. The scene, written atomically.
+    // 3. The scene, written atomically.
     render::SensorFrame sensor;
     fill_sensor_frame(model, r, sensor);
     const SceneInfo info{spec.name + " trial " + std::to_string(which.trial) + " " +
@@ -372,8 +382,8 @@ SceneExportReport export_scene(const Spec& spec, const SceneSelection& which,
     // absorption at their median thickness, as bench render's RGB mode).
     const render::OpticsParams optics =
         rgb_optics(spectral_or_rgb, median_marker_thickness_mm(model));
-    write_gltf_scene(out, make_gltf_scene(sensor, camera, optics, info));
-    report.total_s = mechanics::seconds_since(t_start);
+    write_gltf_scene(out, make_gltf_scene(sensor, settings.camera, optics, info));
+    report.total_s = seconds_since(t_start);
     return report;
 }
 

@@ -51,33 +51,33 @@ std::vector<std::size_t> shuffled(std::size_t n, Stream stream) {
 enum FactorId : std::size_t { kObject, kFriction, kMu, kGrip, kRate, kTarget, kFactors };
 using Uniforms = std::array<double, kFactors>;
 
-/// Levels each factor contributes to the full grid: the list's length (objects, friction,
+/// Values each factor contributes to the full grid: the list's length (objects, friction,
 /// listed values); 1 for a range and for mu (drawn within its friction condition).
-std::array<std::size_t, kFactors> grid_levels(const Spec& spec) {
-    const auto levels = [](const Factor& f) { return f.is_range ? 1 : f.values.size(); };
+std::array<std::size_t, kFactors> grid_sizes(const Spec& spec) {
+    const auto values = [](const Factor& f) { return f.is_range ? 1 : f.values.size(); };
     const Spec::Protocol& p = spec.protocol;
     return {spec.objects.size(), spec.friction.size(),        1,
-            levels(p.grip_N),    levels(p.load_rate_N_per_s), levels(p.target_load_N)};
+            values(p.grip_N),    values(p.load_rate_N_per_s), values(p.target_load_N)};
 }
 
 std::size_t trial_count(const Spec& spec) {
     if (spec.sampling.method != "full_grid") return std::size_t(spec.sampling.trials);
     std::size_t cells = 1;
-    for (const std::size_t n : grid_levels(spec))
+    for (const std::size_t n : grid_sizes(spec))
         cells *= n;
     return cells * std::size_t(spec.sampling.repetitions);
 }
 
-/// Full grid: the gridded factors' uniforms land on their cell's level (the last factor
+/// Full grid: the gridded factors' uniforms land on their cell's value (the last factor
 /// varies fastest; trial k is in cell k mod cells, so repetitions append trials).
 void place_in_grid(const Spec& spec, std::size_t trial, Uniforms& u) {
-    const auto levels = grid_levels(spec);
+    const auto sizes = grid_sizes(spec);
     std::size_t cell = trial;
     for (std::size_t f = kFactors; f-- > 0;) {
-        if (levels[f] == 1) continue; // a range, or mu: keeps its draw
-        const std::size_t level = cell % levels[f];
-        cell /= levels[f];
-        u[f] = (double(level) + 0.5) / double(levels[f]);
+        if (sizes[f] == 1) continue; // a range, or mu: keeps its draw
+        const std::size_t value = cell % sizes[f];
+        cell /= sizes[f];
+        u[f] = (double(value) + 0.5) / double(sizes[f]);
     }
 }
 

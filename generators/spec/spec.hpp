@@ -141,7 +141,7 @@ struct Spec {
         int samples_per_pixel = 4;
         double exposure = 1.0;
         bool spectral = true; ///< hero-wavelength spectral mode; false: RGB approximation
-        std::string integrator = "fast"; ///< direct | path | fast
+        std::string integrator = "fast"; ///< preview | path | fast
         /// draft | default | high: the fast integrator's per-pixel-class sample counts
         /// (stage_params.hpp: QualityPreset).
         std::string quality = "default";

@@ -122,7 +122,10 @@ std::vector<SchemaList> build_lists() {
             make_list("splits", "The splits the trials are divided into.", &Spec::splits)};
 }
 
-std::vector<SchemaRule> build_rules() {
+namespace {
+
+/// At least one output.
+SchemaRule some_output() {
     SchemaRule outputs;
     outputs.key = "outputs";
     outputs.holds = [](const Spec& s, std::size_t) {
@@ -133,6 +136,11 @@ std::vector<SchemaRule> build_rules() {
     outputs.allowed =
         "at least one of outputs.images, outputs.labels, outputs.markers, outputs.exr, "
         "outputs.strain is true";
+    return outputs;
+}
+
+/// EXR channels only with the EXR.
+SchemaRule exr_channels() {
     SchemaRule channels;
     channels.key = "outputs.exr";
     channels.holds = [](const Spec& s, std::size_t) {
@@ -141,6 +149,11 @@ std::vector<SchemaRule> build_rules() {
     channels.problem =
         "is false while outputs.marker_ids or outputs.variance asks for EXR channels";
     channels.allowed = "outputs.exr: true, or outputs.marker_ids and outputs.variance false";
+    return channels;
+}
+
+/// A mesh object names a usable glTF mesh.
+SchemaRule mesh_file() {
     SchemaRule mesh;
     mesh.reads_files = true;
     mesh.key = "objects[].mesh_file";
@@ -159,6 +172,12 @@ std::vector<SchemaRule> build_rules() {
         }
         return "";
     };
+    mesh.allowed = "a .gltf or .glb file; a relative path starts at the spec file's folder";
+    return mesh;
+}
+
+/// The spectra load when the images are spectral.
+SchemaRule spectra_dir() {
     SchemaRule spectra;
     spectra.reads_files = true;
     spectra.key = "sensor.optics.spectra_dir";
@@ -178,7 +197,11 @@ std::vector<SchemaRule> build_rules() {
     };
     spectra.allowed = "a folder with the six spectrum CSVs (assets/spectra/README.md), or empty "
                       "for the shipped ones";
-    mesh.allowed = "a .gltf or .glb file; a relative path starts at the spec file's folder";
+    return spectra;
+}
+
+/// A Kannala-Brandt camera maps every pixel back to one ray.
+SchemaRule invertible_camera() {
     SchemaRule camera;
     camera.key = "sensor.camera";
     camera.holds = [](const Spec& s, std::size_t) {
@@ -193,6 +216,11 @@ std::vector<SchemaRule> build_rules() {
     camera.allowed = "k1..k4 with 1 + 3 k1 t^2 + 5 k2 t^4 + 7 k3 t^6 + 9 k4 t^8 > 0 for every "
                      "polar angle t (rad) up to half_fov_deg, or a smaller half_fov_deg (the "
                      "field the calibration covers)";
+    return camera;
+}
+
+/// A tilted flat touches within the contact cap.
+SchemaRule flat_tilt() {
     SchemaRule tilt;
     tilt.key = "objects[].pitch_deg";
     tilt.holds = [](const Spec& s, std::size_t i) {
@@ -210,7 +238,14 @@ std::vector<SchemaRule> build_rules() {
                    "nodes that may touch, or the contact forces along z would not hold)";
     tilt.allowed = "a tilt acos(cos(roll) cos(pitch)) below 30 deg and below "
                    "sensor.contact_candidate_angle_deg - 5 deg";
-    std::vector<SchemaRule> rules{outputs, channels, mesh, camera, tilt, spectra};
+    return tilt;
+}
+
+} // namespace
+
+std::vector<SchemaRule> build_rules() {
+    std::vector<SchemaRule> rules{some_output(),       exr_channels(), mesh_file(),
+                                  invertible_camera(), flat_tilt(),    spectra_dir()};
     for (const char* list : {"objects", "friction", "splits"})
         rules.push_back(unique_name(list));
     rules.push_back(split_sum());

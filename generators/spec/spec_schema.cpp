@@ -60,6 +60,9 @@ ScalarCheck check_enum(const SchemaEntry& e, std::string_view text) {
     if (std::find(e.choices.begin(), e.choices.end(), value) != e.choices.end()) {
         return {value, ""};
     }
+    for (const auto& [old_name, new_name] : e.renamed)
+        if (value == old_name)
+            return {value, "is now called '" + new_name + "' (the same choice, renamed)"};
     const std::string near = closest_match(text, e.choices);
     return {value, near.empty()
                        ? "is not one of the allowed values"

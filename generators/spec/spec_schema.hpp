@@ -10,6 +10,7 @@
 #include <string>
 #include <string_view>
 #include <variant>
+#include <utility>
 #include <vector>
 
 namespace chromasim::generators {
@@ -52,6 +53,8 @@ struct SchemaEntry {
     std::string unit;                 ///< e.g. "MPa", "deg"; empty when unitless
     Range range;                      ///< Number, Integer, each Rgb/Vec3 item
     std::vector<std::string> choices; ///< Enum only
+    /// Enum only: retired values and the choice that replaced each (refused with its name).
+    std::vector<std::pair<std::string, std::string>> renamed;
     std::string doc;                  ///< one line for the manual
     /// Stores a value of the right type (in item `item` of its list, if in one).
     std::function<void(Spec&, std::size_t item, const SpecValue&)> set;

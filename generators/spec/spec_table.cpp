@@ -257,17 +257,7 @@ void add_camera_model(std::vector<SchemaEntry>& out) {
                          CHROMASIM_FIELD(sensor.camera_yaw_deg)));
 }
 
-void add_sensor_optics(std::vector<SchemaEntry>& out) {
-    out.push_back(number("sensor.camera.half_fov_deg", 84, left_open(10, 100), "deg",
-                         "Half field of view: the polar angle at the image-circle edge "
-                         "(equidistant) or of the imaged field (kannala_brandt).",
-                         CHROMASIM_FIELD(sensor.camera_half_fov_deg)));
-    add_camera_model(out);
-    out.push_back(
-        number("sensor.camera.lens_radius_mm", 8, closed(0, 10.5), "mm",
-               "Radius of the camera's lens barrel, a black cylinder from the rim plane "
-               "down (FUSE CAD [K]; 0: none); it hides LEDs below the rim from most of the dome.",
-               CHROMASIM_FIELD(sensor.lens_radius_mm)));
+void add_sensor_leds(std::vector<SchemaEntry>& out) {
     out.push_back(integer("sensor.led.count", 6, closed(1, 64), "",
                           "Number of LEDs on the ring (6 on the real board).",
                           CHROMASIM_FIELD(sensor.led_count)));
@@ -290,6 +280,20 @@ void add_sensor_optics(std::vector<SchemaEntry>& out) {
                       "Relative emission of each LED, linear RGB (white) [G]; spectral mode: "
                       "their mean scales the LED spectrum.",
                       CHROMASIM_FIELD(sensor.led_rgb)));
+}
+
+void add_sensor_optics(std::vector<SchemaEntry>& out) {
+    out.push_back(number("sensor.camera.half_fov_deg", 84, left_open(10, 100), "deg",
+                         "Half field of view: the polar angle at the image-circle edge "
+                         "(equidistant) or of the imaged field (kannala_brandt).",
+                         CHROMASIM_FIELD(sensor.camera_half_fov_deg)));
+    add_camera_model(out);
+    out.push_back(
+        number("sensor.camera.lens_radius_mm", 8, closed(0, 10.5), "mm",
+               "Radius of the camera's lens barrel, a black cylinder from the rim plane "
+               "down (FUSE CAD [K]; 0: none); it hides LEDs below the rim from most of the dome.",
+               CHROMASIM_FIELD(sensor.lens_radius_mm)));
+    add_sensor_leds(out);
     out.push_back(number("sensor.optics.marker_thickness_mm", 0.5, left_open(0, 0.5), "mm",
                          "Thickness of the marker discs [K]: closed volumes deformed with the "
                          "mesh, at most 98 % of their layer's 0.5 mm; light is absorbed over "
@@ -550,17 +554,19 @@ void add_render(std::vector<SchemaEntry>& out) {
                          CHROMASIM_FIELD(render.exposure)));
     out.push_back(
         boolean("render.spectral", true,
-                "Spectral rendering (16 hero wavelengths per sample, 8 with the fast "
-                "integrator by default: render.fast.wavelengths_per_sample; colour "
-                "mixing per wavelength, the spectra of sensor.optics.spectra_dir); false: "
-                "the RGB approximation with the sensor.optics RGB values.",
+                "Spectral rendering (hero wavelengths per sample, as render.quality sets "
+                "them for the fast integrator; colour mixing per wavelength, the spectra of "
+                "sensor.optics.spectra_dir); false: the RGB approximation with the "
+                "sensor.optics RGB values.",
                 CHROMASIM_FIELD(render.spectral)));
-    out.push_back(choice("render.integrator", "fast", {"direct", "path", "fast"},
-                         "Light transport: fast (path-traced light with its smooth part cached per "
-                         "sensor), path (unbiased, the reference, thousands of samples for 1 %) or "
-                         "direct (LED light straight to the coating, a quick preview far off "
-                         "path). docs/VALIDATION.md gives each one's error and cost.",
-                         CHROMASIM_FIELD(render.integrator)));
+    SchemaEntry integrator = choice(
+        "render.integrator", "fast", {"preview", "path", "fast"},
+        "Light transport: fast (path-traced light with its smooth part cached per sensor), path "
+        "(unbiased, the reference, thousands of samples for 1 %) or preview (the LEDs' direct "
+        "light only, far off path). docs/VALIDATION.md gives each one's error and cost.",
+        CHROMASIM_FIELD(render.integrator));
+    integrator.renamed = {{"direct", "preview"}};
+    out.push_back(std::move(integrator));
 }
 
 /// render.quality and render.fast: the fast integrator's preset and its expert keys.

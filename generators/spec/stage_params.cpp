@@ -43,7 +43,14 @@ mechanics::DomeModelOptions dome_options(const Spec& spec) {
 /// Side of the plate that stands for a tilted flat, mm: wider than the dome (26.4 mm).
 constexpr double kTiltedPlate_mm = 80.0;
 
-mechanics::ObjectShape object_shape(const Spec& spec, const Spec::Object& object) {
+ObjectSource object_source(const Spec& spec, const Spec::Object& object) {
+    ObjectSource source{object, std::nullopt};
+    if (object.shape == "mesh")
+        source.mesh = load_gltf_surface(resolve_spec_path(spec, object.mesh_file));
+    return source;
+}
+
+mechanics::ObjectShape object_shape(const ObjectSource& source, const Spec::Object& object) {
     mechanics::ObjectShape o;
     o.kind = object.shape == "sphere" ? mechanics::ObjectShape::Kind::sphere
                                       : mechanics::ObjectShape::Kind::flat;
@@ -54,8 +61,7 @@ mechanics::ObjectShape object_shape(const Spec& spec, const Spec::Object& object
     pose.translation_mm = {object.offset_x_mm, object.offset_y_mm, 0.0};
     if (object.shape == "mesh") {
         o.kind = mechanics::ObjectShape::Kind::mesh;
-        o.mesh = std::make_shared<mechanics::MeshHeightField>(
-            load_gltf_surface(resolve_spec_path(spec, object.mesh_file)), pose);
+        o.mesh = std::make_shared<mechanics::MeshHeightField>(source.mesh.value(), pose);
     } else if (object.shape == "sphere") {
         o.offset_mm = {object.offset_x_mm, object.offset_y_mm};
     } else if (pose.rotation(2, 2) < 1.0 - 1e-15) {
@@ -66,6 +72,10 @@ mechanics::ObjectShape object_shape(const Spec& spec, const Spec::Object& object
             mechanics::make_plate(kTiltedPlate_mm, kTiltedPlate_mm), pose);
     }
     return o;
+}
+
+mechanics::ObjectShape object_shape(const Spec& spec, const Spec::Object& object) {
+    return object_shape(object_source(spec, object), object);
 }
 
 render::CameraParams camera_params(const Spec& spec) {
@@ -137,7 +147,7 @@ render::OpticsParams rgb_optics(const render::OpticsParams& optics, double path_
 render::Integrator integrator_of(const std::string& name) {
     return name == "path"   ? render::Integrator::path
            : name == "fast" ? render::Integrator::fast
-                            : render::Integrator::direct;
+                            : render::Integrator::preview;
 }
 
 const std::vector<QualityPreset>& quality_presets() {
@@ -169,8 +179,8 @@ std::string quality_presets_markdown() {
            "|---|---|---|---|---|---|---|\n";
     for (const QualityPreset& p : quality_presets()) {
         out << "| `" << p.name << "` | " << p.rim_samples_per_pixel << " | "
-            << p.reflection_samples_per_pixel << " | " << p.reflected_led_samples_per_pixel
-            << " | " << std::max(p.shadow_rays_per_sample, 1) << " | "
+            << p.reflection_samples_per_pixel << " | " << p.reflected_led_samples_per_pixel << " | "
+            << std::max(p.shadow_rays_per_sample, 1) << " | "
             << (p.wavelengths_per_sample ? std::to_string(p.wavelengths_per_sample)
                                          : std::string("16 at 1 spp, else 8"))
             << " | " << p.shadow_filter_rim_px << " |\n";
@@ -218,6 +228,22 @@ render::SensorParams sensor_params(const Spec& spec) {
     p.vignetting_k1 = in.vignetting_k1;
     p.vignetting_k2 = in.vignetting_k2;
     return p;
+}
+
+StageSettings stage_settings(const Spec& spec) {
+    StageSettings s;
+    s.dome = dome_options(spec);
+    for (const Spec::Object& object : spec.objects)
+        s.objects.push_back(object_source(spec, object));
+    for (const Spec::Friction& friction : spec.friction)
+        s.friction_names.push_back(friction.name);
+    s.camera = camera_params(spec);
+    if (spec.outputs.images || spec.outputs.exr) s.optics = optics_params(spec);
+    s.render = render_settings(spec);
+    s.light_cache = light_cache_settings(spec);
+    if (spec.outputs.images && spec.render.sensor.enabled) s.sensor = sensor_params(spec);
+    s.outputs = spec.outputs;
+    return s;
 }
 
 } // namespace chromasim::generators

@@ -3,6 +3,7 @@
 #include "generators/validation/bench_table.hpp"
 
 #include "generators/io/image_io.hpp"
+#include "generators/io/stopwatch.hpp"
 #include "generators/pipeline/sensor_bridge.hpp"
 #include "generators/spec/spec.hpp"
 #include "generators/spec/spec_schema.hpp"
@@ -48,7 +49,7 @@ template <class F> double time_median(int repeats, F&& f) {
     for (int i = 0; i < repeats; ++i) {
         const auto t0 = Clock::now();
         f();
-        t.push_back(std::chrono::duration<double>(Clock::now() - t0).count());
+        t.push_back(seconds_since(t0));
     }
     return median(t);
 }
@@ -113,7 +114,7 @@ LevelRow bench_level(const std::string& level, const DomeBenchOptions& o) {
                 s * o.normal_force_N, {q * o.tangential_force_N, 0.0}, mu};
             const auto t0 = Clock::now();
             mechanics::FrameResult next = model.solve(step, {}, {}, k > 0 ? &previous : nullptr);
-            if (k > 0) times.push_back(std::chrono::duration<double>(Clock::now() - t0).count());
+            if (k > 0) times.push_back(seconds_since(t0));
             previous = std::move(next);
         }
         (mu > 0 ? row.trial_frame_ms : row.trial_frame_frictionless_ms) = 1e3 * median(times);
@@ -352,7 +353,7 @@ render::Image bench_reference(const RenderBenchOptions& o, const render::CameraP
     if (!o.reference_in.empty()) return read_reference(o, source);
     render::Renderer renderer(camera, optics);
     render::SensorFrame reference_frame = frame.sensor;
-    if (o.reference_integrator == "direct") reference_frame.inner_surface = {};
+    if (o.reference_integrator == "preview") reference_frame.inner_surface = {};
     renderer.set_frame(reference_frame);
     renderer.set_exposure_reference(frame.rest);
     if (o.reference_integrator == "fast") renderer.set_light_cache(frame.rest, o.light_cache);
@@ -489,9 +490,9 @@ RayCount bench_integrator(const RenderBenchOptions& o, const std::string& integr
                           const render::OpticsParams& optics, const BenchFrame& frame,
                           const render::Image& ref, TablePrinter& table) {
     render::Renderer renderer(camera, optics);
-    // The direct integrator does not refract: no inner surface, as in generate.
+    // The preview integrator does not refract: no inner surface, as in generate.
     render::SensorFrame shown = frame.sensor;
-    if (integrator == "direct") shown.inner_surface = {};
+    if (integrator == "preview") shown.inner_surface = {};
     renderer.set_frame(shown);
     renderer.set_exposure_reference(frame.rest); // used by the path integrator only
     if (integrator == "fast") time_fast_setup(o, mode, renderer, frame, shown, table);

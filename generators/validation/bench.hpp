@@ -38,10 +38,11 @@ struct RenderBenchOptions {
     int reference_spp = 64; ///< the error reference
     int size_px = 256;
     std::vector<std::string> modes{"spectral", "rgb"}; ///< spectral | rgb
-    std::vector<std::string> integrators{"direct"}; ///< direct | path | fast, each with every mode
-    /// The reference is always spectral; `path` makes it the physical reference, so a direct
-    /// row's error includes the direct model's own bias.
-    std::string reference_integrator = "direct";
+    std::vector<std::string> integrators{
+        "preview"}; ///< preview | path | fast, each with every mode
+    /// The reference is always spectral; `path` makes it the physical reference, so a preview
+    /// row's error includes the preview's own bias.
+    std::string reference_integrator = "preview";
     int repeats = 5;
     /// The frame: the object presses with normal_N and pulls with shear_N along x, friction
     /// mu (the default: the quickstart's loaded frame). normal_N 0: the dome at rest.

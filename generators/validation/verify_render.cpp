@@ -1,5 +1,6 @@
 #include "generators/validation/verify_render.hpp"
 
+#include "generators/io/stopwatch.hpp"
 #include "generators/pipeline/sensor_bridge.hpp"
 #include "generators/spec/spec.hpp"
 #include "mechanics/dome_model.hpp"
@@ -26,10 +27,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 constexpr double kPi = std::numbers::pi;
-
-double seconds_since(Clock::time_point t0) {
-    return std::chrono::duration<double>(Clock::now() - t0).count();
-}
 
 render::OpticsParams spectral_optics() {
     render::OpticsParams o;
@@ -245,7 +242,7 @@ void determinism_case(const render::SensorFrame& frame, render::Integrator integ
     c.key = "determinism";
     c.mode = integrator == render::Integrator::path   ? "spectral path"
              : integrator == render::Integrator::fast ? "spectral fast"
-                                                      : "spectral direct";
+                                                      : "spectral preview";
     c.measured = differing;
     c.error = differing;
     c.target = 0;
@@ -309,7 +306,7 @@ void convergence_case(const render::SensorFrame& frame, render::Integrator integ
     }
     RenderVerifyCase c;
     c.key = "convergence_slope";
-    c.mode = integrator == render::Integrator::path ? "spectral path" : "spectral direct";
+    c.mode = integrator == render::Integrator::path ? "spectral path" : "spectral preview";
     c.measured = (n * sxy - sx * sy) / (n * sxx - sx * sx);
     c.reference = -0.5;
     c.error = c.measured - c.reference;
@@ -347,11 +344,11 @@ std::vector<RenderVerifyCase> verify_render() {
     filter_product_cases(model, out);
     const mechanics::ContactLoad load{1.5, {0.6, 0.0}, 0.8};
     const render::SensorFrame loaded = dome_frame(model, &load);
-    determinism_case(loaded, render::Integrator::direct, 224, out);
+    determinism_case(loaded, render::Integrator::preview, 224, out);
     determinism_case(loaded, render::Integrator::path, 96, out);
     const render::SensorFrame rest = undeformed_sensor_frame(model);
     determinism_case(loaded, render::Integrator::fast, 224, out, &rest);
-    convergence_case(loaded, render::Integrator::direct, 224, 256, out);
+    convergence_case(loaded, render::Integrator::preview, 224, 256, out);
     convergence_case(loaded, render::Integrator::path, 64, 1024, out);
     furnace_cases(out);
     return out;

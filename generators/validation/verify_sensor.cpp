@@ -1,6 +1,7 @@
 #include "generators/validation/verify_sensor.hpp"
 
 #include "generators/output/csv_rows.hpp"
+#include "generators/io/stopwatch.hpp"
 #include "generators/pipeline/generate.hpp"
 #include "generators/pipeline/sensor_bridge.hpp"
 #include "generators/spec/spec_schema.hpp"
@@ -105,15 +106,15 @@ void check_options(const Spec& spec, const SensorVerifyOptions& o) {
 
 /// The undeformed sensor rendered as generate renders a frame (generate.cpp).
 render::Image render_rest(const Spec& spec, const fs::path& cache_dir) {
-    mechanics::DomeModelOptions model_options = dome_options(spec);
+    const StageSettings settings = stage_settings(spec); // its outputs have images
+    mechanics::DomeModelOptions model_options = settings.dome;
     model_options.cache_dir = cache_dir;
     const mechanics::DomeModel model(model_options);
-    const render::OpticsParams optics = optics_params(spec);
-    render::Renderer renderer(camera_params(spec), optics);
+    render::Renderer renderer(settings.camera, settings.optics.value());
     const render::SensorFrame rest = undeformed_sensor_frame(model);
-    prepare_renderer(renderer, spec, rest, optics, cache_dir);
+    prepare_renderer(renderer, settings, rest, cache_dir);
     renderer.set_frame(rest);
-    return renderer.render(render_settings(spec));
+    return renderer.render(settings.render);
 }
 
 /// Refuses a sensor whose rest image shows fewer than half of the markers in view as blobs of
@@ -496,7 +497,7 @@ SensorVerifyReport verify_sensor(const SensorVerifyOptions& o, std::ostream& log
     add_targets(report);
     if (!o.picture.empty() && apex_px)
         write_apex_picture(o.picture, pictures, *apex_px, report.marker_span_px);
-    report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    report.seconds = seconds_since(t0);
     return report;
 }
 

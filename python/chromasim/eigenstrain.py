@@ -11,7 +11,7 @@ Support-vector classifiers (scikit-learn SVC, RBF kernel, features standardised)
 the class of the safety margin Gamma of each frame from the first r recruitments:
 2 classes (Gamma below 0.5, Gamma at or above 0.5) and k = 3..10 classes (k equal bins of
 Gamma over [0, 1], the paper's "quantization of the safety margin"). Two schemes: stratified
-k-fold ("10-fold" in the paper) and leave-one-friction-out (each friction level of the
+k-fold ("10-fold" in the paper) and leave-one-friction-out (each friction condition of the
 dataset held out in turn; the paper's cross-subject test holds out a participant, this
 dataset has no participants and friction is the factor the classifier must be invariant to).
 
@@ -157,7 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     timings = {"load_s": time.perf_counter() - t_start}
     print(f"eigenstrain: {ds.root}: {s.n} strain fields of {s.fields.shape[1]} points "
           f"({s.grid['nx']} x {s.grid['ny']} grid), fingertips {sorted(set(s.finger))}, "
-          f"{len(set(s.friction))} friction levels"
+          f"{len(set(s.friction))} friction conditions"
           + (f", {s.dropped_unconverged} unconverged rows dropped"
              if s.dropped_unconverged else ""))
 
@@ -268,7 +268,7 @@ def _classify_all(args, s: StrainSet, es: Eigenstrains, R: int, schemes):
         for scheme in schemes:
             folds_list = splits(scheme, y, s.friction, args.folds, args.seed)
             if not folds_list:
-                print(f"eigenstrain: {scheme}: skipped (one friction level only)")
+                print(f"eigenstrain: {scheme}: skipped (one friction condition only)")
                 continue
             res = cross_validate(F, y, folds_list, args.C, args.kernel, rs, fold_features)
             if k == 2 and args.full_field == "cv":

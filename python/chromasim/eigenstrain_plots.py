@@ -73,7 +73,7 @@ def figure_recruitments(es: Eigenstrains, s: StrainSet, outdir: str, count: int 
         ax.set_xlabel(tlabel)
         ax.set_ylabel(f"sigma_{i + 1} v_{i + 1} (-)")
     axes.flat[0].legend(fontsize=7, loc="best")
-    fig.suptitle("Recruitment of the first bases per friction level (mean +- std over trials)")
+    fig.suptitle("Recruitment of the first bases per friction condition (mean +- std over trials)")
     fig.tight_layout()
     return save(fig, outdir, "fig4a_recruitments")
 

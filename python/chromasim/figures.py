@@ -8,7 +8,7 @@ Usage:
 Figures (PNG and SVG, OUTDIR/<name>.png|svg), each written when the dataset has what it
 needs, otherwise skipped with the reason printed:
   force_gamma_trialN          forces and Gamma over one trial (seed 000 Fig. 2E)
-  safety_margin_by_friction   Gamma against time or travel per friction level, mean +- std
+  safety_margin_by_friction   Gamma against time or travel per friction condition, mean +- std
                               (seed 001 Fig. 2E)
   markers_<finger>_trialN_frameF     u_z, u_x, u_y of the 82 markers of each layer over the
                               dome's x-y projection (seed 000 Fig. 3C, 3D)

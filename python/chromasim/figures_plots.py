@@ -134,7 +134,7 @@ def figure_slip_profile(ds, finger, outdir):
         bx.set_ylabel("displacement (mm)")
         bx.set_title("outer layer: u_s along the slip direction (solid), u_z (dotted)")
         bx.legend(fontsize=6)
-    note = "" if len(trials) == 2 else " (one friction level in this dataset)"
+    note = "" if len(trials) == 2 else " (one friction condition in this dataset)"
     fig.suptitle(f"{finger} fingertip, marker displacement along the slip direction, highest "
                  f"and lowest friction{note}")
     return save(fig, outdir, f"slip_profile_{finger}")
@@ -221,7 +221,7 @@ def figure_safety_margin_by_friction(ds, finger, outdir):
     ax.set_xlabel(tlabel)
     ax.set_ylabel(f"{finger} safety margin Gamma (-)")
     ax.set_ylim(-0.05, 1.05)
-    ax.set_title("Safety margin per friction level (mean +- std over trials)")
+    ax.set_title("Safety margin per friction condition (mean +- std over trials)")
     ax.legend(fontsize=7)
     return save(fig, outdir, "safety_margin_by_friction")
 

@@ -61,7 +61,7 @@ def test_selections(quickstart, sliding):
     assert F.default_frame(quickstart, 0, "left") == 5  # Gamma 0.50, not sliding
     assert F.slip_direction(quickstart, 0, "left") == pytest.approx(0.0)
     assert abs(F.slip_direction(quickstart, 0, "right")) == pytest.approx(np.pi)
-    # slide set: 7 friction levels; extremes are the trials of mu 1.1 and 0.5 (jittered)
+    # slide set: 7 friction conditions; extremes are the trials of mu 1.1 and 0.5 (jittered)
     hi, lo = F.friction_extremes(sliding, "left")
     mu = {t: sliding.labels["left_mu"][sliding.labels["trial"] == t][0] for t in (hi, lo)}
     assert mu[hi] > 1.05 and mu[lo] < 0.55

@@ -92,7 +92,7 @@ TEST_CASE("bench error: 'in the circle' leaves out the pixels the reference leav
 }
 
 namespace {
-// A bench of the direct integrator on the dome at rest at 16 px: a second's work.
+// A bench of the preview integrator on the dome at rest at 16 px: a second's work.
 chromasim::generators::RenderBenchOptions small_bench() {
     chromasim::generators::RenderBenchOptions o;
     o.samples_per_pixel = {1, 2};
@@ -100,7 +100,7 @@ chromasim::generators::RenderBenchOptions small_bench() {
     o.size_px = 16;
     o.repeats = 1;
     o.modes = {"rgb"};
-    o.integrators = {"direct"};
+    o.integrators = {"preview"};
     o.normal_N = 0.0;
     return o;
 }
@@ -129,7 +129,7 @@ TEST_CASE("bench render --images-out writes each timed setting's image, or refus
         std::ostringstream out;
         chromasim::generators::bench_render(o, out);
         for (int spp : {1, 2}) {
-            const fs::path path = o.images_out / ("direct_rgb_spp" + std::to_string(spp) +
+            const fs::path path = o.images_out / ("preview_rgb_spp" + std::to_string(spp) +
                                                   "_filter0_mirror0_rim0_led0.exr");
             INFO(path.string());
             REQUIRE(fs::exists(path));

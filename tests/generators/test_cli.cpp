@@ -152,6 +152,9 @@ TEST_CASE("export-scene writes any frame as glTF and refuses a bad frame or outp
     CHECK(number(scene, "normal_force_N") == Approx(1.0));
     CHECK(number(scene, "tangential_force_x_N") == Approx(0.3));
     CHECK(number(scene, "converged") == 1.0);
+    const std::string spec_sha = text(scene, "spec_sha256"); // as a dataset's manifest has it
+    CHECK(spec_sha.size() == 64);
+    CHECK(spec_sha.find_first_not_of("0123456789abcdef") == std::string::npos);
 
     // The first frame as .gltf, from the cache; half the force: the apex (highest y) is less
     // pushed in.

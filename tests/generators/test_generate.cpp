@@ -4,6 +4,7 @@
 #include "generators/plan/plan.hpp"
 #include "generators/pipeline/sensor_bridge.hpp"
 #include "generators/spec/spec.hpp"
+#include "generators/spec/stage_params.hpp"
 
 #include "test_files.hpp"
 
@@ -372,6 +373,28 @@ TEST_CASE("object poses reach the mechanics: an offset sphere and a tilted flat 
                       Catch::Contains("objects[0].pitch_deg"));
 }
 
+TEST_CASE("stage settings hold only what the outputs need: no optics without images",
+          "[generators][spec]") {
+    const StageSettings labels =
+        stage_settings(parse_spec("outputs: {images: false}\n", "stages.yaml"));
+    CHECK_FALSE(labels.optics.has_value());
+    CHECK_FALSE(labels.sensor.has_value());
+    const StageSettings images = stage_settings(parse_spec("name: stages\n", "stages.yaml"));
+    REQUIRE(images.optics.has_value());
+    CHECK(images.optics->spectra.has_value()); // the default sensor's spectra, read once
+    CHECK_FALSE(images.sensor.has_value());    // render.sensor is off by default
+    const StageSettings exr = stage_settings(parse_spec(
+        "outputs: {images: false, exr: true}\nrender: {sensor: {enabled: true}}\n", "stages.yaml"));
+    CHECK(exr.optics.has_value());
+    CHECK_FALSE(exr.sensor.has_value()); // the EXR stays noise-free: no PNG to record
+    const StageSettings noisy =
+        stage_settings(parse_spec("render: {sensor: {enabled: true}}\n", "stages.yaml"));
+    CHECK(noisy.sensor.has_value());
+    CHECK(images.friction_names == std::vector<std::string>{Spec{}.friction[0].name});
+    CHECK(images.objects.size() == 1);
+    CHECK_FALSE(images.objects[0].mesh.has_value()); // a flat: no file to read
+}
+
 TEST_CASE("EXR output: linear RGB like the PNG, marker ids and variance channels on request",
           "[generators][e2e]") {
     const fs::path dir = fresh_dir("exr");
@@ -379,7 +402,7 @@ TEST_CASE("EXR output: linear RGB like the PNG, marker ids and variance channels
     const fs::path spec_file = dir / "exr.yaml";
     {
         std::ofstream f(spec_file);
-        f << "name: exr\nrender:\n  width_px: 64\n  height_px: 64\n  samples_per_pixel: 2\n  integrator: direct\n"
+        f << "name: exr\nrender:\n  width_px: 64\n  height_px: 64\n  samples_per_pixel: 2\n  integrator: preview\n"
           << press_only(1)
           << "outputs:\n  exr: true\n  marker_ids: true\n  variance: true\n  markers: false\n";
     }
@@ -425,7 +448,7 @@ TEST_CASE("EXR output: linear RGB like the PNG, marker ids and variance channels
     // The EXR alone: no PNG, and the images folder still made for it.
     {
         std::ofstream f(spec_file);
-        f << "name: exr_only\nrender:\n  width_px: 32\n  height_px: 32\n  samples_per_pixel: 1\n  integrator: direct\n"
+        f << "name: exr_only\nrender:\n  width_px: 32\n  height_px: 32\n  samples_per_pixel: 1\n  integrator: preview\n"
           << press_only(1) << "outputs:\n  images: false\n  exr: true\n  markers: false\n";
     }
     options.out_dir = dir / "exr_only";
@@ -445,7 +468,7 @@ TEST_CASE("render.sensor: the PNG is the sensor's recording, the EXR stays the n
     auto run = [&](const std::string& name, const std::string& sensor) {
         const fs::path spec_file = dir / (name + ".yaml");
         std::ofstream(spec_file)
-            << "name: sensor\nrender:\n  width_px: 48\n  height_px: 48\n  samples_per_pixel: 1\n  integrator: direct\n"
+            << "name: sensor\nrender:\n  width_px: 48\n  height_px: 48\n  samples_per_pixel: 1\n  integrator: preview\n"
             << sensor << press_only(2) << "outputs:\n  exr: true\n  markers: false\n";
         options.out_dir = dir / name;
         std::ostringstream log;

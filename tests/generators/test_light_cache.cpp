@@ -36,7 +36,7 @@ TEST_CASE("fast integrator: a light cache saved to disk renders the same bytes a
     settings.samples_per_pixel = 2;
     auto render_with = [&](const OpticsParams& optics, LightCacheOutcome* report) {
         Renderer renderer(CameraParams{24, 24, 84.0}, optics);
-        // A pressed frame: its image needs the cache's rest flux as well (the indirect scale).
+        // A pressed frame: its image needs the cache and the per-frame correction together.
         renderer.set_frame(pressed_flat(frame));
         *report = provide_light_cache(renderer, frame, optics, cache, dir);
         return renderer.render(settings).rgb;

@@ -29,7 +29,7 @@ namespace {
 constexpr const char* kSpec = R"(name: resume
 seed: 7
 sensor: {mesh_level: coarse}
-render: {width_px: 40, height_px: 40, samples_per_pixel: 1, integrator: direct}
+render: {width_px: 40, height_px: 40, samples_per_pixel: 1, integrator: preview}
 objects: [{name: flat, shape: flat}, {name: curved, shape: sphere, radius_mm: 45}]
 friction: [{name: m, mu: 0.8}]
 protocol: {frame_rate_Hz: 1, grip_N: 1.0, grasp_s: 2, hold_s: 1, load_rate_N_per_s: 0.6,

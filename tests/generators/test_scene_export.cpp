@@ -106,7 +106,7 @@ TEST_CASE("a hand-made sensor frame written as .gltf and .glb reads back in metr
     optics.led_z_mm = -2.0;
     optics.led_rgb = {0.5, 2.0, 0.25};
     optics.lens_radius_mm = 7.0;
-    const generators::SceneInfo info{"hand", 0.4, {{"frame", 7.0}, {"spec_hash", "abc"}}};
+    const generators::SceneInfo info{"hand", 0.4, {{"frame", 7.0}, {"spec_sha256", "abc"}}};
     const generators::GltfScene scene = generators::make_gltf_scene(frame, camera, optics, info);
 
     for (const char* name : {"scene.gltf", "scene.glb"}) {
@@ -253,7 +253,7 @@ TEST_CASE("a hand-made sensor frame written as .gltf and .glb reads back in metr
         // Scene extras.
         CHECK(back.scene.name == "hand");
         CHECK(number(back.scene.extras, "frame") == 7.0);
-        CHECK(std::get<std::string>(back.scene.extras.at("spec_hash")) == "abc");
+        CHECK(std::get<std::string>(back.scene.extras.at("spec_sha256")) == "abc");
     }
     for (const auto& entry : fs::directory_iterator(dir.path))
         CHECK_THAT(entry.path().string(), !Contains(".partial-"));

@@ -26,7 +26,7 @@ namespace {
 constexpr const char* kSpec = R"(name: shard
 seed: 7
 sensor: {mesh_level: coarse}
-render: {width_px: 32, height_px: 32, samples_per_pixel: 1, integrator: direct}
+render: {width_px: 32, height_px: 32, samples_per_pixel: 1, integrator: preview}
 objects: [{name: flat, shape: flat}, {name: curved, shape: sphere, radius_mm: 45}]
 friction: [{name: m, mu: 0.8}]
 sampling: {method: random, trials: 3}

@@ -533,6 +533,10 @@ TEST_CASE("render.quality and the render.fast keys reach the renderer's settings
         CHECK_THAT(error_of("render:\n  fast:\n    edge_samples_per_pixel: 6\n"),
                    StartsWith("bad.yaml:3:5: render.fast.edge_samples_per_pixel: unknown key") &&
                        Contains("render.quality sets it now"));
+        // A renamed choice: the message names the new one.
+        CHECK(error_of("render:\n  integrator: direct\n") ==
+              "bad.yaml:2:15: render.integrator: value 'direct' is now called 'preview' (the "
+              "same choice, renamed); allowed: one of preview, path, fast");
         CHECK(error_of("render:\n  fast:\n    refresh_threshold: -2\n") ==
               "bad.yaml:3:24: render.fast.refresh_threshold: value '-2' is out of range; "
               "allowed: number in [0, 10]");

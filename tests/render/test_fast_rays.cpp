@@ -395,7 +395,7 @@ TEST_CASE("fast integrator: more shadow rays a pixel give the same image on aver
                           Catch::Contains("allowed: integer >= 0"));
 }
 
-// The ids follow the markers as the samples see them; the direct integrator's ids go
+// The ids follow the markers as the samples see them; the preview integrator's ids go
 // straight through the inner surface.
 TEST_CASE("fast integrator: marker ids and rim pixels follow the camera ray refracted at the inner "
           "surface",
@@ -411,7 +411,7 @@ TEST_CASE("fast integrator: marker ids and rim pixels follow the camera ray refr
     settings.marker_ids = true;
     settings.integrator = Integrator::fast;
     const Image fast = renderer.render(settings);
-    settings.integrator = Integrator::direct;
+    settings.integrator = Integrator::preview;
     const Image direct = renderer.render(settings);
     // The ids by hand: Snell's law at the inner surface's interpolated normal written out, then
     // closest_hit after closest_hit to the coating, the first marker face of each layer.

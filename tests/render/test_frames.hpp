@@ -91,7 +91,7 @@ inline SensorFrame dome_with_marker_frame() {
 /// `rest`: the fast integrator's light cache is built on it (a quick one: 8 paths per vertex).
 inline Image render_frame(const CameraParams& camera, const OpticsParams& optics,
                           const SensorFrame& frame, int spp = 2, std::uint64_t seed = 1,
-                          Integrator integrator = Integrator::direct,
+                          Integrator integrator = Integrator::preview,
                           const SensorFrame* rest = nullptr) {
     Renderer renderer(camera, optics);
     if (integrator == Integrator::fast) {

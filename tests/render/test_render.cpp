@@ -232,7 +232,7 @@ TEST_CASE("a pixel the field's edge crosses is its coverage times its samples in
             return Ring::inside;
         return Ring::none;
     };
-    for (const Integrator integrator : {Integrator::direct, Integrator::fast}) {
+    for (const Integrator integrator : {Integrator::preview, Integrator::fast}) {
         INFO("integrator " << int(integrator));
         const Image reference =
             render_frame(kNarrowCamera, OpticsParams{}, frame, 256, 7, integrator);
@@ -480,7 +480,7 @@ TEST_CASE("degenerate deformation: zero-area triangles and rays at the image cir
     const Eigen::RowVector3f q = frame.inner_surface.V.row(frame.inner_surface.F(7, 0));
     for (int k = 0; k < 3; ++k)
         frame.inner_surface.V.row(frame.inner_surface.F(7, k)) = q;
-    for (const Integrator integrator : {Integrator::direct, Integrator::path, Integrator::fast})
+    for (const Integrator integrator : {Integrator::preview, Integrator::path, Integrator::fast})
         for (const OpticsParams& optics : {OpticsParams{}, spectral}) {
             INFO("integrator " << int(integrator) << ", spectral " << bool(optics.spectra));
             // 84 deg: the rim pixels' rays run almost along the rim plane, grazing the coating.

@@ -22,43 +22,71 @@ const Renderer::Impl::GridDirections& Renderer::Impl::grid_directions() const {
     return grid;
 }
 
-std::vector<std::uint8_t> Renderer::Impl::pixel_levels(bool mirrors, bool rims) const {
+std::vector<std::optional<Vec3>> Renderer::Impl::led_plane_crossings() const {
+    const int w = camera.width_px(), h = camera.height_px();
+    grid_directions();
+    const auto at = [w](int x, int y) { return std::size_t(y) * std::size_t(w) + x; };
+    const bool cavity = scene.in_cavity(camera.origin_mm());
+    const double inf = std::numeric_limits<double>::infinity();
+    std::vector<std::optional<Vec3>> crossing(std::size_t(w) * std::size_t(h));
+    tbb::parallel_for(0, h, [&](int y) {
+        std::array<Vec3, 16> origins, directions;
+        std::array<detail::RayHit, 16> first;
+        std::array<int, 16> xs;
+        origins.fill(camera.origin_mm());
+        for (int x0 = 0; x0 < w; x0 += 16) {
+            std::size_t m = 0;
+            for (int x = x0; x < std::min(w, x0 + 16); ++x)
+                if (const auto d = grid_direction(x, y, true)) directions[m] = *d, xs[m++] = x;
+            if (m == 0) continue;
+            const auto o = std::span(origins.data(), m), d = std::span(directions.data(), m);
+            if (cavity)
+                scene.closest_interface_hits16(o, d, 0.0, inf, std::span(first.data(), m));
+            else
+                scene.closest_hits16(o, d, 0.0, inf, std::span(first.data(), m));
+            for (std::size_t i = 0; i < m; ++i) {
+                const detail::RayHit& hit = first[i];
+                if (!hit.hit() || hit.kind != detail::SurfaceKind::inner_surface) continue;
+                const Vec3& dir = directions[i];
+                const Vec3 normal = detail::facing(hit.shading_normal, dir);
+                const Vec3 reflected = (dir - 2.0 * dir.dot(normal) * normal).normalized();
+                crossing[at(xs[i], y)] =
+                    path.led_plane_crossing(camera.origin_mm() + hit.t_mm * dir, reflected);
+            }
+        }
+    });
+    return crossing;
+}
+
+std::vector<std::uint8_t>
+Renderer::Impl::mirroring_pixels(const std::vector<std::optional<Vec3>>& crossing) const {
+    const int w = camera.width_px(), h = camera.height_px();
+    const auto at = [w](int x, int y) { return std::size_t(y) * std::size_t(w) + x; };
+    std::vector<std::uint8_t> mirrored(crossing.size(), 0);
+    tbb::parallel_for(0, h, [&](int y) {
+        for (int x = 0; x < w; ++x) {
+            const auto& q = crossing[at(x, y)];
+            if (!q) continue;
+            double reach = 0.0;
+            for (const auto& [dx, dy] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}})
+                if (x + dx >= 0 && x + dx < w && y + dy >= 0 && y + dy < h)
+                    if (const auto& o = crossing[at(x + dx, y + dy)])
+                        reach = std::max(reach, 0.5 * (*o - *q).norm());
+            mirrored[at(x, y)] = path.near_led(*q, kReflectionMargin_mm + reach);
+        }
+    });
+    return mirrored;
+}
+
+std::vector<std::uint8_t> Renderer::Impl::pixel_classes(bool mirrors, bool rims) const {
     const int w = camera.width_px(), h = camera.height_px();
     grid_directions();
     const std::size_t pixels = std::size_t(w) * std::size_t(h);
     const auto at = [w](int x, int y) { return std::size_t(y) * std::size_t(w) + x; };
-    const bool cavity = scene.in_cavity(camera.origin_mm());
-    const double inf = std::numeric_limits<double>::infinity();
-    // The centres' reflections onto the LEDs' plane, 16 rays a packet (from a camera in
-    // the cavity against the inner surface alone: the centres' first surface, if any).
-    std::vector<std::optional<Vec3>> crossing(mirrors ? pixels : 0);
-    if (mirrors)
-        tbb::parallel_for(0, h, [&](int y) {
-            std::array<Vec3, 16> origins, directions;
-            std::array<detail::RayHit, 16> first;
-            std::array<int, 16> xs;
-            origins.fill(camera.origin_mm());
-            for (int x0 = 0; x0 < w; x0 += 16) {
-                std::size_t m = 0;
-                for (int x = x0; x < std::min(w, x0 + 16); ++x)
-                    if (const auto d = grid_direction(x, y, true)) directions[m] = *d, xs[m++] = x;
-                if (m == 0) continue;
-                const auto o = std::span(origins.data(), m), d = std::span(directions.data(), m);
-                if (cavity)
-                    scene.closest_interface_hits16(o, d, 0.0, inf, std::span(first.data(), m));
-                else
-                    scene.closest_hits16(o, d, 0.0, inf, std::span(first.data(), m));
-                for (std::size_t i = 0; i < m; ++i) {
-                    const detail::RayHit& hit = first[i];
-                    if (!hit.hit() || hit.kind != detail::SurfaceKind::inner_surface) continue;
-                    const Vec3& dir = directions[i];
-                    const Vec3 normal = detail::facing(hit.shading_normal, dir);
-                    const Vec3 reflected = (dir - 2.0 * dir.dot(normal) * normal).normalized();
-                    crossing[at(xs[i], y)] =
-                        path.led_plane_crossing(camera.origin_mm() + hit.t_mm * dir, reflected);
-                }
-            }
-        });
+    // The pixels that mirror an LED themselves (the centres' reflections onto the LEDs'
+    // plane), then with their 8 neighbours.
+    const std::vector<std::uint8_t> mirrored =
+        mirrors ? mirroring_pixels(led_plane_crossings()) : std::vector<std::uint8_t>();
     // The markers at the pixels' corners, (w + 1) x (h + 1): corner (x, y) at image point
     // (x, y), the top left one of pixel (x, y).
     const std::size_t corners_per_row = std::size_t(w) + 1;
@@ -69,38 +97,23 @@ std::vector<std::uint8_t> Renderer::Impl::pixel_levels(bool mirrors, bool rims) 
             marker_ids_row(y, std::span(corner_ids.data() + std::size_t(y) * corners_per_row,
                                         corners_per_row));
         });
-    // The pixels that mirror an LED themselves, then with their 8 neighbours.
-    std::vector<std::uint8_t> mirrored(mirrors ? pixels : 0, 0);
-    if (mirrors)
-        tbb::parallel_for(0, h, [&](int y) {
-            for (int x = 0; x < w; ++x) {
-                const auto& q = crossing[at(x, y)];
-                if (!q) continue;
-                double reach = 0.0;
-                for (const auto& [dx, dy] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}})
-                    if (x + dx >= 0 && x + dx < w && y + dy >= 0 && y + dy < h)
-                        if (const auto& o = crossing[at(x + dx, y + dy)])
-                            reach = std::max(reach, 0.5 * (*o - *q).norm());
-                mirrored[at(x, y)] = path.near_led(*q, kReflectionMargin_mm + reach);
-            }
-        });
     std::vector<std::uint8_t> out(pixels, 0);
     tbb::parallel_for(0, h, [&](int y) {
         for (int x = 0; x < w; ++x) {
-            std::uint8_t& level = out[at(x, y)];
+            std::uint8_t& pixel_class = out[at(x, y)];
             if (mirrors)
-                for (int dy = -1; dy <= 1 && level == 0; ++dy)
+                for (int dy = -1; dy <= 1 && pixel_class == 0; ++dy)
                     for (int dx = -1; dx <= 1; ++dx) {
                         const int qx = x + dx, qy = y + dy;
                         if (qx < 0 || qy < 0 || qx >= w || qy >= h) continue;
-                        if (mirrored[at(qx, qy)]) level = 2;
+                        if (mirrored[at(qx, qy)]) pixel_class = 2;
                     }
-            if (rims && level == 0) {
+            if (rims && pixel_class == 0) {
                 const std::size_t c = std::size_t(y) * corners_per_row + std::size_t(x);
                 const auto& ids = corner_ids[c];
                 if (corner_ids[c + 1] != ids || corner_ids[c + corners_per_row] != ids ||
                     corner_ids[c + corners_per_row + 1] != ids)
-                    level = 1;
+                    pixel_class = 1;
             }
         }
     });
