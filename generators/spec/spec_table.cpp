@@ -190,8 +190,8 @@ void add_sensor_mechanics(std::vector<SchemaEntry>& out) {
                          "Inside the inner layer: hollow (air; camera and LEDs sit there), a "
                          "rigid core bonded to the inner surface (a stiffer fingertip), or "
                          "soft_fill (a meshed gel of sensor.materials.fill bonded to the inner "
-                         "layer, clamped on the base plane; mechanics only, the renderer still "
-                         "sees a hollow dome).",
+                         "layer, clamped on the base plane). A core or fill renders as "
+                         "index-matched to the layers: no inner surface, no refraction.",
                          CHROMASIM_FIELD(sensor.interior)));
     out.push_back(choice("sensor.material_model", "neo_hookean", {"linear", "neo_hookean"},
                          "Constitutive model of the layers: neo_hookean (compressible, large "
