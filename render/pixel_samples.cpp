@@ -1,5 +1,5 @@
 // Each pixel's camera samples: drawn from its stream and strata (kept from render to render
-// for the fast integrator), traced through the direct, path or fast integrator and summed.
+// for the fast integrator), traced through the preview, path or fast integrator and summed.
 #include "render/renderer_impl.hpp"
 
 namespace chromasim::render {

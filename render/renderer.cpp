@@ -455,7 +455,7 @@ struct Renderer::Impl::Writer {
 };
 
 /// Row y's pixels, sampled in runs of up to a batch of one count (the fast integrator), or
-/// one by one (direct and path), and written.
+/// one by one (preview and path), and written.
 Renderer::Impl::AnySampler Renderer::Impl::sampler_for(Integrator integrator) {
     switch (integrator) {
     case Integrator::path:

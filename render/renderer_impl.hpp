@@ -96,7 +96,7 @@ struct Renderer::Impl {
         detail::CacheLambdas<N> cache_lambdas{detail::LanesN<N>::Zero()};
     };
     using HeroSet = HeroSetN<detail::kSpectralLanes>;
-    /// The sets of the direct and path integrators, and of the fast one at 16 wavelengths
+    /// The sets of the preview and path integrators, and of the fast one at 16 wavelengths
     /// (RenderSettings::fast_wavelengths).
     std::vector<HeroSet> hero_sets;
     /// The fast integrator's at kFastSpectralLanes (RenderSettings::fast_wavelengths): set i
@@ -295,7 +295,7 @@ struct Renderer::Impl {
     }
 
     /// Camera RGB (before exposure) of one sample along the ray: the RGB mode's lanes, or 16
-    /// hero wavelengths from u_lambda (a tabulated set), through the direct or the path
+    /// hero wavelengths from u_lambda (a tabulated set), through the preview or the path
     /// integrator (the fast integrator takes a pixel's samples together: sample_pixels_fast).
     template <Integrator I>
     detail::Rgb sample_rgb(const detail::EmbreeScene& in, const Vec3& origin, const Vec3& direction,
@@ -338,7 +338,7 @@ struct Renderer::Impl {
     /// FastIntegrator::marker_ids16), else straight through it as the preview integrator sees.
     std::pair<std::int32_t, std::int32_t> marker_ids(int x, int y, bool refracted) const;
     /// The markers of each layer that the straight ray through image point `at` meets first
-    /// before the coating (px; pixel (x, y) spans [x, x + 1) x [y, y + 1)), as the direct
+    /// before the coating (px; pixel (x, y) spans [x, x + 1) x [y, y + 1)), as the preview
     /// integrator sees through the inner surface; outside the field none.
     std::pair<std::int32_t, std::int32_t> marker_ids_at(const Eigen::Vector2d& at) const;
 

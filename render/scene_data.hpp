@@ -266,7 +266,7 @@ struct RenderSettings {
     /// not wait).
     double camera_cache_mb = 128.0;
     /// Fast integrator, spectral mode: the hero wavelengths a camera sample carries, 8 or 16
-    /// (the direct and path integrators always carry 16); 0: 16 at one sample per pixel, 8
+    /// (the preview and path integrators always carry 16); 0: 16 at one sample per pixel, 8
     /// from 2 on (fast_wavelengths_of). A pixel's samples split the wavelengths' strata, so
     /// 2 samples of 8 are about as noisy in colour as one of 16; one sample of 8 is not. The
     /// rays do not depend on the wavelength, so the lanes cost arithmetic, not rays: from 2

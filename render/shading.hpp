@@ -27,7 +27,7 @@ inline constexpr double kHitGap_mm = 1e-3;
 
 /// Lanes of a value carried along a ray: linear R, G, B and an unused lane in RGB mode
 /// (kRgbLanes), or kSpectralLanes wavelengths in spectral mode (render/spectrum.hpp). The
-/// direct-light model's rays do not depend on the wavelength, so more lanes cost arithmetic,
+/// preview's rays do not depend on the wavelength, so more lanes cost arithmetic,
 /// not rays: 16 stratified wavelengths per sample take the spectral noise down to about the
 /// RGB mode's. The fast integrator carries RenderSettings::fast_wavelengths of them, by
 /// default kFastSpectralLanes from 2 samples per pixel on: half the arithmetic for a little

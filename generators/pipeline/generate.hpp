@@ -70,7 +70,7 @@ Spec::Object posed_object(const Spec::Object& object, const FingerSetup& finger)
 /// Gives `renderer` what settings.render's integrator needs before its first frame: the path
 /// and fast integrators' auto exposure on `rest` (the undeformed sensor) and the fast
 /// integrator's light cache of settings.optics (read from or saved to `cache_dir`). Returns the
-/// light cache's outcome (empty for the direct and path integrators).
+/// light cache's outcome (empty for the preview and path integrators).
 LightCacheOutcome prepare_renderer(render::Renderer& renderer, const StageSettings& settings,
                                    const render::SensorFrame& rest,
                                    const std::filesystem::path& cache_dir);

@@ -268,7 +268,7 @@ TEST_CASE("a pixel the field's edge crosses is its coverage times its samples in
     // The variance channel at the edge (coverage^2 times the variance of the mean of the
     // samples inside) says as much about the error as inside the field: the ratio of the mean
     // estimated variance to the mean squared error against the reference, at 4 spp with the
-    // direct integrator (its LED points: noise in every pixel), within 0.5 to 1.5 times the
+    // preview integrator (its LED points: noise in every pixel), within 0.5 to 1.5 times the
     // pixels' just inside the edge (measured: 0.77; without the coverage^2, 2.0).
     Renderer renderer(kNarrowCamera, OpticsParams{});
     renderer.set_frame(frame);
