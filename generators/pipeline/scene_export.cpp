@@ -352,16 +352,16 @@ SceneExportReport export_scene(const Spec& spec, const SceneSelection& which,
     report.frame = which.frame;
     report.frames = int(trial.frames.size());
     check_gltf_output_path(out);
-    const StageSettings settings = stage_settings(spec);
-    const ObjectSource& source = settings.objects[std::size_t(trial.object)];
+    // Only this trial's object is read.
+    const ObjectSource source = object_source(spec, spec.objects[std::size_t(trial.object)]);
     const mechanics::ObjectShape object =
         object_shape(source, posed_object(source.object, trial.fingers[std::size_t(which.finger)]));
-    const render::OpticsParams spectral_or_rgb =
-        settings.optics ? *settings.optics : optics_params(spec);
+    const render::CameraParams camera = camera_params(spec);
+    const render::OpticsParams spectral_or_rgb = optics_params(spec);
 
     // 2. The dome model (from the cache when there), then the frames up to the exported one.
     const auto t0 = Clock::now();
-    mechanics::DomeModelOptions model_options = settings.dome;
+    mechanics::DomeModelOptions model_options = dome_options(spec);
     model_options.cache_dir = options.cache_dir;
     const mechanics::DomeModel model(model_options);
     log_dome_model(model, seconds_since(t0), options.cache_dir, log);
@@ -382,7 +382,7 @@ SceneExportReport export_scene(const Spec& spec, const SceneSelection& which,
     // absorption at their median thickness, as bench render's RGB mode).
     const render::OpticsParams optics =
         rgb_optics(spectral_or_rgb, median_marker_thickness_mm(model));
-    write_gltf_scene(out, make_gltf_scene(sensor, settings.camera, optics, info));
+    write_gltf_scene(out, make_gltf_scene(sensor, camera, optics, info));
     report.total_s = seconds_since(t_start);
     return report;
 }
