@@ -1,11 +1,15 @@
 #include "mechanics/dome_geometry.hpp"
 
+#include "mechanics/quadratic_tets.hpp"
+
 #include <Eigen/Geometry>
 
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <map>
 #include <numbers>
+#include <set>
 #include <stdexcept>
 
 namespace chromasim::mechanics {
@@ -222,13 +226,15 @@ Plc dome_plc_from_grid(const DomeParams& dome, const AngularGrid& grid, bool fil
 MeshLevel mesh_level(const std::string& name) {
     // Edge lengths are on the outer sphere; the volume bound keeps interior tets of the 1.2 mm
     // clear layer no larger than the surface triangles imply.
+    if (name == "very_coarse") return {name, 2.0, 1.4};
     if (name == "coarse") return {name, 1.2, 0.30};
     if (name == "medium") return {name, 0.8, 0.09};
     if (name == "fine") return {name, 0.5, 0.025};
     if (name == "refined") return {name, 1.2, 0.30, 0.5, 40};
     if (name == "reference") return {name, 0.8, 0.09, 0.3, 40};
-    throw std::invalid_argument("unknown mesh level '" + name +
-                                "'; allowed: coarse, medium, fine, refined, reference");
+    throw std::invalid_argument(
+        "unknown mesh level '" + name +
+        "'; allowed: very_coarse, coarse, medium, fine, refined, reference");
 }
 
 std::vector<Eigen::Vector3d> marker_directions(const DomeParams& dome) {
@@ -256,7 +262,7 @@ std::vector<double> marker_face_margins_mm(const DomeParams& dome, const TetMesh
     for (const auto& [a, b, radius, layer] : interfaces) {
         const double r = dome.radii_mm[std::size_t(radius)];
         const double cos_near = std::cos((dome.marker_radius_mm + 1.0) / r);
-        const Triangles F = interface_faces(mesh, a, b);
+        const Triangles F = split_faces(mesh, interface_faces(mesh, a, b));
         for (int f = 0; f < F.rows(); ++f) {
             const Eigen::Vector3d v0 = mesh.V.row(F(f, 0)), v1 = mesh.V.row(F(f, 1)),
                                   v2 = mesh.V.row(F(f, 2));
@@ -350,6 +356,69 @@ double dome_layer_volume(const DomeParams& dome, int layer) {
     if (layer < 0) return hemi(dome.radii_mm.back()) - hemi(dome.radii_mm.front());
     if (layer == kFill) return hemi(dome.radii_mm.front());
     return hemi(dome.radii_mm[layer]) - hemi(dome.radii_mm[layer - 1]);
+}
+
+namespace {
+
+/// Index of the dome sphere that p lies on (to 1e-9 relative), or -1.
+int sphere_of(const DomeParams& dome, const Eigen::Vector3d& p) {
+    const double r = p.norm();
+    for (int i = 0; i <= kLayerCount; ++i)
+        if (std::abs(r - dome.radii_mm[std::size_t(i)]) <= 1e-9 * dome.radii_mm[std::size_t(i)])
+            return i;
+    return -1;
+}
+
+/// The edges (sorted corner pairs) of the boundary and interface faces that lie on a sphere.
+std::set<std::pair<int, int>> curved_edges(const DomeParams& dome, const TetMesh& mesh) {
+    static constexpr int kFace[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+    std::map<std::array<int, 3>, std::vector<int>> regions_of;
+    for (int t = 0; t < mesh.T.rows(); ++t)
+        for (const auto& f : kFace) {
+            std::array<int, 3> key{mesh.T(t, f[0]), mesh.T(t, f[1]), mesh.T(t, f[2])};
+            std::sort(key.begin(), key.end());
+            regions_of[key].push_back(mesh.region(t));
+        }
+    std::set<std::pair<int, int>> edges;
+    for (const auto& [key, regions] : regions_of) {
+        if (regions.size() == 2 && regions[0] == regions[1]) continue; // inside a region
+        const int s = sphere_of(dome, mesh.V.row(key[0]));
+        if (s < 0 || sphere_of(dome, mesh.V.row(key[1])) != s ||
+            sphere_of(dome, mesh.V.row(key[2])) != s)
+            continue;
+        edges.emplace(key[0], key[1]);
+        edges.emplace(key[1], key[2]);
+        edges.emplace(key[0], key[2]);
+    }
+    return edges;
+}
+
+} // namespace
+
+void make_dome_quadratic(const DomeParams& dome, TetMesh& mesh) {
+    const std::set<std::pair<int, int>> curved = curved_edges(dome, mesh);
+    make_quadratic(mesh, [&](int a, int b) {
+        const Eigen::Vector3d mid = 0.5 * (mesh.V.row(a) + mesh.V.row(b)).transpose();
+        if (!curved.count({std::min(a, b), std::max(a, b)})) return mid;
+        const int s = sphere_of(dome, mesh.V.row(a));
+        return Eigen::Vector3d(dome.radii_mm[std::size_t(s)] * mid.normalized());
+    });
+    // A flat tet with all four corners on one sphere folds when its facet edges bulge into it:
+    // such tets (and their neighbours across those edges) keep straight edges.
+    constexpr double kLowestRatio = 0.2;
+    for (bool changed = true; changed;) {
+        changed = false;
+        for (int t = 0; t < mesh.T10.rows(); ++t) {
+            if (jacobian_ratio(mesh, t) >= kLowestRatio) continue;
+            for (int e = 0; e < 6; ++e) {
+                const int a = mesh.T10(t, kTetEdges[e][0]), b = mesh.T10(t, kTetEdges[e][1]);
+                const Eigen::RowVector3d mid = 0.5 * (mesh.V.row(a) + mesh.V.row(b));
+                if ((mesh.V.row(mesh.T10(t, 4 + e)) - mid).norm() == 0) continue;
+                mesh.V.row(mesh.T10(t, 4 + e)) = mid;
+                changed = true;
+            }
+        }
+    }
 }
 
 } // namespace chromasim::mechanics

@@ -44,10 +44,10 @@ struct MeshLevel {
     double contact_edge_mm = 0;
     double contact_angle_deg = 40;
 };
-/// The named level: uniform "coarse" (1.2 mm), "medium" (0.8 mm), "fine" (0.5 mm), or
-/// locally refined "refined" (0.5 mm over the contact cap, 1.2 mm far from it) and
-/// "reference" (0.3 mm over the contact cap, 0.8 mm far); throws std::invalid_argument
-/// otherwise.
+/// The named level: uniform "very_coarse" (2 mm), "coarse" (1.2 mm), "medium" (0.8 mm),
+/// "fine" (0.5 mm), or locally refined "refined" (0.5 mm over the contact cap, 1.2 mm far
+/// from it) and "reference" (0.3 mm over the contact cap, 0.8 mm far); throws
+/// std::invalid_argument otherwise.
 MeshLevel mesh_level(const std::string& name);
 
 /// Unit directions of the markers of one layer: apex + rings k = 1..ring_count at polar angle
@@ -77,7 +77,8 @@ MarkerDiscs marker_discs(const DomeParams& dome, const std::vector<double>& marg
 
 /// Per marker (both layers, MarkerDiscs order), the margin that keeps its faces inside the
 /// faceted layer of `mesh`: the deepest sag below the spheres (facet plane to sphere) of the
-/// layer's two interfaces within 1 mm of the marker's rim, plus 5 um.
+/// layer's two interfaces within 1 mm of the marker's rim, plus 5 um. A quadratic mesh's
+/// faces count as their four sub-triangles through the edge nodes (split_faces).
 std::vector<double> marker_face_margins_mm(const DomeParams& dome, const TetMesh& mesh);
 
 /// The layered hemispherical shell as a PLC: five concentric hemispheres sharing one
@@ -93,5 +94,11 @@ Plc dome_plc(const DomeParams& dome, const MeshLevel& level, bool fill = false);
 /// Analytic volume of layer `layer` (1..4; kFill: the inner hemisphere), or of the whole
 /// shell for layer = -1, in mm^3.
 double dome_layer_volume(const DomeParams& dome, int layer = -1);
+
+/// Makes a dome mesh quadratic (quadratic_tets.hpp): the node of every edge of a boundary or
+/// interface face whose corners lie on one of the dome's spheres goes onto that sphere (the
+/// element follows the curved layer), every other edge node to its edge's midpoint. A tet
+/// that this would bring near folding (jacobian_ratio below 0.2) keeps straight edges.
+void make_dome_quadratic(const DomeParams& dome, TetMesh& mesh);
 
 } // namespace chromasim::mechanics

@@ -1,6 +1,7 @@
 #include "mechanics/dome_model.hpp"
 
 #include "mechanics/model_cache.hpp"
+#include "mechanics/quadratic_tets.hpp"
 #include "mechanics/stopwatch.hpp"
 #include "mechanics/tetgen_adapter.hpp"
 
@@ -109,8 +110,8 @@ std::uint64_t cache_key(const DomeModelOptions& o) {
     TetgenOptions tg;
     tg.max_volume_mm3 = level.max_volume_mm3;
     std::snprintf(buf, sizeof buf,
-                  "mesh %s %.17g %s\nvolumetric %d\ncandidates %.17g\ninterior %d\n",
-                  o.mesh_level.c_str(), level.edge_mm, tetgen_switches(tg).c_str(),
+                  "mesh %s %.17g %s order %d\nvolumetric %d\ncandidates %.17g\ninterior %d\n",
+                  o.mesh_level.c_str(), level.edge_mm, tetgen_switches(tg).c_str(), o.element_order,
                   int(o.volumetric), o.contact_candidate_angle_deg, int(o.interior));
     text += buf;
     if (o.interior == DomeModelOptions::Interior::soft_fill) {
@@ -130,12 +131,13 @@ void DomeModel::Impl::build_mesh() {
     mesh = tetrahedralize(
         dome_plc(options.dome, level, options.interior == DomeModelOptions::Interior::soft_fill),
         tg);
+    if (options.element_order == 2) make_dome_quadratic(options.dome, mesh);
     stats.mesh_s = seconds_since(t0);
 }
 
 void DomeModel::Impl::derive_from_mesh() {
     markers = marker_discs(options.dome, marker_face_margins_mm(options.dome, mesh));
-    coating = make_patch(interface_faces(mesh, kCoating, kOuterMarkerLayer));
+    coating = make_patch(split_faces(mesh, interface_faces(mesh, kCoating, kOuterMarkerLayer)));
     if (options.interior == DomeModelOptions::Interior::hollow) {
         // Boundary faces of the inner layer, less its annulus in the rim plane z = 0.
         const Triangles all = interface_faces(mesh, kInnerMarkerLayer, -1);
@@ -147,7 +149,7 @@ void DomeModel::Impl::derive_from_mesh() {
                 z_max = std::max(z_max, std::abs(mesh.V(all(f, k), 2)));
             if (z_max > 1e-9) kept.row(n++) = all.row(f);
         }
-        inner = make_patch(kept.topRows(n));
+        inner = make_patch(split_faces(mesh, kept.topRows(n)));
     }
     stats.nodes = int(mesh.V.rows());
     stats.tets = int(mesh.T.rows());
@@ -161,9 +163,9 @@ void DomeModel::Impl::find_candidates() {
     const double cos_edge =
         std::cos(options.contact_candidate_angle_deg * std::numbers::pi / 180 - edge_band);
     // Outer surface: boundary faces of the coating off the rim plane; tributary nodal areas.
-    const std::vector<double> area =
-        tributary_areas(mesh, interface_faces(mesh, kCoating, -1),
-                        [R](const Eigen::Vector3d& p) { return std::abs(p.norm() - R) <= 1e-6; });
+    const Triangles outer = split_faces(mesh, interface_faces(mesh, kCoating, -1));
+    const std::vector<double> area = tributary_areas(
+        mesh, outer, [R](const Eigen::Vector3d& p) { return std::abs(p.norm() - R) <= 1e-6; });
     for (int v = 0; v < mesh.V.rows(); ++v) {
         const double cz = mesh.V(v, 2) / R;
         if (area[v] > 0 && cz >= cos_max) {
@@ -176,7 +178,6 @@ void DomeModel::Impl::find_candidates() {
     std::vector<int> local(std::size_t(mesh.V.rows()), -1);
     for (std::size_t i = 0; i < candidates.size(); ++i)
         local[std::size_t(candidates[i])] = int(i);
-    const Triangles outer = interface_faces(mesh, kCoating, -1);
     std::vector<Eigen::Vector3i> tris;
     for (int f = 0; f < outer.rows(); ++f) {
         const Eigen::Vector3i t(local[outer(f, 0)], local[outer(f, 1)], local[outer(f, 2)]);
@@ -317,10 +318,15 @@ void DomeModel::Impl::observed_from_field(const FrameRequest& request, FrameResu
     }
     if (request.markers) {
         r.marker_points_mm = markers.points;
-        for (std::size_t p = 0; p < marker_embedding.tet.size(); ++p)
-            for (int a = 0; a < 4; ++a)
+        std::array<int, 10> nodes;
+        std::array<double, 10> weights;
+        for (std::size_t p = 0; p < marker_embedding.tet.size(); ++p) {
+            const int count = interpolation_stencil(mesh, marker_embedding.tet[p],
+                                                    marker_embedding.weights[p], nodes, weights);
+            for (int a = 0; a < count; ++a)
                 r.marker_points_mm.row(Eigen::Index(p)) +=
-                    marker_embedding.weights[p](a) * U.row(mesh.T(marker_embedding.tet[p], a));
+                    weights[std::size_t(a)] * U.row(nodes[std::size_t(a)]);
+        }
     }
 }
 

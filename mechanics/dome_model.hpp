@@ -27,6 +27,9 @@ enum class MaterialModel {
 struct DomeModelOptions {
     DomeParams dome;
     std::string mesh_level = "coarse";
+    /// 1: linear tets; 2: quadratic (10-node) tets on the same corners, their edge nodes on the
+    /// layers' spheres (quadratic_tets.hpp). Surfaces and contact then use every node.
+    int element_order = 1;
     /// Materials of the layers, innermost first (indexed by Layer - 1); the fill's is `fill`.
     std::array<Material, kLayerCount> materials{
         {{0.8, 0.45}, {0.3, 0.45}, {0.8, 0.45}, {1.0, 0.45}}};

@@ -1,9 +1,11 @@
 #include "mechanics/elastic_body.hpp"
 
+#include "mechanics/quadratic_tets.hpp"
 #include "mechanics/stopwatch.hpp"
 
 #include <Eigen/CholmodSupport>
 
+#include <array>
 #include <chrono>
 #include <mutex>
 #include <stdexcept>
@@ -20,7 +22,7 @@ Embedding embed(const TetMesh& mesh, const Points& P, const char* what) {
             throw std::runtime_error(std::string(what) + " " + std::to_string(i) +
                                      " lies outside the mesh");
         e.tet.push_back(t);
-        e.weights.push_back(barycentric(mesh, t, P.row(i).transpose()));
+        e.weights.push_back(natural_coordinates(mesh, t, P.row(i).transpose()));
     }
     return e;
 }
@@ -83,12 +85,15 @@ void ElasticBody::Impl::fill_observed(int c0, const Eigen::MatrixXd& u) {
         for (int k = 0; k < 3; ++k)
             responses.observed.row(3 * i + k).segment(c0, u.cols()) =
                 node_response(observed_nodes[i], k);
+    std::array<int, 10> nodes;
+    std::array<double, 10> weights;
     for (std::size_t p = 0; p < observed_points.tet.size(); ++p) {
-        const int t = observed_points.tet[p];
+        const int count = interpolation_stencil(mesh, observed_points.tet[p],
+                                                observed_points.weights[p], nodes, weights);
         for (int k = 0; k < 3; ++k) {
             Eigen::RowVectorXd row = Eigen::RowVectorXd::Zero(u.cols());
-            for (int a = 0; a < 4; ++a)
-                row += observed_points.weights[p](a) * node_response(mesh.T(t, a), k);
+            for (int a = 0; a < count; ++a)
+                row += weights[std::size_t(a)] * node_response(nodes[std::size_t(a)], k);
             responses.observed.row(3 * (nn + int(p)) + k).segment(c0, u.cols()) = row;
         }
     }

@@ -12,7 +12,9 @@
 
 namespace chromasim::mechanics {
 
-/// Points embedded in the mesh: the tet holding each point and its barycentric weights.
+/// Points embedded in the mesh: the tet holding each point and the point's barycentric
+/// coordinates there (of the curved map on a quadratic mesh: interpolation_stencil turns them
+/// into node weights).
 struct Embedding {
     std::vector<int> tet;
     std::vector<Eigen::Vector4d> weights;

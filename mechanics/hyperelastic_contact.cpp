@@ -68,7 +68,7 @@ public:
     }
 
 private:
-    static constexpr int kDepth = 6, kPatience = 8;
+    static constexpr int kDepth = 10, kPatience = 8;
     double m_best_increment = std::numeric_limits<double>::infinity();
     int m_since_best = 0;
     std::vector<Eigen::VectorXd> m_dF, m_dG;
@@ -93,13 +93,14 @@ Eigen::VectorXd with_contact_forces(Eigen::VectorXd u, const Eigen::MatrixXd& fi
 }
 
 /// Keeps det F > 0 (and away from 0): blends `accelerated` back towards the plain update `u`,
-/// then shortens it, until every J stays at or above `min_jacobian`. Returns false (`u` kept)
-/// when the step falls to 1e-6; drops the mixing's history once the step is below 0.3.
-bool relax_step(const NeoHookean& energy, const Eigen::VectorXd& accelerated, double min_jacobian,
+/// then shortens it, until every J (`min_jacobian(u)`) stays at or above `bound`. Returns false
+/// (`u` kept) when the step falls to 1e-6; drops the mixing's history once the step is below 0.3.
+template <class MinJacobian>
+bool relax_step(const MinJacobian& min_jacobian, const Eigen::VectorXd& accelerated, double bound,
                 AndersonMixing& mixing, Eigen::VectorXd& u) {
     double step = 1.0;
     Eigen::VectorXd trial = accelerated;
-    while (energy.min_jacobian(trial) < min_jacobian && step > 1e-6) {
+    while (min_jacobian(trial) < bound && step > 1e-6) {
         step *= 0.5;
         trial = u + step * (accelerated - u);
         if (step < 0.3) mixing.drop_history(); // the history led astray: restart it
@@ -109,13 +110,32 @@ bool relax_step(const NeoHookean& energy, const Eigen::VectorXd& accelerated, do
     return true;
 }
 
+std::variant<NeoHookean, NeoHookeanQuadratic>
+make_energy(const TetMesh& mesh, const std::vector<Material>& materials, Volumetric volumetric) {
+    if (mesh.quadratic())
+        return std::variant<NeoHookean, NeoHookeanQuadratic>(
+            std::in_place_type<NeoHookeanQuadratic>, mesh, materials);
+    return std::variant<NeoHookean, NeoHookeanQuadratic>(std::in_place_type<NeoHookean>, mesh,
+                                                         materials, volumetric);
+}
+
 } // namespace
 
 HyperelasticContact::HyperelasticContact(const TetMesh& mesh,
                                          const std::vector<Material>& materials,
                                          Volumetric volumetric, const ElasticBody& body)
-    : m_body(body), m_energy(mesh, materials, volumetric),
-      m_K0(m_energy.hessian(Eigen::VectorXd::Zero(3 * mesh.V.rows()), false)) {}
+    : m_body(body), m_energy(make_energy(mesh, materials, volumetric)),
+      m_K0(std::visit(
+          [&](const auto& e) { return e.hessian(Eigen::VectorXd::Zero(3 * mesh.V.rows()), false); },
+          m_energy)) {}
+
+Eigen::VectorXd HyperelasticContact::gradient(const Eigen::VectorXd& u) const {
+    return std::visit([&](const auto& e) { return e.gradient(u); }, m_energy);
+}
+
+double HyperelasticContact::min_jacobian(const Eigen::VectorXd& u) const {
+    return std::visit([&](const auto& e) { return e.min_jacobian(u); }, m_energy);
+}
 
 HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const ContactLoad& load,
                                            const ContactSolution* previous,
@@ -138,7 +158,7 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
     for (int it = 1; it <= options.max_iterations; ++it) {
         out.iterations = it;
         // Nonlinear remainder of the internal force, moved to the right-hand side.
-        const Eigen::VectorXd r = m_energy.gradient(out.u) - m_K0 * out.u;
+        const Eigen::VectorXd r = gradient(out.u) - m_K0 * out.u;
         const Eigen::VectorXd u_r = -m_body.solve(r);
         gather_candidates(u_r, candidates, extra);
         ContactSolution contact = solve_contact_step(m_body.compliance(), gap_mm, load, previous,
@@ -160,7 +180,7 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
         out.increment_mm = delta.cwiseAbs().maxCoeff();
         if (out.increment_mm <= options.tolerance_mm) {
             out.u = u_star;
-            out.min_jacobian = m_energy.min_jacobian(out.u);
+            out.min_jacobian = min_jacobian(out.u);
             out.converged = out.min_jacobian > 0;
             out.status = out.converged ? "ok" : "inverted";
             return out;
@@ -168,12 +188,13 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
         // Accelerate, then keep every J above the bound.
         mixing.note_increment(out.increment_mm);
         const Eigen::VectorXd accelerated = mixing.next(delta, u_star);
-        if (!relax_step(m_energy, accelerated, options.min_jacobian, mixing, out.u)) {
+        if (!relax_step([this](const Eigen::VectorXd& x) { return min_jacobian(x); }, accelerated,
+                        options.min_jacobian, mixing, out.u)) {
             out.status = "inverted";
             return out;
         }
     }
-    out.min_jacobian = m_energy.min_jacobian(out.u);
+    out.min_jacobian = min_jacobian(out.u);
     return out;
 }
 

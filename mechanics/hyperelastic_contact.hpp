@@ -10,7 +10,7 @@
 ///   contact forces F on the candidates from the compliance C of K0, with u_r as an extra
 ///     displacement of the candidates (solve_contact_step: history, friction, force control)
 ///   u* = u_r + K0^-1 B' F                     (the candidates' field responses, one product)
-/// and accelerates the sequence with Anderson mixing over the last 6 iterations, restarted when
+/// and accelerates the sequence with Anderson mixing over the last 10 iterations, restarted when
 /// it stalls. The update is shortened while any tet's (or nodal) J would fall below
 /// `min_jacobian`: the iteration never leaves the set det F > 0. At the fixed point
 /// f_int(u) = B' F and the contact conditions hold on u. No tangent factorization per
@@ -18,8 +18,11 @@
 #include "mechanics/contact.hpp"
 #include "mechanics/elastic_body.hpp"
 #include "mechanics/neo_hookean.hpp"
+#include "mechanics/neo_hookean_quadratic.hpp"
 
 #include <Eigen/SparseCore>
+
+#include <variant>
 
 namespace chromasim::mechanics {
 
@@ -46,7 +49,8 @@ struct HyperelasticStep {
 class HyperelasticContact {
 public:
     /// `body` holds the linear factorization and the candidates' compliance of the same mesh,
-    /// materials and volumetric formulation. Keeps references to `mesh` and `body`.
+    /// materials and volumetric formulation. Keeps references to `mesh` and `body`. A quadratic
+    /// mesh gets NeoHookeanQuadratic (`volumetric` is then not used).
     HyperelasticContact(const TetMesh& mesh, const std::vector<Material>& materials,
                         Volumetric volumetric, const ElasticBody& body);
 
@@ -58,11 +62,12 @@ public:
                           const HyperelasticOptions& options = {},
                           const ContactOptions& contact_options = {}) const;
 
-    const NeoHookean& energy() const { return m_energy; }
-
 private:
+    Eigen::VectorXd gradient(const Eigen::VectorXd& u) const;
+    double min_jacobian(const Eigen::VectorXd& u) const;
+
     const ElasticBody& m_body;
-    NeoHookean m_energy;
+    std::variant<NeoHookean, NeoHookeanQuadratic> m_energy;
     Eigen::SparseMatrix<double> m_K0; ///< neo-Hookean Hessian at rest (= the linear K)
 };
 

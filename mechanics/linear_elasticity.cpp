@@ -1,5 +1,7 @@
 #include "mechanics/linear_elasticity.hpp"
 
+#include "mechanics/quadratic_tets.hpp"
+
 #include <Eigen/Dense>
 #include <tbb/parallel_for.h>
 
@@ -161,6 +163,7 @@ Eigen::SparseMatrix<double> nodal_volumetric(const TetMesh& mesh,
 Eigen::SparseMatrix<double> assemble_stiffness(const TetMesh& mesh,
                                                const std::vector<Material>& materials,
                                                Volumetric volumetric) {
+    if (mesh.quadratic()) return assemble_quadratic_stiffness(mesh, materials);
     if (volumetric == Volumetric::element) return assemble_elements(mesh, materials, false);
     return assemble_elements(mesh, materials, true) + nodal_volumetric(mesh, materials);
 }

@@ -34,7 +34,8 @@ enum class Volumetric {
 };
 
 /// Global stiffness (3 #V x 3 #V, N/mm) with the material of each tet picked by its region:
-/// `materials[region(t) - 1]`.
+/// `materials[region(t) - 1]`. A quadratic mesh gets assemble_quadratic_stiffness
+/// (quadratic_tets.hpp), whatever `volumetric`.
 Eigen::SparseMatrix<double> assemble_stiffness(const TetMesh& mesh,
                                                const std::vector<Material>& materials,
                                                Volumetric volumetric = Volumetric::element);

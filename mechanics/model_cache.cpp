@@ -11,7 +11,7 @@ namespace chromasim::mechanics {
 
 namespace {
 
-constexpr std::string_view kMagic = "CSMCACH1";
+constexpr std::string_view kMagic = "CSMCACH2";
 
 /// Appends a dense matrix (rows, cols, raw storage) to a byte buffer.
 template <class M> void put(std::string& out, const M& m) {
@@ -113,8 +113,8 @@ std::optional<CachedModel> load_cached_model(const fs::path& dir, std::uint64_t 
     std::string_view payload(*bytes);
     CachedModel m;
     if (!get(payload, m.mesh.V) || !get(payload, m.mesh.T) || !get(payload, m.mesh.region) ||
-        !get(payload, m.responses.compliance) || !get(payload, m.responses.observed) ||
-        !payload.empty()) {
+        !get(payload, m.mesh.T10) || !get(payload, m.responses.compliance) ||
+        !get(payload, m.responses.observed) || !payload.empty()) {
         if (problem) *problem = path.string() + ": truncated payload";
         return std::nullopt;
     }
@@ -127,6 +127,7 @@ bool save_cached_model(const fs::path& dir, std::uint64_t key, const TetMesh& me
     put(payload, mesh.V);
     put(payload, mesh.T);
     put(payload, mesh.region);
+    put(payload, mesh.T10);
     put(payload, responses.compliance);
     put(payload, responses.observed);
     return write_cache_file(cache_file(dir, key), kMagic, key, payload, problem);

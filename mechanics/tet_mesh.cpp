@@ -1,5 +1,7 @@
 #include "mechanics/tet_mesh.hpp"
 
+#include "mechanics/quadratic_tets.hpp"
+
 #include <Eigen/Dense>
 #include <Eigen/Geometry>
 
@@ -19,6 +21,14 @@ double tet_volume(const TetMesh& mesh, int t) {
 
 double mesh_volume(const TetMesh& mesh, int region) {
     double sum = 0.0;
+    if (mesh.quadratic()) {
+        const QuadraticGeometry g = quadratic_geometry(mesh);
+        for (int t = 0; t < mesh.T10.rows(); ++t)
+            if (region < 0 || mesh.region(t) == region)
+                for (int q = 0; q < 4; ++q)
+                    sum += g.weight[std::size_t(4 * t + q)];
+        return sum;
+    }
     for (int t = 0; t < mesh.T.rows(); ++t)
         if (region < 0 || mesh.region(t) == region) sum += tet_volume(mesh, t);
     return sum;

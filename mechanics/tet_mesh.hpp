@@ -11,6 +11,9 @@ namespace chromasim::mechanics {
 using Points = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 /// #T x 4 vertex indices of linear tetrahedra (positive orientation after meshing).
 using Tets = Eigen::Matrix<int, Eigen::Dynamic, 4, Eigen::RowMajor>;
+/// #T x 10 node indices of quadratic tetrahedra: the 4 corners, then the nodes of edges
+/// (0,1), (1,2), (2,0), (0,3), (1,3), (2,3) (CalculiX's and Abaqus' C3D10 order).
+using Tets10 = Eigen::Matrix<int, Eigen::Dynamic, 10, Eigen::RowMajor>;
 /// #F x 3 vertex indices of triangles.
 using Triangles = Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor>;
 
@@ -29,16 +32,21 @@ struct Plc {
     std::vector<Region> regions;
 };
 
-/// Output of the mesher: linear tets with a region attribute each.
+/// Output of the mesher: linear tets with a region attribute each. A quadratic mesh
+/// (quadratic_tets.hpp) also has T10: V then holds the corners first and the edge nodes after
+/// them, and T keeps the corners (faces, regions and point location use them).
 struct TetMesh {
     Points V;
     Tets T;
     Eigen::VectorXi region; ///< #T region attribute (the Plc::Region::attribute)
+    Tets10 T10;             ///< empty for linear tets
+    bool quadratic() const { return T10.rows() > 0; }
 };
 
 /// Signed volume of tet t (mm^3), positive for the orientation the mesher guarantees.
 double tet_volume(const TetMesh& mesh, int t);
-/// Sum of tet volumes (mm^3), optionally only those with the given region attribute.
+/// Sum of tet volumes (mm^3), optionally only those with the given region attribute; a
+/// quadratic mesh's curved tets by their quadrature.
 double mesh_volume(const TetMesh& mesh, int region = -1);
 
 /// Barycentric coordinates of p in tet t (sum to 1; all >= 0 inside).

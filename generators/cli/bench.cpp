@@ -22,9 +22,11 @@ void add_mechanics(CLI::App* bench, Action& action) {
     command->alias("dome");
     command->add_option("--levels", o.levels, "mesh levels; the last is the reference")
         ->delimiter(',')
-        ->check(CLI::IsMember({"coarse", "medium", "fine", "refined", "reference"}));
+        ->check(CLI::IsMember({"very_coarse", "coarse", "medium", "fine", "refined", "reference"}));
     command->add_option("--material", o.material, "material model")
         ->check(CLI::IsMember({"linear", "neo_hookean"}));
+    command->add_option("--element-order", o.element_order, "1: linear tets, 2: quadratic")
+        ->check(CLI::Range(1, 2));
     command->add_option("--trial-frames", o.trial_frames, "frames of the timed trial")
         ->check(CLI::Range(4, 100000));
     command->add_option("--volumetric", o.volumetric, "volumetric formulation")

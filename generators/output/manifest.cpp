@@ -95,13 +95,14 @@ std::string manifest_json(const Spec& spec, const std::string& spec_text, int ma
     j["counts"] = counts(int(records.size()), frames, images);
     j["counts"]["label_rows"] = spec.outputs.labels ? frames : 0;
     j["splits"] = split_counts(spec, records);
-    j["mechanics"] = Json{
-        {"solves", solves},
-        {"reused_solves", reused},
-        {"renders", renders},
-        {"flagged_frames", flagged},
-        {"mesh",
-         Json{{"level", info.mesh_level}, {"nodes", info.mesh_nodes}, {"tets", info.mesh_tets}}}};
+    j["mechanics"] = Json{{"solves", solves},
+                          {"reused_solves", reused},
+                          {"renders", renders},
+                          {"flagged_frames", flagged},
+                          {"mesh", Json{{"level", info.mesh_level},
+                                        {"element_order", info.element_order},
+                                        {"nodes", info.mesh_nodes},
+                                        {"tets", info.mesh_tets}}}};
     if (info.strain)
         j["strain_grid"] = Json{{"nx", info.strain_nx},
                                 {"ny", info.strain_ny},
@@ -126,7 +127,10 @@ std::string part_json(const PartInfo& p) {
     j["trials"] = p.trials;
     const ManifestInfo& i = p.info;
     j["planned_trials"] = i.planned_trials;
-    j["mesh"] = Json{{"level", i.mesh_level}, {"nodes", i.mesh_nodes}, {"tets", i.mesh_tets}};
+    j["mesh"] = Json{{"level", i.mesh_level},
+                     {"element_order", i.element_order},
+                     {"nodes", i.mesh_nodes},
+                     {"tets", i.mesh_tets}};
     j["strain_grid"] = i.strain ? Json{{"nx", i.strain_nx},
                                        {"ny", i.strain_ny},
                                        {"half_width_x_mm", i.strain_half_width_x_mm},
@@ -152,6 +156,7 @@ std::optional<PartInfo> parse_part_json(const std::string& text) {
         ManifestInfo& i = p.info;
         i.planned_trials = j.at("planned_trials").get<int>();
         i.mesh_level = j.at("mesh").at("level").get<std::string>();
+        i.element_order = j.at("mesh").value("element_order", 1);
         i.mesh_nodes = j.at("mesh").at("nodes").get<int>();
         i.mesh_tets = j.at("mesh").at("tets").get<int>();
         const Json& grid = j.at("strain_grid");

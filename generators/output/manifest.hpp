@@ -29,6 +29,7 @@ std::optional<TrialRecord> parse_trial_record(const std::string& text);
 struct ManifestInfo {
     int planned_trials = 0; ///< trials in the whole plan (the dataset may be a slice)
     std::string mesh_level;
+    int element_order = 1;
     int mesh_nodes = 0, mesh_tets = 0;
     bool strain = false;
     int strain_nx = 0, strain_ny = 0;

@@ -216,6 +216,7 @@ ManifestInfo manifest_info(const mechanics::DomeModel& model, bool strain, int p
     info.planned_trials = planned_trials;
     const auto& st = model.stats();
     info.mesh_level = model.options().mesh_level;
+    info.element_order = model.options().element_order;
     info.mesh_nodes = st.nodes;
     info.mesh_tets = st.tets;
     const mechanics::StrainGridSpec& grid = model.options().strain_grid;
@@ -278,9 +279,10 @@ LightCacheOutcome prepare_renderer(render::Renderer& renderer, const StageSettin
 void log_dome_model(const mechanics::DomeModel& model, double precompute_s,
                     const std::filesystem::path& cache_dir, std::ostream& log) {
     const auto& st = model.stats();
-    log << "chromasim: dome mesh '" << model.options().mesh_level << "': " << st.nodes << " nodes, "
-        << st.tets << " tets, " << st.candidates << " contact candidates; precomputed in "
-        << precompute_s << " s (cache: " << st.cache
+    log << "chromasim: dome mesh '" << model.options().mesh_level << "', "
+        << (model.options().element_order == 2 ? "quadratic" : "linear") << " tets: " << st.nodes
+        << " nodes, " << st.tets << " tets, " << st.candidates
+        << " contact candidates; precomputed in " << precompute_s << " s (cache: " << st.cache
         << (cache_dir.empty() ? "" : ", " + cache_dir.string()) << ")\n";
     if (!st.cache_note.empty()) log << "chromasim: cache: " << st.cache_note << '\n';
 }

@@ -41,10 +41,11 @@ struct Spec {
     std::uint64_t seed = 1;
 
     struct Sensor {
-        std::string mesh_level = "coarse";        ///< coarse | medium | fine
-        std::string volumetric = "nodal_average"; ///< nodal_average | element
+        std::string mesh_level = "coarse";          ///< very_coarse | coarse | medium | ...
+        int element_order = 1;                      ///< 1: linear tets, 2: quadratic
+        std::string volumetric = "nodal_average";   ///< nodal_average | element
         std::string material_model = "neo_hookean"; ///< neo_hookean | linear
-        std::string interior = "hollow";          ///< hollow | rigid_core | soft_fill
+        std::string interior = "hollow";            ///< hollow | rigid_core | soft_fill
         int contact_steps = 4; ///< load steps from rest to the first frame, per phase
         LayerMaterial inner_marker_layer{0.8, 0.45};
         LayerMaterial clear_layer{0.3, 0.45};
@@ -147,7 +148,7 @@ struct Spec {
         std::string quality = "default";
         /// The fast integrator's expert keys.
         struct Fast {
-            int paths_per_vertex = 1024;   ///< render::LightCacheSettings::paths_per_vertex
+            int paths_per_vertex = 1024;    ///< render::LightCacheSettings::paths_per_vertex
             double refresh_threshold = 1.0; ///< render::LightCacheSettings::refresh_threshold
             double shadow_filter_px = 1.0;  ///< render::RenderSettings::shadow_filter_px
         } fast;

@@ -160,12 +160,20 @@ void add_general(std::vector<SchemaEntry>& out) {
 
 void add_sensor_mechanics(std::vector<SchemaEntry>& out) {
     out.push_back(choice("sensor.mesh_level", "coarse",
-                         {"coarse", "medium", "fine", "refined", "reference"},
-                         "TetGen mesh level of the dome: uniform coarse (1.2 mm, the fastest), "
-                         "medium (0.8 mm), fine (0.5 mm), or refined where contact happens: "
+                         {"very_coarse", "coarse", "medium", "fine", "refined", "reference"},
+                         "TetGen mesh level of the dome: uniform very_coarse (2 mm edges), "
+                         "coarse (1.2 mm), medium (0.8 mm), fine (0.5 mm), or refined where "
+                         "contact happens: "
                          "refined (0.5 mm within 40 deg of the apex, 1.2 mm far), reference "
                          "(0.3 mm, 0.8 mm far).",
                          CHROMASIM_FIELD(sensor.mesh_level)));
+    out.push_back(integer("sensor.element_order", 1, closed(1, 2), "",
+                          "Tets of the dome: 1 (linear; 5 to 17 % too stiff in bending on "
+                          "coarse and very_coarse) or 2 (quadratic, edge nodes on the layers' "
+                          "spheres; presses within 3 % of CalculiX on very_coarse, but slide "
+                          "frames do not converge yet). sensor.volumetric applies to linear "
+                          "tets only.",
+                          CHROMASIM_FIELD(sensor.element_order)));
     add_layer(out, "inner_marker_layer", 0.8,
               "inner marker layer (printed flexible clear resin, Agilus30-like: 0.6 to 1.0 MPa)",
               CHROMASIM_FIELD(sensor.inner_marker_layer));
@@ -195,8 +203,8 @@ void add_sensor_mechanics(std::vector<SchemaEntry>& out) {
                          CHROMASIM_FIELD(sensor.interior)));
     out.push_back(choice("sensor.material_model", "neo_hookean", {"linear", "neo_hookean"},
                          "Constitutive model of the layers: neo_hookean (compressible, large "
-                         "deformation; about 50 ms a trial frame on the coarse mesh) or linear "
-                         "(small strain, under 1 ms, but 17 to 32 % too stiff at 1 to 3.2 N).",
+                         "deformation) or linear (small strain, about 1 ms a frame on linear "
+                         "tets, but 16 to 33 % too stiff at 0.5 to 3.2 N).",
                          CHROMASIM_FIELD(sensor.material_model)));
     out.push_back(integer("sensor.contact_steps", 4, closed(1, 1000), "",
                           "Steps of the first frame's load path from rest: the grip force ramps "

@@ -23,6 +23,7 @@ render::Vec3 vec(const Rgb& c) {
 mechanics::DomeModelOptions dome_options(const Spec& spec) {
     mechanics::DomeModelOptions o;
     o.mesh_level = spec.sensor.mesh_level;
+    o.element_order = spec.sensor.element_order;
     o.material = spec.sensor.material_model == "neo_hookean" ? mechanics::MaterialModel::neo_hookean
                                                              : mechanics::MaterialModel::linear;
     o.load_path.normal_steps = o.load_path.tangential_steps = spec.sensor.contact_steps;

@@ -79,6 +79,7 @@ LevelRow bench_level(const std::string& level, const DomeBenchOptions& o) {
     // A spec's defaults (contact cap, materials), then the bench's own options.
     mechanics::DomeModelOptions options = dome_options(Spec{});
     options.mesh_level = level;
+    options.element_order = o.element_order;
     options.volumetric = o.volumetric == "element" ? mechanics::Volumetric::element
                                                    : mechanics::Volumetric::nodal_average;
     options.material = o.material == "neo_hookean" ? mechanics::MaterialModel::neo_hookean
@@ -129,8 +130,8 @@ LevelRow bench_level(const std::string& level, const DomeBenchOptions& o) {
 BenchTable dome_table_head(const DomeBenchOptions& o, const std::string& reference_level) {
     std::ostringstream caption;
     caption << "dome under a flat, P = " << o.normal_force_N << " N, Q = " << o.tangential_force_N
-            << " N, mu = " << o.mu << ", material " << o.material << ", volumetric " << o.volumetric
-            << ", interior " << o.interior
+            << " N, mu = " << o.mu << ", material " << o.material << ", element order "
+            << o.element_order << ", volumetric " << o.volumetric << ", interior " << o.interior
             << (o.interior == "soft_fill" ? " (E " + std::to_string(o.fill_E_MPa) + " MPa)" : "")
             << "; reference level: " << reference_level
             << "; a frame from rest follows the default load path (4 normal + 4 tangential "

@@ -20,6 +20,7 @@ struct DomeBenchOptions {
     double mu = 0.8;
     std::string volumetric = "nodal_average"; ///< nodal_average | element
     std::string material = "linear";          ///< linear | neo_hookean
+    int element_order = 1;                    ///< 1 linear tets, 2 quadratic
     int trial_frames = 40; ///< frames of the timed trial (a quarter pressing, then pulling)
     std::string interior = "hollow"; ///< hollow | rigid_core | soft_fill
     double fill_E_MPa = 0.05;        ///< soft fill's Young's modulus

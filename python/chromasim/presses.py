@@ -19,6 +19,7 @@ SPEC = """name: press
 seed: 1
 sensor:
   mesh_level: {level}
+  element_order: {order}
   material_model: {model}
 objects:
   - {{name: obj, shape: {shape}{radius}}}
@@ -40,10 +41,12 @@ outputs: {{images: false, labels: true, markers: true}}
 """
 
 
-def press_spec(shape, level, model, forces, ramp_frames=4, radius_mm=45.0):
-    """The spec text of presses of `shape` ("flat" or "sphere") at each force (N)."""
+def press_spec(shape, level, model, forces, ramp_frames=4, radius_mm=45.0, order=1):
+    """The spec text of presses of `shape` ("flat" or "sphere") at each force (N), on tets
+    of `order` (1 linear, 2 quadratic)."""
     return SPEC.format(
         level=level,
+        order=order,
         model=model,
         shape=shape,
         radius=f", radius_mm: {radius_mm}" if shape == "sphere" else "",
@@ -52,13 +55,13 @@ def press_spec(shape, level, model, forces, ramp_frames=4, radius_mm=45.0):
     )
 
 
-def run_presses(exe, workdir, shape, level, model, forces, ramp_frames=4):
+def run_presses(exe, workdir, shape, level, model, forces, ramp_frames=4, order=1):
     """Runs the presses; returns {force: {"indentation_mm", "converged", "status", "x0_mm"
     (164 x 3), "u_mm" (164 x 3)}} and the mechanics seconds per solved frame."""
     workdir = pathlib.Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
-    spec = workdir / f"press_{shape}_{level}_{model}.yaml"
-    spec.write_text(press_spec(shape, level, model, forces, ramp_frames))
+    spec = workdir / f"press_{shape}_{level}_p{order}_{model}.yaml"
+    spec.write_text(press_spec(shape, level, model, forces, ramp_frames, order=order))
     out = workdir / spec.stem
     start = time.monotonic()
     run = subprocess.run(

@@ -67,7 +67,8 @@ def test_points_turn_onto_the_sector_mid_plane():
 def test_press_spec_validates(tmp_path):
     exe = os.environ.get("CHROMASIM_EXE", "build/release/chromasim")
     spec = tmp_path / "press.yaml"
-    spec.write_text(presses.press_spec("sphere", "coarse", "neo_hookean", [0.5, 3.2]))
+    spec.write_text(
+        presses.press_spec("sphere", "very_coarse", "neo_hookean", [0.5, 3.2], order=2))
     run = subprocess.run([exe, "validate", str(spec)], capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
     assert "ok (2 trials" in run.stdout

@@ -356,10 +356,11 @@ TEST_CASE("a value out of its range is rejected", "[generators][spec]") {
 TEST_CASE("a value outside an enum is rejected", "[generators][spec]") {
     CHECK(error_of("sensor:\n  mesh_level: ultra\n") ==
           "bad.yaml:2:15: sensor.mesh_level: value 'ultra' is not one of the allowed values; "
-          "allowed: one of coarse, medium, fine, refined, reference");
+          "allowed: one of very_coarse, coarse, medium, fine, refined, reference");
     CHECK(error_of("sensor:\n  mesh_level: Fine\n") ==
           "bad.yaml:2:15: sensor.mesh_level: value 'Fine' is not one of the allowed values (did "
-          "you mean 'fine'?); allowed: one of coarse, medium, fine, refined, reference");
+          "you mean 'fine'?); allowed: one of very_coarse, coarse, medium, fine, refined, "
+          "reference");
 }
 
 TEST_CASE("an rgb must be a list of exactly 3 numbers in range", "[generators][spec]") {
@@ -521,7 +522,8 @@ TEST_CASE("render.quality and the render.fast keys reach the renderer's settings
         CHECK(r.fast_wavelengths == 16);
         CHECK(light_cache_settings(high).paths_per_vertex == 256);
         CHECK(light_cache_settings(high).refresh_threshold == 0.5);
-        const RenderSettings d = render_settings(parse_spec("render: {quality: draft}\n", "ok.yaml"));
+        const RenderSettings d =
+            render_settings(parse_spec("render: {quality: draft}\n", "ok.yaml"));
         CHECK(d.rim_samples_per_pixel == 0);
         CHECK(d.reflection_samples_per_pixel == 0);
         CHECK(d.reflected_led_samples_per_pixel == 16);
