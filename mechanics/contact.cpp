@@ -243,7 +243,9 @@ StepKind step_kind(const ContactLoad& load, double mu, const ContactSolution* pr
 }
 
 /// Where each node sticks if it is in contact in this step: its old anchor if it was in
-/// contact, else where it is when it touches (set when the active set takes it in).
+/// contact, else where it was at the start of the step. (Anchoring a node where an iterate of
+/// the active-set loop first touched would make the solution depend on that loop's path, so
+/// not continuous in the data: an outer hyperelastic iteration then cycles.)
 RowVectors2 start_anchors(const ContactSolution* previous, int n, const Eigen::Vector2d& w_prev,
                           const RowForces* extra_mm) {
     RowVectors2 anchor = RowVectors2::Zero(n, 2);
@@ -326,7 +328,6 @@ struct StepProblem {
     const Eigen::MatrixXd& C;
     Eigen::VectorXd gap;              ///< n: gaps less the extra displacement (mm)
     Eigen::VectorXd r_stiff;          ///< n: each node's own tangential stiffness 1 / C_tt
-    std::vector<char> was_in_contact; ///< n: in the previous step's contact
     double mu;                        ///< >= 0
     const StepKind& kind;
     const ContactOptions& options;
@@ -347,14 +348,10 @@ StepProblem step_problem(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_mm
     const int n = int(gap_mm.size());
     Eigen::VectorXd gap = gap_mm;
     if (extra_mm) gap -= extra_mm->col(2);
-    std::vector<char> was_in_contact(std::size_t(n), 0);
-    if (previous)
-        for (int j : previous->active)
-            was_in_contact[std::size_t(j)] = 1;
     Eigen::VectorXd r_stiff(n);
     for (int j = 0; j < n; ++j)
         r_stiff(j) = 2.0 / (C(3 * j, 3 * j) + C(3 * j + 1, 3 * j + 1));
-    return {C, std::move(gap), std::move(r_stiff), std::move(was_in_contact), mu, kind, options};
+    return {C, std::move(gap), std::move(r_stiff), mu, kind, options};
 }
 
 /// Nodes that leave the contact set and nodes that enter it, each with the value that ranks it.
@@ -388,20 +385,17 @@ NormalChanges normal_changes(const StepProblem& p, const NewtonIterate& x, const
 }
 
 /// Applies `ch` to the membership `in_A` and the slip set: a node entering the contact sticks
-/// where it touches (its anchor set there if it was not in contact in the previous step). With
-/// `changed`, A is rebuilt (sorted) from `in_A`.
-void apply_normal_changes(const StepProblem& p, const NormalChanges& ch, const RowForces& u,
-                          bool changed, std::vector<char>& in_A, NewtonIterate& x) {
+/// (at its anchor, start_anchors). With `changed`, A is rebuilt (sorted) from `in_A`.
+void apply_normal_changes(const StepProblem& p, const NormalChanges& ch, bool changed,
+                          std::vector<char>& in_A, NewtonIterate& x) {
     const int n = int(p.gap.size());
     for (const auto& [value, j] : ch.release) {
         in_A[std::size_t(j)] = 0;
         if (!p.kind.all_slip) x.sets.slip[std::size_t(j)] = 0;
     }
-    for (const auto& [value, i] : ch.add) { // sticks where it touches
+    for (const auto& [value, i] : ch.add) {
         in_A[std::size_t(i)] = 1;
         if (!p.kind.all_slip) x.sets.slip[std::size_t(i)] = 0;
-        if (!p.was_in_contact[std::size_t(i)])
-            x.anchor.row(i) = u.row(i).head<2>() - x.lin.w.transpose();
     }
     if (changed) {
         x.sets.A.clear();
@@ -425,7 +419,7 @@ void iterate_sets(const StepProblem& p, double P, NewtonIterate& x, ContactSolut
             break;
         }
         // Semi-smooth Newton: every set is updated from the same iterate. Normal: release the
-        // nodes pulling on the object, add the nodes penetrating it (sticking where they were,
+        // nodes pulling on the object, add the nodes penetrating it (sticking at their anchor,
         // unless everything slides). Friction: update_friction. Converged when no set changes
         // and t = proj(tau) at every node. Past 30 iterations only the worst node enters or
         // leaves per iteration (anti-cycling).
@@ -446,7 +440,7 @@ void iterate_sets(const StepProblem& p, double P, NewtonIterate& x, ContactSolut
         const double law_error =
             p.kind.all_slip ? 0.0
                             : update_friction(u, x.lin, x.anchor, p.r_stiff, p.mu, x.sets, changed);
-        apply_normal_changes(p, ch, u, changed, in_A, x);
+        apply_normal_changes(p, ch, changed, in_A, x);
         if (changed) continue;
         if (law_error <= 1e-12 * P) {
             sol.status = "ok";

@@ -53,6 +53,8 @@ struct DomeModelOptions {
     Material fill{0.05, 0.45};
     /// How a frame without a previous frame reaches its load from rest (contact.hpp).
     LoadPath load_path;
+    /// Quadratic tets always use Goodman's approximation (`coupled` = false): coupled, contact
+    /// at the six nodes of a face has active sets with no solution under sliding.
     ContactOptions contact;
     /// Grid of the surface strain eps_xx (FrameRequest::strain).
     StrainGridSpec strain_grid;

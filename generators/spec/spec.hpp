@@ -41,8 +41,8 @@ struct Spec {
     std::uint64_t seed = 1;
 
     struct Sensor {
-        std::string mesh_level = "coarse";          ///< very_coarse | coarse | medium | ...
-        int element_order = 1;                      ///< 1: linear tets, 2: quadratic
+        std::string mesh_level = "very_coarse";     ///< very_coarse | coarse | medium | ...
+        int element_order = 2;                      ///< 2: quadratic tets, 1: linear
         std::string volumetric = "nodal_average";   ///< nodal_average | element
         std::string material_model = "neo_hookean"; ///< neo_hookean | linear
         std::string interior = "hollow";            ///< hollow | rigid_core | soft_fill

@@ -110,7 +110,8 @@ TEST_CASE("export-scene writes any frame as glTF and refuses a bad frame or outp
     fs::create_directories(dir);
     const fs::path spec = write_spec(
         "chromasim_export.yaml",
-        "name: export\nsensor: {mesh_level: coarse}\nrender: {width_px: 64, height_px: 48}\n"
+        "name: export\nsensor: {mesh_level: coarse, element_order: 1}\n"
+        "render: {width_px: 64, height_px: 48}\n"
         "fingers: {count: 1}\n"
         "protocol: {frame_rate_Hz: 1, grip_N: 1.0, grasp_s: 2, hold_s: 0, load_rate_N_per_s: "
         "0.3, target_load_N: 0.3}\n");

@@ -344,8 +344,10 @@ TEST_CASE("object poses reach the mechanics: an offset sphere and a tilted flat 
     // First touch on the line between the centres: polar angle asin(3 / (13.2 + 45)).
     const mechanics::FrameResult s = model.solve(load, {}, object_shape(sphere, sphere.objects[0]));
     REQUIRE(s.contact.converged);
+    // Margin: a tenth of the node spacing on the default very_coarse mesh's contact cap (about
+    // 1 mm between the split faces' nodes).
     const Eigen::Vector2d cs = force_centroid(model, s);
-    CHECK(cs.x() == Approx(13.2 * 3 / 58.2).margin(0.05));
+    CHECK(cs.x() == Approx(13.2 * 3 / 58.2).margin(0.1));
     CHECK(std::abs(cs.y()) < 0.25);
 
     // A flat pitched by 20 deg (about y, counter-clockwise) faces along -z rotated to

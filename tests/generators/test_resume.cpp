@@ -28,7 +28,7 @@ namespace {
 /// markers, strain.
 constexpr const char* kSpec = R"(name: resume
 seed: 7
-sensor: {mesh_level: coarse}
+sensor: {mesh_level: coarse, element_order: 1}
 render: {width_px: 40, height_px: 40, samples_per_pixel: 1, integrator: preview}
 objects: [{name: flat, shape: flat}, {name: curved, shape: sphere, radius_mm: 45}]
 friction: [{name: m, mu: 0.8}]

@@ -25,7 +25,7 @@ namespace {
 /// fingers, every kind of output: PNG, EXR, labels, markers, strain.
 constexpr const char* kSpec = R"(name: shard
 seed: 7
-sensor: {mesh_level: coarse}
+sensor: {mesh_level: coarse, element_order: 1}
 render: {width_px: 32, height_px: 32, samples_per_pixel: 1, integrator: preview}
 objects: [{name: flat, shape: flat}, {name: curved, shape: sphere, radius_mm: 45}]
 friction: [{name: m, mu: 0.8}]

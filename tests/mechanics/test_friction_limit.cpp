@@ -187,7 +187,10 @@ TEST_CASE("the neo-Hookean dome pulled past mu P converges and slides once its s
             } else if (f.contact.sliding) {
                 slid = true;
                 onset = f.contact.object_displacement_mm;
-                CHECK(ratio > 0.95); // the stick zone resolved down to a few nodes first
+                // The stick zone resolved down to a few nodes first: Mindlin's c = a (1 - Q /
+                // (mu P))^(1/3) is 0.37 a at 0.95 and 0.41 a at 0.93, about one node spacing of
+                // the coarse dome and of the very_coarse one's split faces.
+                CHECK(ratio > (order == 1 ? 0.95 : 0.925));
             }
         }
         CHECK(slid);

@@ -17,7 +17,7 @@ export CHROMASIM=$exe CHROMASIM_CACHE_DIR=$work/cache CHROMASIM_GENERATE_ARGS=-q
 cat >spec.yaml <<'SPEC'
 name: slurm
 seed: 3
-sensor: {mesh_level: coarse}
+sensor: {mesh_level: coarse, element_order: 1}
 render: {width_px: 32, height_px: 32, samples_per_pixel: 1}
 objects: [{name: flat, shape: flat}, {name: curved, shape: sphere, radius_mm: 45}]
 friction: [{name: m, mu: 0.8}]
