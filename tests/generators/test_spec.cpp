@@ -79,7 +79,7 @@ objects: [{shape: flat}, {radius_mm: 45, shape: sphere, name: curved}]
 seed: 1
 name: quickstart
 sensor:
-  mesh_level: coarse
+  mesh_level: very_coarse
 )";
 
 } // namespace
@@ -90,7 +90,8 @@ TEST_CASE("the quickstart spec validates with its documented values", "[generato
     CHECK(spec.source_path == path);
     CHECK(spec.name == "quickstart");
     CHECK(spec.seed == 1);
-    CHECK(spec.sensor.mesh_level == "coarse");
+    CHECK(spec.sensor.mesh_level == "very_coarse");
+    CHECK(spec.sensor.element_order == 2);
     REQUIRE(spec.objects.size() == 2);
     CHECK(spec.objects[0].name == "flat");
     CHECK(spec.objects[0].shape == "flat");
@@ -127,7 +128,8 @@ TEST_CASE("a minimal spec gets the documented defaults", "[generators][spec]") {
     }
     // The values the project brief asks for, independent of the schema table.
     CHECK(spec.seed == 1);
-    CHECK(spec.sensor.mesh_level == "coarse");
+    CHECK(spec.sensor.mesh_level == "very_coarse");
+    CHECK(spec.sensor.element_order == 2);
     CHECK(spec.sensor.inner_marker_layer.E_MPa == 0.8);
     CHECK(spec.sensor.clear_layer.E_MPa == 0.3);
     CHECK(spec.sensor.outer_marker_layer.E_MPa == 0.8);
