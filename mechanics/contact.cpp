@@ -326,9 +326,9 @@ double update_friction(const RowForces& u, const LinearSolution& lin, const RowV
 /// What the Newton iteration of one step reads; fixed for the step (n candidates).
 struct StepProblem {
     const Eigen::MatrixXd& C;
-    Eigen::VectorXd gap;              ///< n: gaps less the extra displacement (mm)
-    Eigen::VectorXd r_stiff;          ///< n: each node's own tangential stiffness 1 / C_tt
-    double mu;                        ///< >= 0
+    Eigen::VectorXd gap;     ///< n: gaps less the extra displacement (mm)
+    Eigen::VectorXd r_stiff; ///< n: each node's own tangential stiffness 1 / C_tt
+    double mu;               ///< >= 0
     const StepKind& kind;
     const ContactOptions& options;
 };

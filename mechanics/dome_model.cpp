@@ -252,6 +252,21 @@ DomeModel::DomeModel(const DomeModelOptions& options) : m_impl(std::make_unique<
 
 DomeModel::~DomeModel() = default;
 
+namespace {
+/// Whether the load steps a -> b and b -> c change the load by the same (nonzero) amounts.
+bool same_increment(const ContactLoad& a, const ContactLoad& b, const ContactLoad& c) {
+    const auto delta = [](const ContactLoad& from, const ContactLoad& to) {
+        Eigen::Matrix<double, 5, 1> d;
+        d << to.normal_force_N - from.normal_force_N,
+            to.tangential_force_N - from.tangential_force_N,
+            to.tangential_displacement_mm - from.tangential_displacement_mm;
+        return d;
+    };
+    const Eigen::Matrix<double, 5, 1> first = delta(a, b), second = delta(b, c);
+    return first.norm() > 0 && (second - first).norm() <= 1e-9 * first.norm();
+}
+} // namespace
+
 void DomeModel::Impl::solve_hyperelastic(const ContactLoad& load, const ObjectShape& object,
                                          const FrameResult* previous, FrameResult& r) const {
     std::call_once(hyper_once, [this] {
@@ -260,23 +275,43 @@ void DomeModel::Impl::solve_hyperelastic(const ContactLoad& load, const ObjectSh
         marker_embedding = embed(mesh, markers.points, "marker point");
     });
     const ContactSolution* last = previous ? &previous->contact : nullptr;
+    const Eigen::Index dofs = 3 * mesh.V.rows();
     Eigen::VectorXd u;
     if (previous && previous->node_displacement_mm.rows() == mesh.V.rows())
-        u = Eigen::Map<const Eigen::VectorXd>(previous->node_displacement_mm.data(),
-                                              3 * mesh.V.rows());
+        u = Eigen::Map<const Eigen::VectorXd>(previous->node_displacement_mm.data(), dofs);
+    const Eigen::VectorXd u_start = u;
+    const std::vector<ContactLoad> targets = load_steps(load, options.load_path, last);
+    const ContactLoad start =
+        last ? last->load : ContactLoad{0.0, {0.0, 0.0}, load.mu, load.tangential};
+    // A linear predictor: a step starts from the last one plus the step before it when the load
+    // moved the same way; a frame's first step from the previous frame's step (the frames of a
+    // trial are near-even increments), spread over this frame's steps.
+    Eigen::VectorXd predicted;
+    if (u.size() && previous->node_step_mm.rows() == mesh.V.rows())
+        predicted = Eigen::Map<const Eigen::VectorXd>(previous->node_step_mm.data(), dofs) /
+                    double(targets.size());
     int contact_iterations = 0;
     HyperelasticStep step;
-    for (const ContactLoad& target : load_steps(load, options.load_path, last)) {
+    for (std::size_t k = 0; k < targets.size(); ++k) {
         const Eigen::Vector2d shift = last ? last->object_displacement_mm : Eigen::Vector2d::Zero();
-        step = hyper->step(object_gap(object, candidate_X, shift), target, last,
-                           u.size() ? &u : nullptr, options.hyperelastic, options.contact);
+        const Eigen::VectorXd guess = predicted.size() ? Eigen::VectorXd(u + predicted) : predicted;
+        step = hyper->step(object_gap(object, candidate_X, shift), targets[k], last,
+                           u.size() ? &u : nullptr, options.hyperelastic, options.contact,
+                           guess.size() ? &guess : nullptr);
         r.material_iterations += step.iterations;
         contact_iterations += step.contact.iterations;
         r.contact = step.contact;
         last = &r.contact;
+        predicted.resize(0);
+        const ContactLoad& before = k ? targets[k - 1] : start;
+        if (k + 1 < targets.size() && same_increment(before, targets[k], targets[k + 1]))
+            predicted = step.u - (u.size() ? u : Eigen::VectorXd::Zero(dofs));
         u = step.u;
         if (!step.converged) break;
     }
+    if (u_start.size() && step.converged)
+        r.node_step_mm =
+            Eigen::Map<const Points>(Eigen::VectorXd(u - u_start).data(), mesh.V.rows(), 3);
     r.contact.iterations = contact_iterations;
     r.min_jacobian = step.min_jacobian;
     if (!step.converged) {

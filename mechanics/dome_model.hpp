@@ -86,6 +86,9 @@ struct FrameResult {
     Points inner_surface_displacement_mm; ///< per inner_surface() vertex (empty unless requested)
     Points marker_points_mm;              ///< deformed MarkerDiscs::points (empty unless requested)
     Points node_displacement_mm;          ///< #V x 3, every node (empty unless requested)
+    /// Neo-Hookean frames solved from a previous frame: node_displacement_mm less that frame's
+    /// (empty otherwise). The next frame starts from node_displacement_mm plus this step.
+    Points node_step_mm;
     /// Per candidate (candidate_nodes() order; empty unless requested): contact pressure
     /// (normal force over tributary area) and tangential traction on the dome. The stick /
     /// slip / free state per candidate is contact.state, the displacement contact.displacement_mm.

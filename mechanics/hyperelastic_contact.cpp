@@ -141,11 +141,13 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
                                            const ContactSolution* previous,
                                            const Eigen::VectorXd* u_previous,
                                            const HyperelasticOptions& options,
-                                           const ContactOptions& contact_options) const {
+                                           const ContactOptions& contact_options,
+                                           const Eigen::VectorXd* u_guess) const {
     const std::vector<int>& candidates = m_body.candidates();
     const Eigen::Index n = Eigen::Index(candidates.size()), dofs = m_K0.rows();
     HyperelasticStep out;
     out.u = u_previous ? *u_previous : Eigen::VectorXd::Zero(dofs);
+    if (u_guess && min_jacobian(*u_guess) >= options.min_jacobian) out.u = *u_guess;
     out.status = "max_iterations";
     AndersonMixing mixing;
     RowForces extra(n, 3);

@@ -56,11 +56,14 @@ public:
 
     /// One quasi-static step to `load` from `previous` (its contact history and its full
     /// displacement `u_previous`, 3 #V; both null: rest). `gap_mm` as for solve_contact_step.
+    /// `u_guess` (optional, 3 #V): where the iteration starts instead of `u_previous` (a
+    /// predictor), unless some tet's J there is below options.min_jacobian.
     /// Thread safe.
     HyperelasticStep step(const Eigen::VectorXd& gap_mm, const ContactLoad& load,
                           const ContactSolution* previous, const Eigen::VectorXd* u_previous,
                           const HyperelasticOptions& options = {},
-                          const ContactOptions& contact_options = {}) const;
+                          const ContactOptions& contact_options = {},
+                          const Eigen::VectorXd* u_guess = nullptr) const;
 
 private:
     Eigen::VectorXd gradient(const Eigen::VectorXd& u) const;
