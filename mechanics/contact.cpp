@@ -343,8 +343,8 @@ struct NewtonIterate {
 /// Internally the displacement is the part the contact forces cause through C: the extra
 /// displacement moves the gaps (and start_anchors moves the anchors).
 StepProblem step_problem(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_mm,
-                         const ContactSolution* previous, const RowForces* extra_mm, double mu,
-                         const StepKind& kind, const ContactOptions& options) {
+                         const RowForces* extra_mm, double mu, const StepKind& kind,
+                         const ContactOptions& options) {
     const int n = int(gap_mm.size());
     Eigen::VectorXd gap = gap_mm;
     if (extra_mm) gap -= extra_mm->col(2);
@@ -539,7 +539,7 @@ ContactSolution solve_step(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_
     const Eigen::Vector2d w_prev =
         previous ? previous->object_displacement_mm : Eigen::Vector2d::Zero();
     const double mu = std::max(0.0, load.mu);
-    const StepProblem p = step_problem(C, gap_mm, previous, extra_mm, mu, kind, options);
+    const StepProblem p = step_problem(C, gap_mm, extra_mm, mu, kind, options);
     NewtonIterate x{
         start_sets(previous, p.gap, p.r_stiff, mu, kind),
         LinearSolution{Eigen::VectorXd::Zero(n), RowVectors2::Zero(n, 2), 0.0, kind.w_given},
