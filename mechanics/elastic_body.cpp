@@ -5,6 +5,8 @@
 
 #include <Eigen/CholmodSupport>
 
+#include <dlfcn.h>
+
 #include <array>
 #include <chrono>
 #include <mutex>
@@ -27,6 +29,45 @@ Embedding embed(const TetMesh& mesh, const Points& P, const char* what) {
     return e;
 }
 
+namespace {
+
+/// Keeps BLAS (under CHOLMOD) on the calling thread. chromasim runs its work in parallel
+/// above BLAS (TBB: fingertips, tets, pixels), and OpenBLAS's own threads spin on
+/// sched_yield while they wait, taking the cores that work needs. A BLAS without the OpenBLAS
+/// call is left as it is.
+void keep_blas_on_calling_thread() {
+    static std::once_flag once;
+    std::call_once(once, [] {
+        using SetThreads = void (*)(int);
+        if (void* f = dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))
+            reinterpret_cast<SetThreads>(f)(1);
+    });
+}
+
+/// CHOLMOD's supernodal LLT whose single right-hand-side solve may run on several threads at
+/// once: CHOLMOD is re-entrant when each thread brings its own cholmod_common, and a solve only
+/// reads the factor.
+class ConcurrentLLT : public Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> {
+public:
+    Eigen::VectorXd solve_concurrently(Eigen::VectorXd b) const {
+        cholmod_common common;
+        cholmod_start(&common);
+        cholmod_dense b_view = Eigen::viewAsCholmod(b);
+        cholmod_dense* x = cholmod_solve(CHOLMOD_A, m_cholmodFactor, &b_view, &common);
+        if (!x) {
+            cholmod_finish(&common);
+            throw std::runtime_error("CHOLMOD's back-substitution failed (out of memory?)");
+        }
+        Eigen::VectorXd out =
+            Eigen::Map<const Eigen::VectorXd>(static_cast<double*>(x->x), b.size());
+        cholmod_free_dense(&x, &common);
+        cholmod_finish(&common);
+        return out;
+    }
+};
+
+} // namespace
+
 struct ElasticBody::Impl {
     const TetMesh& mesh;
     std::vector<Material> materials;
@@ -36,8 +77,10 @@ struct ElasticBody::Impl {
     Embedding observed_points;
     bool factorized = false;
     std::vector<int> free_of_dof; ///< free-dof index per mesh dof, -1 where clamped
-    Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> solver;
-    mutable std::mutex solver_mutex; ///< CHOLMOD's solve shares one workspace
+    ConcurrentLLT solver;
+    /// Guards the factorization on demand and the solves that use the solver's own workspace
+    /// (blocks of right-hand sides); solve_concurrently needs no lock.
+    mutable std::mutex solver_mutex;
     ElasticBodyResponses responses;
     Eigen::MatrixXd field_responses; ///< 3 #V x 3n, on demand (candidate_field_responses)
     ElasticBodyStats stats;
@@ -53,6 +96,7 @@ struct ElasticBody::Impl {
 };
 
 void ElasticBody::Impl::factorize() {
+    keep_blas_on_calling_thread();
     auto t0 = std::chrono::steady_clock::now();
     const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, materials, volumetric);
     free_of_dof.assign(std::size_t(K.rows()), -1);
@@ -177,12 +221,14 @@ Points ElasticBody::observed_displacement(const Eigen::Ref<const Points>& forces
 
 Eigen::VectorXd ElasticBody::solve(const Eigen::VectorXd& f_full) const {
     Impl& m = *m_impl;
-    const std::lock_guard<std::mutex> lock(m.solver_mutex);
-    if (!m.factorized) m.factorize();
+    {
+        const std::lock_guard<std::mutex> lock(m.solver_mutex);
+        if (!m.factorized) m.factorize();
+    }
     Eigen::VectorXd f(m.stats.free_dofs);
     for (std::size_t d = 0; d < m.free_of_dof.size(); ++d)
         if (m.free_of_dof[d] >= 0) f(m.free_of_dof[d]) = f_full(Eigen::Index(d));
-    const Eigen::VectorXd u_free = m.solver.solve(f);
+    const Eigen::VectorXd u_free = m.solver.solve_concurrently(std::move(f));
     Eigen::VectorXd u = Eigen::VectorXd::Zero(f_full.size());
     for (std::size_t d = 0; d < m.free_of_dof.size(); ++d)
         if (m.free_of_dof[d] >= 0) u(Eigen::Index(d)) = u_free(m.free_of_dof[d]);
@@ -214,13 +260,15 @@ const Eigen::MatrixXd& ElasticBody::candidate_field_responses() const {
 Points ElasticBody::full_displacement(const Eigen::Ref<const Points>& forces_N,
                                       const std::vector<int>& active) const {
     Impl& m = *m_impl;
-    const std::lock_guard<std::mutex> lock(m.solver_mutex);
-    if (!m.factorized) m.factorize(); // a body from cached responses factorizes on demand
+    {
+        const std::lock_guard<std::mutex> lock(m.solver_mutex);
+        if (!m.factorized) m.factorize(); // a body from cached responses factorizes on demand
+    }
     Eigen::VectorXd f = Eigen::VectorXd::Zero(m.stats.free_dofs);
     for (int j : active)
         for (int k = 0; k < 3; ++k)
             f(m.free_of_dof[3 * m.candidates[j] + k]) = forces_N(j, k);
-    const Eigen::VectorXd u_free = m.solver.solve(f);
+    const Eigen::VectorXd u_free = m.solver.solve_concurrently(std::move(f));
     Points U = Points::Zero(m.mesh.V.rows(), 3);
     for (std::size_t d = 0; d < m.free_of_dof.size(); ++d)
         if (m.free_of_dof[d] >= 0)

@@ -70,7 +70,7 @@ public:
     /// Solves K u = f for a full-size force vector (3 #V, N; entries on clamped dofs are
     /// ignored) and returns the full-size displacement (mm; clamped dofs 0): one sparse
     /// back-substitution (after a factorization, the first time, for a body built from cached
-    /// responses). Thread safe (calls are serialized).
+    /// responses). Thread safe: calls on several threads run at once.
     Eigen::VectorXd solve(const Eigen::VectorXd& f_full) const;
     /// Every dof's displacement (3 #V rows, mm; clamped dofs 0) per unit force on each
     /// candidate dof (3n columns, N): what a full solve under candidate forces needs, as one

@@ -11,6 +11,8 @@
 #include "generators/plan/plan.hpp"
 #include "render/renderer.hpp"
 
+#include <tbb/parallel_for.h>
+
 #include <chrono>
 #include <cmath>
 #include <csignal>
@@ -19,6 +21,7 @@
 #include <optional>
 #include <ostream>
 #include <sstream>
+#include <vector>
 
 namespace chromasim::generators {
 
@@ -111,26 +114,39 @@ void write_images(Stages& s, const FrameLabels& labels, int f, FingerRun& run, b
     ++s.report.images;
 }
 
-/// One fingertip's frame: solve (or reuse), images, markers, strain.
-LabelRow run_finger(Stages& s, const FramePlan& frame, const FrameLabels& labels, int f,
-                    FingerRun& run) {
-    const FingerLoad& load = frame.fingers[std::size_t(f)];
+/// One fingertip's mechanics for a frame: a solve, or the last result when the load has not
+/// changed. Returns whether it was reused. Safe to run for several fingertips at once.
+bool solve_finger(const Stages& s, const FingerLoad& load, FingerRun& run) {
     const bool reused = run.load && load == *run.load;
-    auto t0 = Clock::now();
-    if (reused) {
-        ++s.report.reused_solves;
-    } else {
+    if (!reused) {
         run.result = s.model.solve(contact_load(load), s.request, run.object,
                                    run.history ? &*run.history : nullptr);
         if (run.result.contact.converged) run.history = run.result;
-        ++s.report.solves;
     }
     run.load = &load;
+    return reused;
+}
+
+/// Every fingertip's mechanics for a frame, the fingertips in parallel (they share nothing).
+std::vector<char> solve_fingers(Stages& s, const FramePlan& frame, std::vector<FingerRun>& runs) {
+    std::vector<char> reused(runs.size());
+    const auto t0 = Clock::now();
+    tbb::parallel_for(std::size_t(0), runs.size(), [&](std::size_t f) {
+        reused[f] = solve_finger(s, frame.fingers[f], runs[f]);
+    });
     s.report.mechanics_s += seconds_since(t0);
-    LabelRow row = label_row(frame, load, run.result);
+    for (char r : reused)
+        ++(r ? s.report.reused_solves : s.report.solves);
+    return reused;
+}
+
+/// One fingertip's frame after its mechanics: labels, images, markers, strain.
+LabelRow finish_finger(Stages& s, const FramePlan& frame, const FrameLabels& labels, int f,
+                       FingerRun& run, bool reused) {
+    LabelRow row = label_row(frame, frame.fingers[std::size_t(f)], run.result);
     row.reused = reused;
     if (s.renderer) write_images(s, labels, f, run, reused, row);
-    t0 = Clock::now();
+    const auto t0 = Clock::now();
     if (s.settings.outputs.markers)
         write_markers(s.writer, labels, finger_name(f), s.model, run.result);
     if (s.settings.outputs.strain)
@@ -164,8 +180,9 @@ void run_trial(Stages& s, const TrialPlan& trial) {
                            frame.load_N,
                            frame.travel_mm,
                            {}};
+        const std::vector<char> reused = solve_fingers(s, frame, runs);
         for (std::size_t f = 0; f < runs.size(); ++f)
-            labels.fingers.push_back(run_finger(s, frame, labels, int(f), runs[f]));
+            labels.fingers.push_back(finish_finger(s, frame, labels, int(f), runs[f], reused[f]));
         const auto t0 = Clock::now();
         s.writer.write_labels(labels);
         s.report.write_s += seconds_since(t0);

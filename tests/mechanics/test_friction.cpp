@@ -7,7 +7,9 @@
 
 #include <catch2/catch.hpp>
 
+#include <array>
 #include <cmath>
+#include <thread>
 #include <tuple>
 #include <vector>
 
@@ -256,6 +258,29 @@ TEST_CASE("neo-Hookean frames: the linear answer at small load and deeper but in
     REQUIRE(next.contact.converged);
     CHECK(next.contact.tangential_force_N.x() == Approx(0.4).epsilon(1e-9));
     CHECK(next.contact.object_displacement_mm.x() > 0);
+}
+
+TEST_CASE("neo-Hookean frames solved on two threads at once equal the same frames in turn",
+          "[mechanics][hyperelastic]") {
+    DomeModelOptions options;
+    options.material = MaterialModel::neo_hookean;
+    const DomeModel nh(options);
+    const std::array<ContactLoad, 2> loads{ContactLoad{1.5, {0.6, 0}, 0.8},
+                                           ContactLoad{1.0, {0, 0.3}, 0.5}};
+    std::array<FrameResult, 2> in_turn, at_once;
+    for (std::size_t k = 0; k < 2; ++k)
+        in_turn[k] = nh.solve(loads[k], {});
+    std::vector<std::thread> threads;
+    for (std::size_t k = 0; k < 2; ++k)
+        threads.emplace_back([&, k] { at_once[k] = nh.solve(loads[k], {}); });
+    for (auto& t : threads)
+        t.join();
+    for (std::size_t k = 0; k < 2; ++k) {
+        REQUIRE(in_turn[k].contact.converged);
+        CHECK(at_once[k].contact.converged);
+        CHECK(at_once[k].node_displacement_mm == in_turn[k].node_displacement_mm);
+        CHECK(at_once[k].marker_points_mm == in_turn[k].marker_points_mm);
+    }
 }
 
 // Euler's identity makes the Newton rows homogeneous.
