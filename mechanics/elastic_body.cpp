@@ -91,6 +91,11 @@ struct ElasticBody::Impl {
         stats.candidates = int(candidates.size());
     }
     void factorize();
+    /// Factorizes on the first call (a body built from cached responses has no factor yet).
+    void ensure_factorized() {
+        const std::lock_guard<std::mutex> lock(solver_mutex);
+        if (!factorized) factorize();
+    }
     void precompute_responses();
     void fill_observed(int c0, const Eigen::MatrixXd& u);
 };
@@ -221,10 +226,7 @@ Points ElasticBody::observed_displacement(const Eigen::Ref<const Points>& forces
 
 Eigen::VectorXd ElasticBody::solve(const Eigen::VectorXd& f_full) const {
     Impl& m = *m_impl;
-    {
-        const std::lock_guard<std::mutex> lock(m.solver_mutex);
-        if (!m.factorized) m.factorize();
-    }
+    m.ensure_factorized();
     Eigen::VectorXd f(m.stats.free_dofs);
     for (std::size_t d = 0; d < m.free_of_dof.size(); ++d)
         if (m.free_of_dof[d] >= 0) f(m.free_of_dof[d]) = f_full(Eigen::Index(d));
@@ -260,10 +262,7 @@ const Eigen::MatrixXd& ElasticBody::candidate_field_responses() const {
 Points ElasticBody::full_displacement(const Eigen::Ref<const Points>& forces_N,
                                       const std::vector<int>& active) const {
     Impl& m = *m_impl;
-    {
-        const std::lock_guard<std::mutex> lock(m.solver_mutex);
-        if (!m.factorized) m.factorize(); // a body from cached responses factorizes on demand
-    }
+    m.ensure_factorized();
     Eigen::VectorXd f = Eigen::VectorXd::Zero(m.stats.free_dofs);
     for (int j : active)
         for (int k = 0; k < 3; ++k)
