@@ -169,6 +169,14 @@ struct LoadPath {
     int steps_from_previous = 1;
 };
 
+/// The load `s` of the way from `a` to `b` (0: a, 1: b): forces and travel linear in s; mu and
+/// the tangential control are b's.
+ContactLoad interpolate(const ContactLoad& a, const ContactLoad& b, double s);
+
+/// Where a ramp from `previous` to `load` starts: the previous load with its achieved travel,
+/// and its achieved tangential force when `load` switches to force control.
+ContactLoad ramp_start(const ContactSolution& previous, const ContactLoad& load);
+
 /// The loads of the steps that take `previous` (nullptr: rest) to `load` along `path`.
 std::vector<ContactLoad> load_steps(const ContactLoad& load, const LoadPath& path,
                                     const ContactSolution* previous);

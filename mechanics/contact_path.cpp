@@ -39,8 +39,6 @@ object_gap(const ObjectShape& object,
     return g_shifted.array() - g.minCoeff();
 }
 
-namespace {
-
 ContactLoad interpolate(const ContactLoad& a, const ContactLoad& b, double s) {
     ContactLoad l = b;
     l.normal_force_N = a.normal_force_N + s * (b.normal_force_N - a.normal_force_N);
@@ -51,17 +49,20 @@ ContactLoad interpolate(const ContactLoad& a, const ContactLoad& b, double s) {
     return l;
 }
 
-} // namespace
+ContactLoad ramp_start(const ContactSolution& previous, const ContactLoad& load) {
+    ContactLoad from = previous.load;
+    from.tangential_displacement_mm = previous.object_displacement_mm;
+    if (load.tangential == TangentialControl::force &&
+        previous.load.tangential != TangentialControl::force)
+        from.tangential_force_N = previous.tangential_force_N;
+    return from;
+}
 
 std::vector<ContactLoad> load_steps(const ContactLoad& load, const LoadPath& path,
                                     const ContactSolution* previous) {
     std::vector<ContactLoad> steps;
     if (previous) {
-        ContactLoad from = previous->load;
-        from.tangential_displacement_mm = previous->object_displacement_mm;
-        if (load.tangential == TangentialControl::force &&
-            previous->load.tangential != TangentialControl::force)
-            from.tangential_force_N = previous->tangential_force_N;
+        const ContactLoad from = ramp_start(*previous, load);
         const int k = std::max(1, path.steps_from_previous);
         for (int i = 1; i <= k; ++i)
             steps.push_back(interpolate(from, load, double(i) / k));

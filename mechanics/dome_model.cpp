@@ -253,6 +253,17 @@ DomeModel::DomeModel(const DomeModelOptions& options) : m_impl(std::make_unique<
 DomeModel::~DomeModel() = default;
 
 namespace {
+/// Halvings of a neo-Hookean load step that does not converge, per frame.
+constexpr int kMaxCutbacks = 4;
+
+/// `load` with no force and no travel: where a frame from rest starts.
+ContactLoad at_rest(ContactLoad load) {
+    load.normal_force_N = 0;
+    load.tangential_force_N.setZero();
+    load.tangential_displacement_mm.setZero();
+    return load;
+}
+
 /// Whether the load steps a -> b and b -> c change the load by the same (nonzero) amounts.
 bool same_increment(const ContactLoad& a, const ContactLoad& b, const ContactLoad& c) {
     const auto delta = [](const ContactLoad& from, const ContactLoad& to) {
@@ -280,9 +291,8 @@ void DomeModel::Impl::solve_hyperelastic(const ContactLoad& load, const ObjectSh
     if (previous && previous->node_displacement_mm.rows() == mesh.V.rows())
         u = Eigen::Map<const Eigen::VectorXd>(previous->node_displacement_mm.data(), dofs);
     const Eigen::VectorXd u_start = u;
-    const std::vector<ContactLoad> targets = load_steps(load, options.load_path, last);
-    const ContactLoad start =
-        last ? last->load : ContactLoad{0.0, {0.0, 0.0}, load.mu, load.tangential};
+    std::vector<ContactLoad> targets = load_steps(load, options.load_path, last);
+    ContactLoad before = last ? ramp_start(*last, targets[0]) : at_rest(targets[0]);
     // A linear predictor: a step starts from the last one plus the step before it when the load
     // moved the same way; a frame's first step from the previous frame's step (the frames of a
     // trial are near-even increments), spread over this frame's steps.
@@ -290,9 +300,9 @@ void DomeModel::Impl::solve_hyperelastic(const ContactLoad& load, const ObjectSh
     if (u.size() && previous->node_step_mm.rows() == mesh.V.rows())
         predicted = Eigen::Map<const Eigen::VectorXd>(previous->node_step_mm.data(), dofs) /
                     double(targets.size());
-    int contact_iterations = 0;
+    int contact_iterations = 0, cutbacks = 0;
     HyperelasticStep step;
-    for (std::size_t k = 0; k < targets.size(); ++k) {
+    for (std::size_t k = 0; k < targets.size();) {
         const Eigen::Vector2d shift = last ? last->object_displacement_mm : Eigen::Vector2d::Zero();
         const Eigen::VectorXd guess = predicted.size() ? Eigen::VectorXd(u + predicted) : predicted;
         step = hyper->step(object_gap(object, candidate_X, shift), targets[k], last,
@@ -300,14 +310,23 @@ void DomeModel::Impl::solve_hyperelastic(const ContactLoad& load, const ObjectSh
                            guess.size() ? &guess : nullptr);
         r.material_iterations += step.iterations;
         contact_iterations += step.contact.iterations;
-        r.contact = step.contact;
-        last = &r.contact;
         predicted.resize(0);
-        const ContactLoad& before = k ? targets[k - 1] : start;
+        if (!step.converged) { // retried as two halves from the same state
+            if (cutbacks++ == kMaxCutbacks) break;
+            targets.insert(targets.begin() + std::ptrdiff_t(k),
+                           interpolate(before, targets[k], 0.5));
+            continue;
+        }
         if (k + 1 < targets.size() && same_increment(before, targets[k], targets[k + 1]))
             predicted = step.u - (u.size() ? u : Eigen::VectorXd::Zero(dofs));
         u = step.u;
-        if (!step.converged) break;
+        r.contact = step.contact;
+        last = &r.contact;
+        before = targets[k++];
+    }
+    if (!step.converged) { // the last iterate, flagged
+        u = step.u;
+        r.contact = step.contact;
     }
     if (u_start.size() && step.converged)
         r.node_step_mm =

@@ -283,6 +283,24 @@ TEST_CASE("neo-Hookean frames solved on two threads at once equal the same frame
     }
 }
 
+TEST_CASE("a neo-Hookean step that does not converge is retried in halves",
+          "[mechanics][hyperelastic]") {
+    // A grasp doubled from 1.25 to 2.5 N in one frame: in one step the iteration stops at its
+    // limit on linear tets; its halves converge.
+    DomeModelOptions options;
+    options.material = MaterialModel::neo_hookean;
+    const DomeModel nh(options);
+    for (const ObjectShape& object : {ObjectShape{}, sphere_object(45.0)}) {
+        const FrameResult first = nh.solve({1.25, {0, 0}, 0.8}, {}, object);
+        REQUIRE(first.contact.converged);
+        const FrameResult second = nh.solve({2.5, {0, 0}, 0.8}, {}, object, &first);
+        CHECK(second.contact.converged);
+        CHECK(second.contact.normal_force_N == Approx(2.5).epsilon(1e-9));
+        CHECK(second.contact.indentation_mm > first.contact.indentation_mm);
+        CHECK(second.contact.tangential_force_N.norm() < 1e-6);
+    }
+}
+
 // Euler's identity makes the Newton rows homogeneous.
 TEST_CASE("friction law: the solver's linearization matches central finite differences",
           "[mechanics][friction]") {
