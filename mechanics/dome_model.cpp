@@ -327,16 +327,14 @@ void DomeModel::Impl::solve_hyperelastic(const ContactLoad& load, const ObjectSh
     if (!step.converged) { // the last iterate, flagged
         u = step.u;
         r.contact = step.contact;
-    }
-    if (u_start.size() && step.converged)
-        r.node_step_mm =
-            Eigen::Map<const Points>(Eigen::VectorXd(u - u_start).data(), mesh.V.rows(), 3);
-    r.contact.iterations = contact_iterations;
-    r.min_jacobian = step.min_jacobian;
-    if (!step.converged) {
         r.contact.converged = false;
         r.contact.status = "hyperelastic_" + step.status;
+    } else if (u_start.size()) {
+        r.node_step_mm =
+            Eigen::Map<const Points>(Eigen::VectorXd(u - u_start).data(), mesh.V.rows(), 3);
     }
+    r.contact.iterations = contact_iterations;
+    r.min_jacobian = step.min_jacobian;
     r.node_displacement_mm = Eigen::Map<const Points>(u.data(), mesh.V.rows(), 3);
 }
 
