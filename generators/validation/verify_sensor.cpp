@@ -1,7 +1,7 @@
 #include "generators/validation/verify_sensor.hpp"
 
-#include "generators/output/csv_rows.hpp"
 #include "generators/io/stopwatch.hpp"
+#include "generators/output/csv_rows.hpp"
 #include "generators/pipeline/generate.hpp"
 #include "generators/pipeline/sensor_bridge.hpp"
 #include "generators/spec/spec_schema.hpp"
@@ -309,6 +309,7 @@ MarkerLaw marker_law(const std::vector<FrameData>& seq, const Tracks& tracks, st
     law.delta_e = delta_e76(tracks[0][m]->mean_srgb, tracks[pressed][m]->mean_srgb);
     law.hue_rest_deg = tracks[0][m]->mean_hue_deg;
     law.hue_pressed_deg = tracks[pressed][m]->mean_hue_deg;
+    law.area_change = p.area.back();
     lateral_points(seq, tracks, m, n, pressed, p);
     for (double s : p.lateral_mm)
         law.lateral_travel_mm = std::max(law.lateral_travel_mm, std::abs(s));
@@ -367,6 +368,7 @@ void object_laws(const std::vector<FrameData>& seq, const Tracks& tracks,
             out.apex_delta_e = l.delta_e;
             out.apex_hue_rest_deg = l.hue_rest_deg;
             out.apex_hue_pressed_deg = l.hue_pressed_deg;
+            out.apex_area_change = l.area_change;
         }
 }
 
@@ -423,25 +425,51 @@ void write_apex_picture(const fs::path& path, const std::vector<fs::path>& pngs,
     write_png8(path, out);
 }
 
-void add_targets(SensorVerifyReport& r) {
+/// The papers' hue law: R^2 bounds and a visible hue change at the apex marker.
+void add_hue_targets(SensorVerifyReport& r, const ObjectLaws& o) {
+    using T = SensorVerifyReport::Target;
+    r.targets.push_back(
+        T{o.object + ": hue vs normal displacement, R2 median", o.hue.r2_median, 0.95, true});
+    r.targets.push_back(
+        T{o.object + ": hue vs normal displacement, R2 10th percentile", o.hue.r2_p10, 0.90, true});
+    r.targets.push_back(T{o.object + ": apex marker's hue change over the press (deg)",
+                          std::abs(hue_difference_deg(o.apex_hue_pressed_deg, o.apex_hue_rest_deg)),
+                          kVisibleHueChangeDeg, true});
+}
+
+/// The size law, as strict as the hue law: the same R^2 bounds, and the apex marker's area
+/// growing by kVisibleSizeChangePx of diameter at the CNN's input size.
+void add_size_targets(SensorVerifyReport& r, const ObjectLaws& o, int size_px) {
+    using T = SensorVerifyReport::Target;
+    const double span_cnn_px = r.marker_span_px * kCnnInputPx / size_px;
+    const double visible = std::pow(1.0 + kVisibleSizeChangePx / span_cnn_px, 2) - 1.0;
+    r.targets.push_back(
+        T{o.object + ": area vs normal displacement, R2 median", o.area.r2_median, 0.95, true});
+    r.targets.push_back(T{o.object + ": area vs normal displacement, R2 10th percentile",
+                          o.area.r2_p10, 0.90, true});
+    r.targets.push_back(T{o.object + ": apex marker's area change over the press",
+                          o.apex_area_change, visible, true});
+}
+
+} // namespace
+
+NormalCue normal_cue(const std::string& interior) {
+    return interior == "hollow" ? NormalCue::size : NormalCue::hue;
+}
+
+void add_sensor_targets(SensorVerifyReport& r, int size_px) {
     using T = SensorVerifyReport::Target;
     for (const ObjectLaws& o : r.objects) {
-        r.targets.push_back(
-            T{o.object + ": hue vs normal displacement, R2 median", o.hue.r2_median, 0.95, true});
-        r.targets.push_back(T{o.object + ": hue vs normal displacement, R2 10th percentile",
-                              o.hue.r2_p10, 0.90, true});
-        r.targets.push_back(
-            T{o.object + ": apex marker's hue change over the press (deg)",
-              std::abs(hue_difference_deg(o.apex_hue_pressed_deg, o.apex_hue_rest_deg)),
-              kVisibleHueChangeDeg, true});
+        if (r.cue == NormalCue::hue)
+            add_hue_targets(r, o);
+        else
+            add_size_targets(r, o, size_px);
         r.targets.push_back(T{o.object + ": centroid vs lateral displacement, R2 median",
                               o.centroid.r2_median, 0.99, true});
         r.targets.push_back(T{o.object + ": blobs not the marker taken for (marker id channel)",
                               double(o.id_mismatches), 0.0, false});
     }
 }
-
-} // namespace
 
 bool SensorVerifyReport::all_met() const {
     return std::all_of(targets.begin(), targets.end(), [](const Target& t) { return t.met(); });
@@ -461,6 +489,7 @@ SensorVerifyReport verify_sensor(const SensorVerifyOptions& o, std::ostream& log
     report.render = spec.render.integrator + ", " + std::to_string(spec.render.samples_per_pixel) +
                     " spp, " + std::to_string(o.size_px) + " px";
     report.marker_span_px = marker_span_px(spec);
+    report.cue = normal_cue(spec.sensor.interior);
 
     const render::Image rest = render_rest(spec, o.cache_dir);
     check_rest_blobs(spec, o, to_srgb8(rest));
@@ -494,7 +523,7 @@ SensorVerifyReport verify_sensor(const SensorVerifyOptions& o, std::ostream& log
             }
         if (tracks[0][0]) apex_px = tracks[0][0]->centroid_px;
     }
-    add_targets(report);
+    add_sensor_targets(report, o.size_px);
     if (!o.picture.empty() && apex_px)
         write_apex_picture(o.picture, pictures, *apex_px, report.marker_span_px);
     report.seconds = seconds_since(t0);

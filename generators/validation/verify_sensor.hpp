@@ -32,6 +32,10 @@ inline constexpr double kMinMarkerSpanPx = 10.0; ///< smallest marker image the 
 /// A hue change a person sees in the marker under the contact's centre: the ICRA 2020 dome's
 /// calibration of that marker spans about 13 deg over 1.4 mm (docs/SENSOR.md).
 inline constexpr double kVisibleHueChangeDeg = 10.0;
+/// A size change a person and the CNN see: the apex marker's apparent diameter grows by at
+/// least this many pixels at the CNN's input size (seed 000 resizes its images to 224 px).
+inline constexpr double kVisibleSizeChangePx = 1.0;
+inline constexpr int kCnnInputPx = 224;
 
 /// One marker's laws over the press (hue, area) and the lateral load (centroid).
 struct MarkerLaw {
@@ -43,6 +47,7 @@ struct MarkerLaw {
     double hue_range_deg = 0;    ///< largest minus smallest hue change over the press
     double delta_e = 0;          ///< CIE76 difference of its mean colour, rest to full press
     double hue_rest_deg = 0, hue_pressed_deg = 0; ///< its mean hue at rest and at full press
+    double area_change = 0; ///< relative change of its pixel count, rest to full press
     double lateral_travel_mm = 0;
     LineFit centroid; ///< centroid shift (px) against lateral displacement (mm)
 };
@@ -64,12 +69,21 @@ struct ObjectLaws {
     std::vector<MarkerLaw> markers;
     LawSummary hue, area, centroid;
     double apex_hue_rest_deg = 0, apex_hue_pressed_deg = 0, apex_delta_e = 0;
+    double apex_area_change = 0;
 };
+
+/// The cue that carries the normal displacement, and so the law a sensor is held to. A
+/// supported clear layer (`rigid_core`, `soft_fill`) is squeezed between the marker arrays, as
+/// in the papers' builds: the hue cue. A hollow shell moves both arrays together and the far
+/// marker grows in the image instead: the size cue (docs/SENSOR.md).
+enum class NormalCue { hue, size };
+NormalCue normal_cue(const std::string& interior);
 
 struct SensorVerifyReport {
     std::string spec;   ///< the spec file, or "default sensor"
     std::string render; ///< integrator, samples, size
     double marker_span_px = 0;
+    NormalCue cue = NormalCue::size; ///< the cue the targets hold the sensor to
     std::vector<ObjectLaws> objects;
     double seconds = 0;
     /// The targets of docs/VALIDATION.md ("Sensor laws"), each with its result.
@@ -82,6 +96,10 @@ struct SensorVerifyReport {
     std::vector<Target> targets;
     bool all_met() const;
 };
+
+/// Fills `report.targets` from its objects' laws and its cue (docs/VALIDATION.md, "Sensor
+/// laws").
+void add_sensor_targets(SensorVerifyReport& report, int size_px);
 
 /// Checks the options (spec, image size, output paths) before any work: a SpecError names what
 /// to fix and nothing is written. Then generates, measures and returns the report; writes the

@@ -38,6 +38,10 @@ void print_law(std::ostream& out, const std::string& object, const char* law, co
         << range_name << "\n";
 }
 
+const char* cue_name(NormalCue cue) {
+    return cue == NormalCue::size ? "size" : "hue";
+}
+
 } // namespace
 
 void print_sensor_verify(const SensorVerifyReport& r, std::ostream& out) {
@@ -59,11 +63,16 @@ void print_sensor_verify(const SensorVerifyReport& r, std::ostream& out) {
     for (const ObjectLaws& o : r.objects)
         out << "  " << o.object << ": apex marker hue " << o.apex_hue_rest_deg << " deg at rest, "
             << o.apex_hue_pressed_deg << " deg at the full press (colour change dE76 "
-            << o.apex_delta_e << "); " << o.frames << " images, " << o.flagged_frames
+            << o.apex_delta_e << ", area " << std::showpos << 100 * o.apex_area_change
+            << std::noshowpos << " %); " << o.frames << " images, " << o.flagged_frames
             << " flagged frames left out, " << o.tracked << " markers tracked to the end; "
             << o.id_checks << " blobs checked against the marker id channel, " << o.id_mismatches
             << " not the marker taken for\n";
-    out << "\n  targets\n" << std::setprecision(3);
+    out << "\n  targets: the " << cue_name(r.cue) << " cue carries the normal displacement ("
+        << (r.cue == NormalCue::size ? "a hollow shell: its marker arrays move together"
+                                     : "a supported clear layer, squeezed between the arrays")
+        << ")\n"
+        << std::setprecision(3);
     for (const auto& t : r.targets)
         out << "  " << (t.met() ? "ok  " : "FAIL") << "  " << t.what << ": " << t.measured
             << (t.at_least ? " >= " : " <= ") << t.bound << "\n";
@@ -74,6 +83,7 @@ void write_sensor_verify_json(const SensorVerifyReport& r, std::ostream& out) {
     nlohmann::json j{{"spec", r.spec},
                      {"render", r.render},
                      {"marker_span_px", r.marker_span_px},
+                     {"cue", cue_name(r.cue)},
                      {"cap_deg", kLawCapDeg},
                      {"min_travel_mm", kLawMinTravelMm},
                      {"seconds", r.seconds},
@@ -90,6 +100,7 @@ void write_sensor_verify_json(const SensorVerifyReport& r, std::ostream& out) {
                                {"hue_rest_deg", m.hue_rest_deg},
                                {"hue_pressed_deg", m.hue_pressed_deg},
                                {"delta_e76", m.delta_e},
+                               {"area_change", m.area_change},
                                {"lateral_travel_mm", m.lateral_travel_mm},
                                {"centroid", fit_json(m.centroid)}});
         j["objects"].push_back({{"object", o.object},
@@ -104,6 +115,7 @@ void write_sensor_verify_json(const SensorVerifyReport& r, std::ostream& out) {
                                 {"apex_hue_rest_deg", o.apex_hue_rest_deg},
                                 {"apex_hue_pressed_deg", o.apex_hue_pressed_deg},
                                 {"apex_delta_e76", o.apex_delta_e},
+                                {"apex_area_change", o.apex_area_change},
                                 {"markers", markers}});
     }
     for (const auto& t : r.targets)

@@ -152,7 +152,36 @@ TEST_CASE("verify sensor refuses an image too small for the metrics and invisibl
                         std::filesystem::directory_iterator{}) == 2); // the two specs only
 }
 
-TEST_CASE("the default sensor's images keep the centroid and size laws, each blob its own "
+TEST_CASE("a hollow dome is held to the size cue, a supported one to the hue cue") {
+    CHECK(normal_cue("hollow") == NormalCue::size);
+    CHECK(normal_cue("rigid_core") == NormalCue::hue);
+    CHECK(normal_cue("soft_fill") == NormalCue::hue);
+    SensorVerifyReport r;
+    r.marker_span_px = 12.0; // 6 px at 224 px: one more pixel across is (7/6)^2 - 1 = 36 % area
+    ObjectLaws o;
+    o.object = "flat";
+    o.area.r2_median = 0.97;
+    o.area.r2_p10 = 0.92;
+    o.apex_area_change = 0.37;
+    o.centroid.r2_median = 0.995;
+    r.objects = {o};
+    add_sensor_targets(r, 448);
+    CHECK(r.targets.size() == 5);
+    CHECK(r.all_met());
+    CHECK(r.targets[2].bound == Approx(13.0 / 36.0));
+    r.objects[0].apex_area_change = 0.35;
+    r.targets.clear();
+    add_sensor_targets(r, 448);
+    CHECK_FALSE(r.all_met());
+    r.cue = NormalCue::hue; // the same laws against the hue targets: R^2 0 fails
+    r.objects[0].apex_area_change = 0.37;
+    r.targets.clear();
+    add_sensor_targets(r, 448);
+    CHECK(r.targets[0].what == "flat: hue vs normal displacement, R2 median");
+    CHECK_FALSE(r.all_met());
+}
+
+TEST_CASE("the default sensor meets its targets: centroid and size laws, each blob its own "
           "marker") {
     SensorVerifyOptions o;
     std::ostringstream log;
@@ -169,5 +198,10 @@ TEST_CASE("the default sensor's images keep the centroid and size laws, each blo
         // A marker pressed towards the camera looks larger (docs/SENSOR.md).
         CHECK(laws.area.r2_median >= 0.95);
         CHECK(laws.area.slope_median > 0);
+    }
+    CHECK(r.cue == NormalCue::size);
+    for (const auto& t : r.targets) {
+        INFO(t.what << ": " << t.measured << " against " << t.bound);
+        CHECK(t.met());
     }
 }
