@@ -538,6 +538,7 @@ Image Renderer::render(const RenderSettings& settings) const {
         image.outer_marker_id.assign(pixels, -1);
     }
     const Impl& m = *m_impl;
+    image.image_per_radiance = m.scale_for(settings);
     const Impl::Counts counts(m, settings);
     std::unique_lock kept_lock(m.kept_mutex, std::defer_lock);
     const std::size_t budget = m.prepare_kept(settings, counts, kept_lock);

@@ -306,6 +306,10 @@ struct Image {
     /// number, the variance of the mean as if the samples were independent (stratification
     /// makes the true one smaller).
     std::vector<float> variance;
+    /// Image value per unit of scene radiance: rgb / image_per_radiance is radiance in the
+    /// LEDs' units (in RGB mode an LED's face has radiance led_rgb / (led_width_mm x
+    /// led_height_mm)); 0: not known.
+    double image_per_radiance = 0.0;
     float* pixel(int x, int y) { return rgb.data() + 3 * (std::size_t(y) * width + x); }
     const float* pixel(int x, int y) const { return rgb.data() + 3 * (std::size_t(y) * width + x); }
 };

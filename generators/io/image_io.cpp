@@ -103,6 +103,8 @@ void write_exr(const std::filesystem::path& final_path, const render::Image& ima
         // OpenImageIO stamps EXRs with the wall clock unless DateTime is set; empty leaves it
         // out, so that the same spec gives the same bytes (manifest.json's checksums).
         spec.attribute("DateTime", "");
+        if (image.image_per_radiance > 0.0)
+            spec.attribute("chromasim:image_per_radiance", float(image.image_per_radiance));
         if (!out->open(path.string(), spec) ||
             !out->write_image(OIIO::TypeDesc::FLOAT, data.data()) || !out->close())
             throw std::runtime_error("cannot write " + path.string() + ": " + out->geterror());
@@ -123,6 +125,7 @@ ImageF read_image_float(const std::filesystem::path& path) {
         throw std::runtime_error("cannot open image " + path.string() + ": " + OIIO::geterror());
     const OIIO::ImageSpec& spec = in->spec();
     ImageF img{spec.width, spec.height, {}, {}};
+    img.image_per_radiance = spec.get_float_attribute("chromasim:image_per_radiance", 0.0f);
     for (const auto& name : spec.channelnames)
         img.channels.push_back(name);
     img.data.resize(std::size_t(img.width) * img.height * img.channels.size());

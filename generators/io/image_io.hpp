@@ -25,6 +25,7 @@ struct ImageF {
     int width = 0, height = 0;
     std::vector<std::string> channels;
     std::vector<float> data;
+    double image_per_radiance = 0.0; ///< the header's chromasim:image_per_radiance (0: none)
     /// Value of the named channel at (x, y); throws std::out_of_range if there is none.
     float at(int x, int y, const std::string& channel) const;
 };

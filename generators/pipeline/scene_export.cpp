@@ -105,8 +105,10 @@ GltfMesh led_rectangles(const render::OpticsParams& o) {
     GltfMesh m = mesh("leds", s, false);
     m.material.name = "led";
     m.material.emissive = normalised_colour(o.led_rgb);
+    // chromasim's LED face radiance: the on-axis intensity led_rgb spread over the face.
     m.material.extras = {{"chromasim_optics", std::string("lambertian emitter, front (+z) only")},
-                         {"relative_radiance", o.led_rgb.maxCoeff()}};
+                         {"relative_radiance",
+                          o.led_rgb.maxCoeff() / (o.led_width_mm * o.led_height_mm)}};
     return m;
 }
 

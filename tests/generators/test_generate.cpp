@@ -1,8 +1,8 @@
 // End to end: the quickstart spec through mechanics, render and writers, read back from disk.
-#include "generators/pipeline/generate.hpp"
 #include "generators/io/image_io.hpp"
-#include "generators/plan/plan.hpp"
+#include "generators/pipeline/generate.hpp"
 #include "generators/pipeline/sensor_bridge.hpp"
+#include "generators/plan/plan.hpp"
 #include "generators/spec/spec.hpp"
 #include "generators/spec/stage_params.hpp"
 
@@ -404,7 +404,8 @@ TEST_CASE("EXR output: linear RGB like the PNG, marker ids and variance channels
     const fs::path spec_file = dir / "exr.yaml";
     {
         std::ofstream f(spec_file);
-        f << "name: exr\nrender:\n  width_px: 64\n  height_px: 64\n  samples_per_pixel: 2\n  integrator: preview\n"
+        f << "name: exr\nrender:\n  width_px: 64\n  height_px: 64\n  samples_per_pixel: 2\n  "
+             "integrator: preview\n"
           << press_only(1)
           << "outputs:\n  exr: true\n  marker_ids: true\n  variance: true\n  markers: false\n";
     }
@@ -417,6 +418,7 @@ TEST_CASE("EXR output: linear RGB like the PNG, marker ids and variance channels
     const ImageF exr = read_image_float(out / kFirstImage / "left_000000.exr");
     const Image8 png = read_image8(out / kFirstImage / "left_000000.png");
     REQUIRE(exr.width == 64);
+    CHECK(exr.image_per_radiance > 0.0); // the exposure, to turn pixels back into radiance
     for (const char* c : {"R", "G", "B", "variance.R", "variance.G", "variance.B",
                           "inner_marker_id", "outer_marker_id"})
         CHECK(std::find(exr.channels.begin(), exr.channels.end(), c) != exr.channels.end());
@@ -450,7 +452,8 @@ TEST_CASE("EXR output: linear RGB like the PNG, marker ids and variance channels
     // The EXR alone: no PNG, and the images folder still made for it.
     {
         std::ofstream f(spec_file);
-        f << "name: exr_only\nrender:\n  width_px: 32\n  height_px: 32\n  samples_per_pixel: 1\n  integrator: preview\n"
+        f << "name: exr_only\nrender:\n  width_px: 32\n  height_px: 32\n  samples_per_pixel: 1\n  "
+             "integrator: preview\n"
           << press_only(1) << "outputs:\n  images: false\n  exr: true\n  markers: false\n";
     }
     options.out_dir = dir / "exr_only";
@@ -469,9 +472,10 @@ TEST_CASE("render.sensor: the PNG is the sensor's recording, the EXR stays the n
     options.cache_dir = dir / "cache"; // the second run reuses the first one's mesh
     auto run = [&](const std::string& name, const std::string& sensor) {
         const fs::path spec_file = dir / (name + ".yaml");
-        std::ofstream(spec_file)
-            << "name: sensor\nrender:\n  width_px: 48\n  height_px: 48\n  samples_per_pixel: 1\n  integrator: preview\n"
-            << sensor << press_only(2) << "outputs:\n  exr: true\n  markers: false\n";
+        std::ofstream(spec_file) << "name: sensor\nrender:\n  width_px: 48\n  height_px: 48\n  "
+                                    "samples_per_pixel: 1\n  integrator: preview\n"
+                                 << sensor << press_only(2)
+                                 << "outputs:\n  exr: true\n  markers: false\n";
         options.out_dir = dir / name;
         std::ostringstream log;
         generate(load_spec(spec_file), options, log);

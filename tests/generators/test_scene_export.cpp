@@ -204,7 +204,8 @@ TEST_CASE("a hand-made sensor frame written as .gltf and .glb reads back in metr
             CHECK(std::abs(side.dot(y_up({-std::sin(phi), std::cos(phi), 0}))) ==
                   Approx(optics.led_width_mm).epsilon(1e-5));
         }
-        CHECK(number(meshes[4].material.extras, "relative_radiance") == Approx(2.0));
+        CHECK(number(meshes[4].material.extras, "relative_radiance") ==
+              Approx(2.0 / (optics.led_width_mm * optics.led_height_mm)));
         // The frame: black, in the rim plane (file y = 0), from the inner radius outwards.
         const auto& frame_plane = meshes[5];
         CHECK(frame_plane.material.base_color.head<3>().isZero());
