@@ -250,8 +250,9 @@ GltfScene make_gltf_scene(const render::SensorFrame& frame, const render::Camera
     GltfScene scene;
     scene.name = info.name;
     scene.extras = info.extras;
-    // The white diffusing coating, seen from both sides (a viewer outside sees its back).
-    GltfMesh coating = mesh("coating", frame.coating, true);
+    // The white diffusing coating, seen from both sides (a viewer outside sees its back); flat
+    // shaded, as the renderer shades it with each triangle's own normal.
+    GltfMesh coating = mesh("coating", frame.coating, false);
     coating.material.base_color = rgba(optics.coating_albedo);
     coating.material.roughness = 1.0;
     coating.material.double_sided = true;
