@@ -70,6 +70,18 @@ def compare(chromasim, cycles, theta):
             "cycles_circle_mean": b["circle"].tolist()}
 
 
+def relative_errors(image, variance, theta):
+    """Standard error of the sum-of-RGB mean over the circle and each ring, relative to that
+    mean, from the per-pixel variance of the mean (chromasim's variance channels; channels and
+    pixels taken as independent)."""
+    inside = np.isfinite(theta)
+
+    def error(mask):
+        return float(np.sqrt(variance[mask].sum()) / image[mask].sum())
+
+    return {"circle": error(inside), "rings": [error(m) for m in ring_masks(theta)]}
+
+
 def change(rest, pressed, theta):
     """Relative change of the circle mean (sum of channels) from rest to pressed."""
     inside = np.isfinite(theta)

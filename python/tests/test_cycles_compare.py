@@ -57,3 +57,14 @@ def test_one_exposure_scale_and_the_ratios_and_changes_it_reports():
     assert abs(r["rings"][2]["sum"] - 1.05) < 1e-9
     assert abs(r["rings"][1]["sum"] - 1.0) < 1e-12
     assert abs(cc.change(rest, 1.02 * rest, theta) - 0.02) < 1e-12
+
+
+def test_relative_errors_follow_the_pixel_variances():
+    theta = cc.polar_angle_deg((SIZE, SIZE), HALF_FOV)
+    image = np.ones((SIZE, SIZE, 3))
+    variance = np.full((SIZE, SIZE, 3), 0.04)  # each channel's mean: standard error 0.2
+    e = cc.relative_errors(image, variance, theta)
+    inside = np.isfinite(theta).sum()
+    assert abs(e["circle"] - 0.2 / np.sqrt(3 * inside)) < 1e-12
+    ring = cc.ring_masks(theta)[3].sum()
+    assert abs(e["rings"][3] - 0.2 / np.sqrt(3 * ring)) < 1e-12
