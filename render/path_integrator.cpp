@@ -405,9 +405,12 @@ LanesN<N> PathIntegrator::trace(const EmbreeScene& scene, const Vec3& origin, co
         if (!s.hits) s.hits.emplace(scene, s.o, s.d, s.tnear, inf);
         const RayHit hit = s.hits->next(s.tnear);
         const double tfar = hit.hit() ? hit.t_mm : inf;
-        if (m_shading.crosses_mount(s.o, s.d, s.tnear, tfar)) break;
-        // An LED before it ends the path, adding its light under MIS when the ray meets its front.
-        if (const auto led = led_hit(s.o, s.d, s.tnear, tfar)) {
+        // The ray ends at the first of an LED, the mount (frame or lens barrel) and that surface:
+        // the mount is looked for only up to the LED (rays through an LED would meet the barrel).
+        const auto led = led_hit(s.o, s.d, s.tnear, tfar);
+        if (m_shading.crosses_mount(s.o, s.d, s.tnear, led ? led->first : tfar)) break;
+        // An LED ends the path, adding its light under MIS where the ray meets its front.
+        if (led) {
             if (!led->second) break; // the black back of an LED
             const auto weight =
                 led_weight(*this, scene, s, led->first, m_next_event, pdf_area, start_nee_per_bsdf);
