@@ -69,10 +69,9 @@ FastIntegrator::Bounce FastIntegrator::classify(const Vec3& o, const Vec3& d, do
     const double eta = m_shading.optics().refractive_index;
     Bounce bounce;
     const double tfar = hit.hit() ? hit.t_mm : inf;
-    // The mount only up to an LED that the ray meets first (as PathIntegrator::trace).
-    const auto led = m_path.led_hit(o, d, tnear, tfar);
-    if (m_shading.crosses_mount(o, d, tnear, led ? led->first : tfar)) return bounce;
-    if (led) {
+    const PathIntegrator::RayEnd end = m_path.ray_end(o, d, tnear, tfar);
+    if (end.blocked) return bounce;
+    if (const auto& led = end.led) {
         if (led->second) bounce.then = Then::led;
         return bounce;
     }

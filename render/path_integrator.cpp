@@ -230,6 +230,16 @@ std::optional<std::pair<double, bool>> PathIntegrator::led_hit(const Vec3& origi
     return std::make_pair(t, direction.z() < 0.0);
 }
 
+PathIntegrator::RayEnd PathIntegrator::ray_end(const Vec3& origin, const Vec3& direction,
+                                               double tnear, double tfar) const {
+    RayEnd end;
+    end.led = led_hit(origin, direction, tnear, tfar);
+    end.blocked =
+        m_shading.crosses_mount(origin, direction, tnear, end.led ? end.led->first : tfar);
+    if (end.blocked) end.led.reset();
+    return end;
+}
+
 std::optional<Vec3> PathIntegrator::led_plane_crossing(const Vec3& origin,
                                                        const Vec3& direction) const {
     if (direction.z() == 0.0) return std::nullopt;
@@ -405,12 +415,10 @@ LanesN<N> PathIntegrator::trace(const EmbreeScene& scene, const Vec3& origin, co
         if (!s.hits) s.hits.emplace(scene, s.o, s.d, s.tnear, inf);
         const RayHit hit = s.hits->next(s.tnear);
         const double tfar = hit.hit() ? hit.t_mm : inf;
-        // The ray ends at the first of an LED, the mount (frame or lens barrel) and that surface:
-        // the mount is looked for only up to the LED (rays through an LED would meet the barrel).
-        const auto led = led_hit(s.o, s.d, s.tnear, tfar);
-        if (m_shading.crosses_mount(s.o, s.d, s.tnear, led ? led->first : tfar)) break;
+        const RayEnd end = ray_end(s.o, s.d, s.tnear, tfar);
+        if (end.blocked) break;
         // An LED ends the path, adding its light under MIS where the ray meets its front.
-        if (led) {
+        if (const auto& led = end.led) {
             if (!led->second) break; // the black back of an LED
             const auto weight =
                 led_weight(*this, scene, s, led->first, m_next_event, pdf_area, start_nee_per_bsdf);

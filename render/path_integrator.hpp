@@ -183,6 +183,15 @@ public:
     /// the ray meets its emitting (+z) face.
     std::optional<std::pair<double, bool>> led_hit(const Vec3& origin_mm, const Vec3& direction,
                                                    double tnear_mm, double tfar_mm) const;
+    /// How origin_mm + t * direction ends for t in (tnear_mm, tfar_mm), before a surface at
+    /// tfar_mm: at an LED (`led`, as led_hit gives it), or at the mount (`blocked`: the frame
+    /// or the lens barrel, looked for only up to the LED, which ends the ray first).
+    struct RayEnd {
+        std::optional<std::pair<double, bool>> led;
+        bool blocked = false;
+    };
+    RayEnd ray_end(const Vec3& origin_mm, const Vec3& direction, double tnear_mm,
+                   double tfar_mm) const;
     /// Where the ray from origin_mm along direction (forwards) crosses the LEDs' plane, if it
     /// does; and whether a point of that plane lies within margin_mm of an LED's rectangle
     /// (the renderer's choice of the pixels that mirror an LED:
