@@ -390,8 +390,8 @@ TEST_CASE("a path that meets an LED's front takes its light even where its line 
     const auto lanes = rgb_lanes(RgbLanes(0.85, 0.6, 0.3, 0.0));
     constexpr double inf = std::numeric_limits<double>::infinity();
     // From the cavity beside the inner surface, down through the frame's opening to the middle
-    // of LED 0 (10 mm out, 13.8 mm down); the line goes on inwards into the barrel. Losing such
-    // paths made BSDF sampling's direct light 4 % darker over the image, 9 % near the rim.
+    // of LED 0 (10 mm out, 13.8 mm down); the line goes on inwards into the barrel. Such paths
+    // carry 4 % of BSDF sampling's direct light over the image, 9 % near the rim.
     const Vec3 from(10.3, 0.0, 0.5);
     for (const bool next_event : {false, true}) {
         const PathIntegrator integrator(shading, next_event);
