@@ -11,4 +11,4 @@ The readers (chromasim.data) need only numpy; torch is imported by train and the
 class only.
 """
 
-__version__ = "0.40.0"  # the CMake project version (python/tests/test_data.py checks it)
+__version__ = "0.40.1"  # the CMake project version (python/tests/test_data.py checks it)
