@@ -1,6 +1,7 @@
 #include "generators/output/dataset_writer.hpp"
 
 #include "generators/io/file_io.hpp"
+#include "generators/output/label_cells.hpp"
 
 #include <cerrno>
 #include <cmath>
@@ -266,38 +267,6 @@ DatasetWriter::~DatasetWriter() {
     if (m_lock_fd >= 0) ::close(m_lock_fd);
 }
 
-/// The labels.csv header: the frame's columns, then each finger's, prefixed by its name.
-std::string labels_header(int fingers) {
-    std::string h = "split,trial,frame,time_s,phase,object,friction,grip_N,load_N,travel_mm";
-    for (int f = 0; f < fingers; ++f)
-        for (const char* column : {"image",
-                                   "exr",
-                                   "mu",
-                                   "normal_force_N",
-                                   "requested_tangential_force_N",
-                                   "tangential_force_N",
-                                   "tangential_force_x_N",
-                                   "tangential_force_y_N",
-                                   "frictional_strength_N",
-                                   "gamma",
-                                   "stick_ratio",
-                                   "sliding",
-                                   "indentation_mm",
-                                   "object_travel_x_mm",
-                                   "object_travel_y_mm",
-                                   "contact_area_mm2",
-                                   "stick_area_mm2",
-                                   "contact_nodes",
-                                   "solver_iterations",
-                                   "solver_residual_mm",
-                                   "solver_residual_N",
-                                   "converged",
-                                   "status",
-                                   "reused"})
-            h += std::string(",") + finger_name(f) + "_" + column;
-    return h;
-}
-
 bool DatasetWriter::completed(int trial) {
     std::string problem;
     std::optional<TrialRecord> record = read_checked(m_staging, trial, &problem);
@@ -334,21 +303,11 @@ fs::path DatasetWriter::image_path(const std::string& split, int trial, const st
 
 void DatasetWriter::write_labels(const FrameLabels& f) {
     if (!m_spec.outputs.labels) return;
-    m_labels << f.split << ',' << f.trial << ',' << f.frame << ',' << f.time_s << ',' << f.phase
-             << ',' << f.object << ',' << f.friction << ',' << f.grip_N << ',' << f.load_N << ','
-             << f.travel_mm;
-    for (const LabelRow& r : f.fingers) {
-        const double ft = std::hypot(r.tangential_x_N, r.tangential_y_N);
-        const double stick_ratio =
-            r.contact_area_mm2 > 0 ? r.stick_area_mm2 / r.contact_area_mm2 : 0.0;
-        m_labels << ',' << r.image << ',' << r.exr << ',' << r.mu << ',' << r.normal_force_N << ','
-                 << r.requested_tangential_N << ',' << ft << ',' << r.tangential_x_N << ','
-                 << r.tangential_y_N << ',' << r.mu * r.normal_force_N << ',' << r.gamma << ','
-                 << stick_ratio << ',' << int(r.sliding) << ',' << r.indentation_mm << ','
-                 << r.object_travel_x_mm << ',' << r.object_travel_y_mm << ',' << r.contact_area_mm2
-                 << ',' << r.stick_area_mm2 << ',' << r.contact_nodes << ',' << r.solver_iterations
-                 << ',' << r.solver_residual_mm << ',' << r.solver_residual_N << ','
-                 << int(r.converged) << ',' << r.status << ',' << int(r.reused);
+    bool first = true;
+    for (const auto& [name, cell] : label_cells(f)) {
+        if (!first) m_labels << ',';
+        first = false;
+        std::visit([&](const auto& value) { m_labels << value; }, cell);
     }
     m_labels << '\n';
 }

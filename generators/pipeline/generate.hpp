@@ -2,6 +2,7 @@
 /// The main job: spec -> plan -> mechanics -> render -> writers.
 #include "generators/output/dataset_writer.hpp"
 #include "generators/pipeline/light_cache_store.hpp"
+#include "generators/pipeline/simulator.hpp"
 #include "generators/plan/plan.hpp"
 #include "generators/spec/spec.hpp"
 #include "generators/spec/stage_params.hpp"
@@ -59,21 +60,6 @@ struct GenerateReport {
     double light_cache_s = 0;           ///< the fast integrator's light cache, part of precompute_s
     bool light_cache_from_file = false; ///< read from GenerateOptions::cache_dir
 };
-
-/// One fingertip's labels of a solved frame: `load` is the finger's load in frame `f` (image
-/// paths left empty).
-LabelRow label_row(const FramePlan& f, const FingerLoad& load, const mechanics::FrameResult& r);
-
-/// `object` as finger `finger` of `trial` sees it: its offset and yaw (mirror, jitter).
-Spec::Object posed_object(const Spec::Object& object, const FingerSetup& finger);
-
-/// Gives `renderer` what settings.render's integrator needs before its first frame: the path
-/// and fast integrators' auto exposure on `rest` (the undeformed sensor) and the fast
-/// integrator's light cache of settings.optics (read from or saved to `cache_dir`). Returns the
-/// light cache's outcome (empty for the preview and path integrators).
-LightCacheOutcome prepare_renderer(render::Renderer& renderer, const StageSettings& settings,
-                                   const render::SensorFrame& rest,
-                                   const std::filesystem::path& cache_dir);
 
 /// Logs the dome mesh's size, the precompute time and the cache state of `model` (one line,
 /// plus a line with the cache note if there is one).

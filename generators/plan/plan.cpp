@@ -81,25 +81,35 @@ void place_in_grid(const Spec& spec, std::size_t trial, Uniforms& u) {
     }
 }
 
-/// One fingertip's setup: the right one sees the object turned 180 deg about its z axis.
-FingerSetup finger_setup(const Spec& spec, const Spec::Object& object, double mu, int finger,
-                         Stream& stream) {
-    const double u_mu = stream.uniform(), u_x = stream.uniform(), u_y = stream.uniform();
-    const double j = spec.fingers.offset_jitter_mm;
+} // namespace
+
+FingerSetup grasp_finger(const Spec& spec, const Spec::Object& object, double mu, int finger) {
     const double mirror = finger == 0 ? 1.0 : -1.0;
     FingerSetup s;
     s.name = finger == 0 ? "left" : "right";
-    s.mu = mu * (1.0 + spec.fingers.mu_jitter * (2.0 * u_mu - 1.0));
+    s.mu = mu;
     s.direction_deg = spec.protocol.load_direction_deg + (finger == 0 ? 0.0 : 180.0);
-    s.offset_mm = mirror * Eigen::Vector2d(object.offset_x_mm, object.offset_y_mm) +
-                  j * Eigen::Vector2d(2.0 * u_x - 1.0, 2.0 * u_y - 1.0);
+    s.offset_mm = mirror * Eigen::Vector2d(object.offset_x_mm, object.offset_y_mm);
     s.yaw_deg = object.yaw_deg + (finger == 0 ? 0.0 : (object.yaw_deg > 0 ? -180.0 : 180.0));
     return s;
 }
 
-Eigen::Vector2d direction(const FingerSetup& f) {
+Eigen::Vector2d load_direction(const FingerSetup& f) {
     const double a = f.direction_deg * std::numbers::pi / 180.0;
     return {std::cos(a), std::sin(a)};
+}
+
+namespace {
+
+/// One fingertip's setup with the spec's per-finger jitter of mu and of the object's offset.
+FingerSetup finger_setup(const Spec& spec, const Spec::Object& object, double mu, int finger,
+                         Stream& stream) {
+    const double u_mu = stream.uniform(), u_x = stream.uniform(), u_y = stream.uniform();
+    const double j = spec.fingers.offset_jitter_mm;
+    FingerSetup s = grasp_finger(spec, object, mu, finger);
+    s.mu = mu * (1.0 + spec.fingers.mu_jitter * (2.0 * u_mu - 1.0));
+    s.offset_mm += j * Eigen::Vector2d(2.0 * u_x - 1.0, 2.0 * u_y - 1.0);
+    return s;
 }
 
 /// A frame at grip force `grip_N` on every finger and no load.
@@ -137,7 +147,7 @@ void load_ramp(const Spec& spec, TrialPlan& trial, double t0) {
         bool slips = false;
         for (std::size_t i = 0; i < trial.fingers.size(); ++i) {
             const double q = load * share;
-            f.fingers[i].tangential_force_N = q * direction(trial.fingers[i]);
+            f.fingers[i].tangential_force_N = q * load_direction(trial.fingers[i]);
             slips = slips || mechanics::gross_slip(trial.fingers[i].mu, trial.grip_N, q);
         }
         if (slips) {
@@ -161,7 +171,7 @@ void slide(const Spec& spec, TrialPlan& trial, double t0) {
         f.travel_mm = travel;
         for (std::size_t i = 0; i < trial.fingers.size(); ++i) {
             f.fingers[i].displacement_control = true;
-            f.fingers[i].travel_mm = travel * direction(trial.fingers[i]);
+            f.fingers[i].travel_mm = travel * load_direction(trial.fingers[i]);
         }
         trial.frames.push_back(std::move(f));
     }

@@ -57,6 +57,13 @@ struct FingerSetup {
     double yaw_deg = 0.0;            ///< object yaw in this finger's frame (mirror)
 };
 
+/// Finger `finger` (0 left, 1 right) of a grasp of `object` at friction `mu`, without the
+/// spec's jitter: the right finger sees the object mirrored and turned 180 deg about its z
+/// axis, and its load points the opposite way (protocol.load_direction_deg + 180 deg).
+FingerSetup grasp_finger(const Spec& spec, const Spec::Object& object, double mu, int finger);
+/// The unit vector of `finger`'s load direction in its x-y plane.
+Eigen::Vector2d load_direction(const FingerSetup& finger);
+
 struct TrialPlan {
     int id = 0;        ///< trial index in the plan, from 0
     std::string split; ///< splits[].name

@@ -17,6 +17,19 @@ from torchvision.io import ImageReadMode, read_image
 from .data import Dataset, DatasetError, open_dataset
 
 
+def stack_fingers(images: list[torch.Tensor], size: int) -> torch.Tensor:
+    """The fingertips' uint8 images (3 x H x W each) resized to `size` x `size` and stacked
+    vertically in the given order: uint8, 3 x (fingers * size) x size."""
+    parts = []
+    for img in images:
+        if img.shape[1] != size or img.shape[2] != size:
+            img = F.interpolate(img[None].float(), size=(size, size),
+                                mode="bilinear", antialias=True, align_corners=False)[0]
+            img = img.round().clamp(0, 255).to(torch.uint8)
+        parts.append(img)
+    return torch.cat(parts, dim=1)
+
+
 class GammaImages(torch.utils.data.Dataset):
     def __init__(self, dataset: Dataset | str, splits: list[str] | None = None,
                  size: int = 224, target: str = "grasp", keep_flagged: bool = False,
@@ -61,15 +74,9 @@ class GammaImages(torch.utils.data.Dataset):
 
     def _load(self, i: int) -> torch.Tensor:
         row = self.rows[i]
-        parts = []
-        for f in self.data.fingers:
-            img = read_image(self.data.path(self.data.labels[f"{f}_image"][row]), ImageReadMode.RGB)
-            if img.shape[1] != self.size or img.shape[2] != self.size:
-                img = F.interpolate(img[None].float(), size=(self.size, self.size),
-                                    mode="bilinear", antialias=True, align_corners=False)[0]
-                img = img.round().clamp(0, 255).to(torch.uint8)
-            parts.append(img)
-        return torch.cat(parts, dim=1)  # uint8, 3 x (fingers * size) x size
+        return stack_fingers([
+            read_image(self.data.path(self.data.labels[f"{f}_image"][row]), ImageReadMode.RGB)
+            for f in self.data.fingers], self.size)
 
     def __getitem__(self, i: int):
         img = self._cache.get(i)
