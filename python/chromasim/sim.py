@@ -26,6 +26,8 @@ import numbers
 import os
 from collections.abc import Iterator, Mapping, Sequence
 
+import numpy
+
 try:
     from . import _core
 except ImportError as e:  # pragma: no cover - the message is the test
@@ -91,7 +93,7 @@ class Sensor:
                             doc="seconds the mesh, factorization and responses took (or their read)")
     resolved_yaml = property(lambda self: self._core.resolved_yaml)
 
-    def marker_rest_positions(self, layer: str) -> "numpy.ndarray":
+    def marker_rest_positions(self, layer: str) -> numpy.ndarray:
         """Rest positions (mm) of a layer's marker centres, inner or outer: markers x 3."""
         return self._core.marker_rest_positions(layer)
 
