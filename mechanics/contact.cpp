@@ -568,12 +568,16 @@ ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::Vector
                                    const ContactOptions& options, const RowForces* extra_mm,
                                    bool slides) {
     const double mu = std::max(0.0, load.mu);
-    // A contact that slid under force control keeps sliding while the pull does not drop.
+    // A contact that slid under force control keeps sliding while the pull's share of the
+    // friction limit, Q / (mu P), does not drop (a firmer grip or a lighter pull re-sticks it).
     const double Q = load.tangential_force_N.norm();
+    const auto share = [mu](const ContactLoad& l) {
+        return l.tangential_force_N.norm() / std::max(mu * l.normal_force_N, 1e-300);
+    };
     const bool slid = (slides && load.tangential == TangentialControl::force && Q > 0) ||
                       (previous && previous->sliding && Q > 0 &&
                        previous->load.tangential == TangentialControl::force &&
-                       Q >= previous->load.tangential_force_N.norm() * (1 - kGrossSlipTolerance));
+                       share(load) >= share(previous->load) * (1 - kGrossSlipTolerance));
     const StepKind kind = step_kind(load, mu, previous, slid);
     ContactSolution sol = solve_step(C, gap_mm, load, previous, options, extra_mm, kind);
     // Under force control a contact pulled near mu P with no sticking node left slides: its

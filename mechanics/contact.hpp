@@ -22,7 +22,7 @@
 ///   Mindlin's solution assumes);
 /// - under force control the contact slides once |Q| >= mu P (gross_slip), or once no node
 ///   sticks under a pull of at least 0.9 mu P (the stick zone is below the mesh's resolution),
-///   and keeps sliding while the pull does not drop. A sliding step is solved at its onset:
+///   and keeps sliding while Q / (mu P) does not drop. A sliding step is solved at its onset:
 ///   every contact node carries mu times its normal force along the pull but the previous
 ///   step's node furthest inside its cone, whose stick condition fixes the object's travel
 ///   (Mindlin's finite travel as Q -> mu P); the transmitted force is mu P and Gamma = 0. A

@@ -14,6 +14,7 @@ Entry points (run with `python3 -m`):
   chromasim.eigenstrain seed 001's SVD of strain fields and SVM classifiers
   chromasim.figures     the seeds' figures from a dataset and benchmark outputs
   chromasim.bench_api   frames per second through the API against `chromasim generate`
+  chromasim.grasp       seed 000's closed-loop grasp (chromasim.grasp_report: its Fig. 5)
 
 The simulator (Sensor, Contact, SimulatedFrames) needs the compiled module chromasim._core,
 which the CMake build writes to <build>/python/chromasim/: this package looks for it there
@@ -23,7 +24,7 @@ need only numpy; torch is imported by train and the Dataset classes only.
 
 import os as _os
 
-__version__ = "0.41.0"  # the CMake project version (python/tests/test_data.py checks it)
+__version__ = "0.42.0"  # the CMake project version (python/tests/test_data.py checks it)
 
 
 def _build_dirs() -> list[str]:

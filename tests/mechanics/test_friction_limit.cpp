@@ -198,3 +198,27 @@ TEST_CASE("the neo-Hookean dome pulled past mu P converges and slides once its s
         CHECK(onset.norm() < 3.0);
     }
 }
+
+// A grasp's controller raises the grip once its object slides: under the same pull the
+// contact then sticks again (the slide is kept only while Q / (mu P) does not drop).
+TEST_CASE("a sliding contact sticks again when the grip rises under the same pull",
+          "[mechanics][friction]") {
+    const DomeModel& model = coarse_model();
+    const double mu = 0.8, Q = 0.9;
+    for (const NamedObject& object : {objects()[0], objects()[1]}) {
+        INFO(object.name);
+        FrameResult f = model.solve({1.0, {0.5, 0}, mu}, {}, object.shape);
+        f = model.solve({1.0, {Q, 0}, mu}, {}, object.shape, &f);
+        REQUIRE(f.contact.converged);
+        REQUIRE(f.contact.sliding);
+        const FrameResult same = model.solve({1.0, {Q, 0}, mu}, {}, object.shape, &f);
+        CHECK(same.contact.sliding);
+        const FrameResult looser = model.solve({0.9, {Q, 0}, mu}, {}, object.shape, &f);
+        CHECK(looser.contact.sliding);
+        const ContactLoad firmer{2.0, {Q, 0}, mu};
+        const FrameResult held = model.solve(firmer, {}, object.shape, &f);
+        check_physical(held, firmer, 13.2);
+        CHECK_FALSE(held.contact.sliding);
+        CHECK(held.contact.tangential_force_N.norm() == Approx(Q).epsilon(1e-6));
+    }
+}
