@@ -1,10 +1,11 @@
 """Seed 000's closed-loop grasp in simulation (its Fig. 5): a P-controller on an estimated
 Gamma holds fruit through a weight drop, and a cup while it is filled with rice.
 
-    python3 -m chromasim.grasp --out runs/grasp                       # the oracle
-    python3 -m chromasim.grasp --out runs/grasp_cnn --estimator checkpoint:runs/cnn/checkpoint_best.pt
-    python3 -m chromasim.grasp --out runs/grasp_fn --estimator mypackage.mymodule:estimate
-    python3 -m chromasim.grasp_report runs/grasp                      # Fig. 5 A, B, C
+    python3 -m chromasim.grasp --out out/grasp                       # the oracle
+    python3 -m chromasim.grasp --out out/grasp_cnn --estimator checkpoint:out/cnn/checkpoint_best.pt
+    python3 -m chromasim.grasp --out out/grasp_trk --estimator tracker      # chromasim.tracker
+    python3 -m chromasim.grasp --out out/grasp_fn --estimator mypackage.mymodule:estimate
+    python3 -m chromasim.grasp_report out/grasp                       # Fig. 5 A, B, C
 
 Writes into --out: traces/<scene>_<fruit>_<target>_<trial>.csv (grip, load, true and estimated
 Gamma per camera frame), events.csv (every slide), trials.csv (one row per trial), summary.csv
@@ -32,10 +33,16 @@ DEFAULT_CONFIG = os.path.normpath(os.path.join(os.path.dirname(__file__), "..", 
                                               "datasets_spec", "grasp", "seed000.yaml"))
 
 
-def make_estimator(text: str, noise: float, rng):
-    """oracle | checkpoint:PATH | module:function (a callable f(left, right) -> Gamma)."""
+def make_estimator(text: str, noise: float, rng, sensor=None, mu_prior: float = 0.8):
+    """oracle | tracker[:OBJECT] | checkpoint:PATH | module:function (a callable
+    f(left, right) -> Gamma)."""
     if text == "oracle":
         return grasp_estimators.Oracle(noise, rng)
+    if text == "tracker" or text.startswith("tracker:"):
+        obj = text.split(":", 1)[1] if ":" in text else sensor.objects[-1]
+        if obj not in sensor.objects:
+            raise ValueError(f"--estimator {text}: allowed objects: {', '.join(sensor.objects)}")
+        return grasp_estimators.Tracked(sensor, obj, mu_prior)
     if text.startswith("checkpoint:"):
         return grasp_estimators.Checkpoint(text.split(":", 1)[1])
     if ":" in text:
@@ -47,7 +54,8 @@ def make_estimator(text: str, noise: float, rng):
         if not callable(target):
             raise ValueError(f"--estimator {text}: {fn} is not callable")
         return grasp_estimators.Callable(target, name=text)
-    raise ValueError(f"--estimator {text}: allowed: oracle, checkpoint:PATH, module:function")
+    raise ValueError(f"--estimator {text}: allowed: oracle, tracker[:OBJECT], checkpoint:PATH, "
+                     f"module:function")
 
 
 def plan(cfg, scenes: list[str], fruits: list[str] | None, targets: list[float] | None):
@@ -74,8 +82,11 @@ def _args(argv):
     p.add_argument("--config", default=DEFAULT_CONFIG, help="the grasp configuration")
     p.add_argument("--out", required=True, help="a new folder for the run's files")
     p.add_argument("--estimator", default="oracle",
-                   help="oracle | checkpoint:PATH | module:function (default: oracle)")
+                   help="oracle | tracker[:OBJECT] | checkpoint:PATH | module:function "
+                        "(default: oracle)")
     p.add_argument("--noise", type=float, help="the oracle's noise (default: the config's)")
+    p.add_argument("--mu-prior", type=float, default=0.8,
+                   help="the friction the tracker's Gamma assumes (default 0.8)")
     p.add_argument("--scenes", default="weight_drop,rice_cup",
                    help="weight_drop, rice_cup or both, comma-separated")
     p.add_argument("--fruits", help="only these fruits, comma-separated")
@@ -124,7 +135,7 @@ def main(argv=None) -> int:
                              f"folder or delete it")
         sensor = Sensor(cfg.sensor_spec, cache_dir=a.cache_dir)
         scenes, fruits, targets = _check_args(a, cfg, sensor.objects)
-        estimator = make_estimator(a.estimator, cfg.noise, None)
+        estimator = make_estimator(a.estimator, cfg.noise, None, sensor, a.mu_prior)
     except (ValueError, SpecError) as e:
         print(f"chromasim.grasp: error: {e}", file=sys.stderr)
         return 2

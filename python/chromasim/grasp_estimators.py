@@ -118,6 +118,32 @@ class Checkpoint:
             return float(self.model(x.to(self.device))[0].clamp(0.0, 1.0))
 
 
+class Tracked:
+    """chromasim.tracker's marker tracking and chromasim.tracker_gamma's force-based Gamma on
+    the two images: calibrated once on `calibration_object` of the sensor's spec, tracked
+    from the rest image at every trial's start, Gamma at `mu_prior`."""
+
+    needs_images = True
+
+    def __init__(self, sensor, calibration_object, mu_prior: float = 0.8):
+        from .tracker import Layout, Tracker
+        from .tracker_gamma import FieldGamma, calibrate
+        self.layout = Layout.from_sensor(sensor)
+        cal = calibrate(sensor, calibration_object)
+        rest = sensor.contact(calibration_object, fingers=1).step(grip_N=1e-4).image("left")
+        self.trackers = [Tracker(self.layout, rest, size_gain=cal.size_gain) for _ in range(2)]
+        self.gamma = FieldGamma(cal, mu_prior)
+        self.name = f"tracker (calibrated on {calibration_object}, mu prior {mu_prior:g})"
+
+    def reset(self) -> None:
+        for t in self.trackers:
+            t.reset()
+
+    def __call__(self, obs: Observation) -> float:
+        fields = [t.track(im) for t, im in zip(self.trackers, obs.images())]
+        return self.gamma.grasp(fields, self.layout)
+
+
 def checked_estimate(estimator, obs: Observation) -> float:
     """The estimator's Gamma for `obs`, or EstimatorError naming it and the time."""
     try:

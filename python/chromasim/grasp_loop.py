@@ -115,6 +115,8 @@ def run_trial(contact, scene: Scene, estimator, cfg) -> TrialResult:
     """Runs `scene` closed-loop with `estimator` on `contact` (a chromasim Contact, reset here).
     An estimator failure ends the trial with `error` set and the rows so far kept."""
     contact.reset()
+    if hasattr(estimator, "reset"):
+        estimator.reset()
     res = TrialResult(scene)
     ctl = _Controller(cfg.controller, scene.target)
     obj = _Object()

@@ -1,6 +1,6 @@
 """Seed 000's Fig. 5 from a closed-loop grasp run (python3 -m chromasim.grasp):
 
-    python3 -m chromasim.grasp_report runs/grasp [--out runs/grasp/fig5.png]
+    python3 -m chromasim.grasp_report out/grasp [--out out/grasp/fig5.png]
 
 A: the grip per fruit and target, held before the weight drop and after it (grey);
 B: the probability of a slip per target, one line per fruit;
