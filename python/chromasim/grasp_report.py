@@ -41,12 +41,15 @@ def _panel_a(ax, trials: list[dict]) -> None:
                                 showfliers=False, manage_ticks=False)
                 bp["boxes"][0].set(facecolor=colours[j % 4] if shade == 1.0 else "0.75",
                                    edgecolor="k")
-        ax.bar([], [], color=colours[j % 4], label=f"target {target:.0%}")
-    ax.bar([], [], color="0.75", label="after the drop")
+    from matplotlib.patches import Patch
+    handles = [Patch(facecolor=colours[j % 4], edgecolor="k", label=f"target {t:.0%}, held")
+               for j, t in enumerate(targets)]
+    handles.append(Patch(facecolor="0.75", edgecolor="k", label="after the drop"))
     ax.set_xticks(range(len(fruits)), fruits)
+    ax.set_xlim(-0.5, len(fruits) - 0.5)
     ax.set_ylabel("grip force (N)")
     ax.set_title("A  grip per fruit and target")
-    ax.legend(fontsize=7)
+    ax.legend(handles=handles, fontsize=7)
 
 
 def _panel_b(ax, summary: list[dict]) -> None:
@@ -58,7 +61,7 @@ def _panel_b(ax, summary: list[dict]) -> None:
     ax.set_xlabel("target safety margin (%)")
     ax.set_ylabel("probability of slip")
     ax.set_ylim(-0.05, 1.05)
-    ax.set_title("B  slips after the weight drop")
+    ax.set_title("B  trials with a slip (weight drop)")
     ax.legend(fontsize=7)
 
 
