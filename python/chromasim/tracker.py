@@ -198,13 +198,13 @@ def calibrate_size(fields: list[LayerField], inward_mm: list[np.ndarray],
 
 def _errors(field: LayerField, truth: np.ndarray, rest_mm: np.ndarray) -> dict:
     """RMS and max errors (mm) of the tangential and normal displacements, markers found."""
-    n = rest_mm / np.linalg.norm(rest_mm, axis=1)[:, None]
+    ok = field.found
+    n = rest_mm[ok] / np.linalg.norm(rest_mm[ok], axis=1)[:, None]
 
     def split(u):
         un = (u * n).sum(axis=1)
         return u - un[:, None] * n, un
 
-    ok = field.found
     (ut_e, un_e), (ut_t, un_t) = split(field.u_mm[ok]), split(truth[ok])
     et, en = np.linalg.norm(ut_e - ut_t, axis=1), un_e - un_t
     return {"found": int(ok.sum()), "tangential_rms": float(np.sqrt((et ** 2).mean())),
