@@ -125,9 +125,7 @@ HyperelasticContact::HyperelasticContact(const TetMesh& mesh,
                                          const std::vector<Material>& materials,
                                          Volumetric volumetric, const ElasticBody& body)
     : m_body(body), m_energy(make_energy(mesh, materials, volumetric)),
-      m_K0(std::visit(
-          [&](const auto& e) { return e.hessian(Eigen::VectorXd::Zero(3 * mesh.V.rows()), false); },
-          m_energy)) {}
+      m_dofs(3 * mesh.V.rows()) {}
 
 Eigen::VectorXd HyperelasticContact::gradient(const Eigen::VectorXd& u) const {
     return std::visit([&](const auto& e) { return e.gradient(u); }, m_energy);
@@ -144,7 +142,7 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
                                            const ContactOptions& contact_options,
                                            const Eigen::VectorXd* u_guess) const {
     const std::vector<int>& candidates = m_body.candidates();
-    const Eigen::Index n = Eigen::Index(candidates.size()), dofs = m_K0.rows();
+    const Eigen::Index n = Eigen::Index(candidates.size()), dofs = m_dofs;
     HyperelasticStep out;
     out.u = u_previous ? *u_previous : Eigen::VectorXd::Zero(dofs);
     if (u_guess && min_jacobian(*u_guess) >= options.min_jacobian) out.u = *u_guess;
@@ -159,9 +157,9 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
     const Eigen::MatrixXd& field = m_body.candidate_field_responses();
     for (int it = 1; it <= options.max_iterations; ++it) {
         out.iterations = it;
-        // Nonlinear remainder of the internal force, moved to the right-hand side.
-        const Eigen::VectorXd r = gradient(out.u) - m_K0 * out.u;
-        const Eigen::VectorXd u_r = -m_body.solve(r);
+        // The nonlinear remainder r = f_int - K0 u moved to the right-hand side: -K0^-1 r =
+        // u - K0^-1 f_int (no product with K0).
+        const Eigen::VectorXd u_r = out.u - m_body.solve(gradient(out.u));
         gather_candidates(u_r, candidates, extra);
         ContactSolution contact = solve_contact_step(m_body.compliance(), gap_mm, load, previous,
                                                      contact_options, &extra, slides);

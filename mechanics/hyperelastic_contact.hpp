@@ -6,7 +6,7 @@
 /// the linear model already holds. The neo-Hookean internal force is split as
 /// f_int(u) = K0 u + r(u), with K0 the small-strain stiffness (the neo-Hookean Hessian at
 /// rest) and r the nonlinear remainder. Each iteration moves r to the right-hand side:
-///   u_r = -K0^-1 r(u_k)                       (one back-substitution)
+///   u_r = -K0^-1 r(u_k) = u_k - K0^-1 f_int(u_k)   (one back-substitution)
 ///   contact forces F on the candidates from the compliance C of K0, with u_r as an extra
 ///     displacement of the candidates (solve_contact_step: history, friction, force control)
 ///   u* = u_r + K0^-1 B' F                     (the candidates' field responses, one product)
@@ -71,7 +71,7 @@ private:
 
     const ElasticBody& m_body;
     std::variant<NeoHookean, NeoHookeanQuadratic> m_energy;
-    Eigen::SparseMatrix<double> m_K0; ///< neo-Hookean Hessian at rest (= the linear K)
+    Eigen::Index m_dofs; ///< 3 #V
 };
 
 } // namespace chromasim::mechanics
