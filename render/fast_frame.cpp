@@ -114,10 +114,9 @@ void FastIntegrator::set_frame(const SensorFrame& frame, const EmbreeScene& scen
                            .cast<float>();
             }
             // A relative change, or light where there was none at rest (a vertex the press
-            // turned towards an LED). Both norms in double: where the frame's solves lost the
-            // point LED's light (now = 0) a threshold of 1 keeps the rest's value, exactly.
-            if (refresh && (now - rest.cast<double>()).norm() >
-                               m_settings.refresh_threshold * rest.cast<double>().norm())
+            // turned towards an LED).
+            if (refresh &&
+                (now - rest.cast<double>()).norm() > m_settings.refresh_threshold * rest.norm())
                 flux = area_flux(scene, p, n, k, radius, m_settings, std::uint64_t(v) * c.leds + k)
                            .cast<float>();
             for (int a = 0; a < 3; ++a)
