@@ -20,8 +20,6 @@
 #include "mechanics/neo_hookean.hpp"
 #include "mechanics/neo_hookean_quadratic.hpp"
 
-#include <Eigen/SparseCore>
-
 #include <variant>
 
 namespace chromasim::mechanics {
