@@ -491,8 +491,10 @@ void record_residuals(const StepProblem& p, const NewtonIterate& x, double P,
     const RowForces uz = p.options.coupled ? sol.displacement_mm
                                            : candidate_displacements(p.C, x.sets.A, x.lin, true);
     double res_mm = 0, res_N = std::abs(sol.normal_force_N - P);
+    sol.gap_mm.resize(n);
     for (int i = 0; i < n; ++i) {
         const double g = p.gap(i) - sol.indentation_mm - uz(i, 2);
+        sol.gap_mm(i) = g;
         const NodeContact s = sol.state[std::size_t(i)];
         res_mm = std::max(res_mm, s == NodeContact::free ? std::max(0.0, -g) : std::abs(g));
         const double tn = sol.forces_N.row(i).head<2>().norm(), lim = p.mu * x.lin.lambda(i);

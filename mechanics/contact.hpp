@@ -103,6 +103,8 @@ struct ContactSolution {
     RowVectors2 anchor_mm;          ///< per candidate in contact: u_t - w where it sticks
     std::vector<int> active;        ///< candidate indices in contact
     std::vector<int> slipping;      ///< those of `active` that slip (all of them when sliding)
+    /// Per candidate: its gap to the object as the step solved it (mm; 0 where closed).
+    Eigen::VectorXd gap_mm;
     double indentation_mm = 0.0;    ///< rigid approach d of the object
     Eigen::Vector2d object_displacement_mm{0.0, 0.0}; ///< object's tangential travel w
     Eigen::Vector2d tangential_force_N{0.0, 0.0};     ///< transmitted (= Q when sticking)

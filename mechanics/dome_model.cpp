@@ -1,5 +1,6 @@
 #include "mechanics/dome_model.hpp"
 
+#include "mechanics/contact_area.hpp"
 #include "mechanics/model_cache.hpp"
 #include "mechanics/quadratic_tets.hpp"
 #include "mechanics/stopwatch.hpp"
@@ -48,6 +49,7 @@ struct DomeModel::Impl {
     std::vector<double> candidate_area_mm2;
     std::vector<bool> candidate_edge;   ///< in the outermost band of the candidate cap
     Triangles candidate_F;              ///< outer triangles among the candidates (local ids)
+    std::unique_ptr<ContactAreaMeter> area_meter; ///< measures a frame's contact on candidate_F
     mutable std::once_flag strain_once; ///< the strain sampler is built on first request
     mutable std::unique_ptr<SurfaceStrainSampler> strain;
     mutable std::once_flag hyper_once; ///< neo-Hookean energy and marker embedding, on demand
@@ -190,6 +192,7 @@ void DomeModel::Impl::find_candidates() {
     for (std::size_t i = 0; i < candidates.size(); ++i)
         candidate_X.row(Eigen::Index(i)) = mesh.V.row(candidates[i]);
     stats.candidates = int(candidates.size());
+    area_meter = std::make_unique<ContactAreaMeter>(candidate_F, int(candidates.size()));
 }
 
 std::vector<bool> DomeModel::Impl::clamped_nodes() const {
@@ -339,13 +342,13 @@ void DomeModel::Impl::solve_hyperelastic(const ContactLoad& load, const ObjectSh
 }
 
 void DomeModel::Impl::contact_areas(FrameResult& r) const {
-    for (int j : r.contact.active) {
-        r.contact_area_mm2 += candidate_area_mm2[j];
-        r.at_candidate_edge = r.at_candidate_edge || candidate_edge[j];
-    }
     for (int j : r.contact.active)
-        if (r.contact.state[std::size_t(j)] == NodeContact::stick)
-            r.stick_area_mm2 += candidate_area_mm2[std::size_t(j)];
+        r.at_candidate_edge = r.at_candidate_edge || candidate_edge[std::size_t(j)];
+    if (r.contact.active.empty()) return;
+    const ContactAreas areas =
+        area_meter->measure(Points(candidate_X + r.contact.displacement_mm), r.contact);
+    r.contact_area_mm2 = areas.contact_mm2;
+    r.stick_area_mm2 = areas.stick_mm2;
 }
 
 void DomeModel::Impl::surface_stresses(FrameResult& r) const {

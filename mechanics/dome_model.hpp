@@ -79,8 +79,8 @@ struct PrecomputeStats {
 /// What a frame produces. Fields are filled only when asked for (FrameRequest).
 struct FrameResult {
     ContactSolution contact;
-    double contact_area_mm2 = 0.0;        ///< tributary area of the nodes in contact
-    double stick_area_mm2 = 0.0;          ///< tributary area of the contact nodes that stick
+    double contact_area_mm2 = 0.0;        ///< deformed area in contact (contact_area.hpp)
+    double stick_area_mm2 = 0.0;          ///< its part that sticks (contact_area.hpp)
     bool at_candidate_edge = false;       ///< contact reached the rim of the candidate cap
     Points coating_displacement_mm;       ///< per coating_surface() vertex (empty unless requested)
     Points inner_surface_displacement_mm; ///< per inner_surface() vertex (empty unless requested)
