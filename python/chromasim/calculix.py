@@ -4,7 +4,8 @@ gmsh mesh (Debian `gmsh`) of the same layered dome, pressed by a rigid flat or s
 - Geometry: the four conformal layers between spheres of radius 10.5, 11.0, 12.2, 12.7 and
   13.2 mm (z >= 0), meshed by gmsh's OpenCASCADE kernel into curved quadratic tets (C3D10),
   `h` mm near the apex growing to 2 h at the rim. The rim plane z = 0 is clamped.
-- A frictionless press is axisymmetric, so a 30 deg sector is solved (sideways motion fixed
+- A press is axisymmetric, frictionless or with Coulomb friction (`mu` > 0: *FRICTION with a
+  stick slope), so a 30 deg sector is solved (sideways motion fixed
   on its phi = 0 face, zero normal motion on its other face by *EQUATION, the axis fixed
   sideways) and the force scaled by 360 / 30. A quarter model agrees within 0.1 %.
 - Materials: small strain (*ELASTIC) or NLGEOM with *HYPERELASTIC, NEO HOOKE, C10 = mu / 2,
@@ -13,6 +14,8 @@ gmsh mesh (Debian `gmsh`) of the same layered dome, pressed by a rigid flat or s
   node is driven down by a displacement ramp (so it is rigid), surface-to-surface penalty
   contact (50 MPa/mm). The force is read off the converged increments: a force-controlled
   step leaves the indenter singular whenever contact opens.
+- Contact area: the part of the deformed outer surface that the indenter overlaps (penalty
+  contact: a closed gap is a small overclosure), sampled on each curved 6-node face.
 """
 
 import dataclasses
@@ -38,13 +41,15 @@ class Case:
     max_indentation_mm: float = 3.4
     wedge_deg: float = 30.0
     penalty_MPa_per_mm: float = 50.0
+    mu: float = 0.0                # Coulomb friction (0: frictionless)
+    stick_slope_MPa_per_mm: float = 500.0
     slab_half_mm: float = 15.0
     slab_cells: int = 30           # per side of the slab
     max_step: float = 0.05         # of the ramp, per increment
     threads: int = 2
 
     def name(self):
-        return f"{self.object}_{self.model}_h{self.h_mm:g}"
+        return f"{self.object}_{self.model}_h{self.h_mm:g}" + (f"_mu{self.mu:g}" if self.mu else "")
 
 
 GEO = """SetFactory("OpenCASCADE");
@@ -109,16 +114,21 @@ def read_msh22(path):
     return ids, np.array([nodes[i] for i in ids]), np.array(tets, dtype=np.int64)
 
 
+def indenter_bottom(case, x, y):
+    """Height of the indenter's bottom face at rest (touching the apex) over (x, y)."""
+    if case.object == "flat":
+        return R_OUT + 0.0 * x
+    R = case.sphere_radius_mm
+    return R_OUT + R - np.sqrt(R * R - x * x - y * y)
+
+
 def slab(case, first_node, first_element):
     """The indenter: a slab of C3D8 over the sector, its bottom face the object's surface
     touching the apex. Returns {node: xyz}, {element: 8 nodes} (face S1 is the bottom)."""
     xs = np.linspace(0.0, case.slab_half_mm, case.slab_cells + 1)
-    R = case.sphere_radius_mm
 
     def bottom(x, y):
-        if case.object == "flat":
-            return R_OUT
-        return R_OUT + R - math.sqrt(R * R - x * x - y * y)
+        return indenter_bottom(case, x, y)
 
     nodes, index = {}, {}
     nid = first_node
@@ -138,6 +148,7 @@ def slab(case, first_node, first_element):
 
 
 FACES = {1: (0, 1, 2), 2: (0, 3, 1), 3: (1, 3, 2), 4: (2, 3, 0)}  # C3D10 faces, corner nodes
+FACE_EDGES = {1: (4, 5, 6), 2: (7, 8, 4), 3: (8, 9, 5), 4: (9, 7, 6)}  # their edge nodes ab bc ca
 
 
 def outer_faces(X, rows):
@@ -198,7 +209,8 @@ def write_deck(case, wd, ids, X, tets):
     d.append("*SURFACE, NAME=SIND, TYPE=ELEMENT\n" + "".join(f"{e}, S1\n" for e in ind_elems))
     d.append("*CONTACT PAIR, INTERACTION=SI1, TYPE=SURFACE TO SURFACE\nSDOME, SIND\n"
              "*SURFACE INTERACTION, NAME=SI1\n*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR\n"
-             f"{case.penalty_MPa_per_mm:g}\n")
+             f"{case.penalty_MPa_per_mm:g}\n"
+             + (f"*FRICTION\n{case.mu:g}, {case.stick_slope_MPa_per_mm:g}\n" if case.mu else ""))
     d.append("*BOUNDARY\nRIM, 1, 3\nIND, 1, 2\nAXIS, 1, 2\nPHI0, 2, 2\n*EQUATION\n")
     d += [f"2\n{n}, 2, {math.cos(th):.12g}, {n}, 1, {-math.sin(th):.12g}\n" for n in ids[phi1]]
     nlgeom = ", NLGEOM" if case.model == "neohooke" else ""
@@ -321,18 +333,54 @@ def solve(case, workdir, forces, points=None):
     d = case.max_indentation_mm * np.array(times)
     if F.max() < max(forces):
         raise RuntimeError(f"{case.name()}: {F.max():.3f} N at {d[-1]} mm, below {max(forces)} N")
+    by_time = dict(read_displacements(wd / "job.frd"))
+    faces = np.array([rows[e, list(FACES[f]) + list(FACE_EDGES[f])] for e, f in outer_faces(X, rows)])
+    area = contact_areas(case, X, faces, [np.array([by_time[t].get(int(n), (0.0, 0.0, 0.0))
+                                                    for n in ids]) for t in times[1:]], d[1:])
     result = {"forces_N": list(forces), "indentation_mm": [float(np.interp(f, F, d)) for f in forces],
+              "contact_area_mm2": [float(np.interp(f, F, np.concatenate([[0.0], area])))
+                                   for f in forces],
               "u_mm": {}, "nodes": len(ids), "tets": len(tets), "seconds": seconds,
               "increments": len(times) - 1, "curve": (d, F)}
     if points is not None:
-        result["u_mm"] = _displacements(case, wd, ids, X, rows, points, times, F, forces)
+        result["u_mm"] = _displacements(case, ids, X, rows, points, times, F, forces, by_time)
     return result
 
 
-def _displacements(case, wd, ids, X, rows, points, times, F, forces):
+def face_rule(grid=16):
+    """Centroids of a grid x grid split of the reference triangle, each of area 1 / (2 grid^2):
+    the 6-node shape functions there and their derivatives in s and t."""
+    st = [((i + a) / grid, (k + a) / grid) for i in range(grid) for k in range(grid - i)
+          for a in ((1 / 3,) if i + k + 1 == grid else (1 / 3, 2 / 3))]
+    s, t = np.array(st).T
+    l1 = 1 - s - t
+    N = np.stack([l1 * (2 * l1 - 1), s * (2 * s - 1), t * (2 * t - 1), 4 * l1 * s, 4 * s * t,
+                  4 * t * l1], -1)
+    z = 0 * s
+    Ns = np.stack([1 - 4 * l1, 4 * s - 1, z, 4 * (l1 - s), 4 * t, -4 * t], -1)
+    Nt = np.stack([1 - 4 * l1, z, 4 * t - 1, -4 * s, 4 * s, 4 * (l1 - t)], -1)
+    return N, Ns, Nt, 0.5 / grid ** 2
+
+
+def contact_areas(case, X, faces, displacements, indentations):
+    """Deformed area of the 6-node `faces` (rows into X: corners, then edge nodes ab, bc, ca)
+    that the indenter overlaps, per (displacement, indentation) pair; mm^2 over the whole dome
+    (the sector's area times 360 / wedge_deg)."""
+    N, Ns, Nt, w = face_rule()
+    out = []
+    for U, d in zip(displacements, indentations):
+        P = (X + U)[faces]                                   # faces x 6 x 3
+        p = np.einsum("qa,fax->fqx", N, P)
+        dA = w * np.linalg.norm(np.cross(np.einsum("qa,fax->fqx", Ns, P),
+                                         np.einsum("qa,fax->fqx", Nt, P)), axis=-1)
+        inside = p[..., 2] > indenter_bottom(case, p[..., 0], p[..., 1]) - d
+        out.append(360.0 / case.wedge_deg * float(dA[inside].sum()))
+    return np.array(out)
+
+
+def _displacements(case, ids, X, rows, points, times, F, forces, by_time):
     inside, turn = into_sector(np.asarray(points, dtype=float), case.wedge_deg)
     where = locate(X, rows, inside)
-    by_time = dict(read_displacements(wd / "job.frd"))
     history = [np.zeros((len(points), 3))]
     for t in times[1:]:
         U = np.array([by_time[t].get(int(n), (0.0, 0.0, 0.0)) for n in ids])

@@ -1,9 +1,10 @@
-"""chromasim's own frictionless presses, run through `chromasim generate`, for cross-checks
-against an independent solver (scripts/crosscheck-calculix).
+"""chromasim's own presses (frictionless unless `mu` is given), run through `chromasim
+generate`, for cross-checks against an independent solver (scripts/crosscheck-calculix).
 
-A press is a grasp_load trial with mu = 0: the grip ramps to its value in `ramp_frames`
-frames (each frame one step from the previous, as in a dataset), and the last grasp frame is
-read: the indentation and the displacement of every marker centre (markers.csv).
+A press is a grasp_load trial with friction `mu` (0 by default): the grip ramps to its value
+in `ramp_frames` frames (each frame one step from the previous, as in a dataset), and the last
+grasp frame is read: the indentation, the contact area and the displacement of every marker
+centre (markers.csv).
 """
 
 import pathlib
@@ -24,7 +25,7 @@ sensor:
 objects:
   - {{name: obj, shape: {shape}{radius}}}
 friction:
-  - {{name: none, mu: 0}}
+  - {{name: press, mu: {mu}}}
 fingers: {{count: 1}}
 protocol:
   type: grasp_load
@@ -41,7 +42,7 @@ outputs: {{images: false, labels: true, markers: true}}
 """
 
 
-def press_spec(shape, level, model, forces, ramp_frames=4, radius_mm=45.0, order=1):
+def press_spec(shape, level, model, forces, ramp_frames=4, radius_mm=45.0, order=1, mu=0.0):
     """The spec text of presses of `shape` ("flat" or "sphere") at each force (N), on tets
     of `order` (1 linear, 2 quadratic)."""
     return SPEC.format(
@@ -52,16 +53,17 @@ def press_spec(shape, level, model, forces, ramp_frames=4, radius_mm=45.0, order
         radius=f", radius_mm: {radius_mm}" if shape == "sphere" else "",
         grips=", ".join(f"{f:g}" for f in forces),
         ramp_frames=ramp_frames,
+        mu=f"{mu:g}",
     )
 
 
-def run_presses(exe, workdir, shape, level, model, forces, ramp_frames=4, order=1):
-    """Runs the presses; returns {force: {"indentation_mm", "converged", "status", "x0_mm"
-    (164 x 3), "u_mm" (164 x 3)}} and the mechanics seconds per solved frame."""
+def run_presses(exe, workdir, shape, level, model, forces, ramp_frames=4, order=1, mu=0.0):
+    """Runs the presses; returns {force: {"indentation_mm", "contact_area_mm2", "converged",
+    "status", "x0_mm" (164 x 3), "u_mm" (164 x 3)}} and the mechanics seconds per solved frame."""
     workdir = pathlib.Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
-    spec = workdir / f"press_{shape}_{level}_p{order}_{model}.yaml"
-    spec.write_text(press_spec(shape, level, model, forces, ramp_frames, order=order))
+    spec = workdir / f"press_{shape}_{level}_p{order}_{model}_mu{mu:g}.yaml"
+    spec.write_text(press_spec(shape, level, model, forces, ramp_frames, order=order, mu=mu))
     out = workdir / spec.stem
     start = time.monotonic()
     run = subprocess.run(
@@ -87,6 +89,7 @@ def _read_presses(out, forces, ramp_frames):
         u = np.column_stack([markers[k][rows] for k in ("ux_mm", "uy_mm", "uz_mm")])
         result[float(labels["grip_N"][last])] = {
             "indentation_mm": float(labels["left_indentation_mm"][last]),
+            "contact_area_mm2": float(labels["left_contact_area_mm2"][last]),
             "converged": bool(labels["left_converged"][last] == 1),
             "status": str(labels["left_status"][last]),
             "x0_mm": x0,
