@@ -18,7 +18,7 @@ struct Polygon {
     std::vector<double> phi, psi;
 };
 
-/// The part of `in` where the field (phi or psi, as `field` picks) is <= 0 (Sutherland-Hodgman
+/// The part of `in` where the field (phi if `on_phi`, else psi) is <= 0 (Sutherland-Hodgman
 /// against one linear field).
 Polygon clip(const Polygon& in, bool on_phi) {
     Polygon out;
