@@ -5,9 +5,9 @@ gmsh mesh (Debian `gmsh`) of the same layered dome, pressed by a rigid flat or s
   13.2 mm (z >= 0), meshed by gmsh's OpenCASCADE kernel into curved quadratic tets (C3D10),
   `h` mm near the apex growing to 2 h at the rim. The rim plane z = 0 is clamped.
 - A press is axisymmetric, frictionless or with Coulomb friction (`mu` > 0: *FRICTION with a
-  stick slope), so a 30 deg sector is solved (sideways motion fixed
-  on its phi = 0 face, zero normal motion on its other face by *EQUATION, the axis fixed
-  sideways) and the force scaled by 360 / 30. A quarter model agrees within 0.1 %.
+  stick slope), so a 30 deg sector is solved (sideways motion fixed on its phi = 0 face, zero
+  normal motion on its other face by *EQUATION, the axis fixed sideways) and the force scaled
+  by 360 / 30. A quarter model agrees within 0.1 % (frictionless).
 - Materials: small strain (*ELASTIC) or NLGEOM with *HYPERELASTIC, NEO HOOKE, C10 = mu / 2,
   D1 = 2 / kappa, from each layer's E and nu as chromasim's neo-Hookean model takes them.
 - The indenter is a slab of C3D8 whose bottom face is the plane or the sphere; every slab
@@ -49,7 +49,8 @@ class Case:
     threads: int = 2
 
     def name(self):
-        return f"{self.object}_{self.model}_h{self.h_mm:g}" + (f"_mu{self.mu:g}" if self.mu else "")
+        friction = f"_mu{self.mu:g}" if self.mu else ""
+        return f"{self.object}_{self.model}_h{self.h_mm:g}{friction}"
 
 
 GEO = """SetFactory("OpenCASCADE");
@@ -127,9 +128,6 @@ def slab(case, first_node, first_element):
     touching the apex. Returns {node: xyz}, {element: 8 nodes} (face S1 is the bottom)."""
     xs = np.linspace(0.0, case.slab_half_mm, case.slab_cells + 1)
 
-    def bottom(x, y):
-        return indenter_bottom(case, x, y)
-
     nodes, index = {}, {}
     nid = first_node
     for i, x in enumerate(xs):
@@ -137,7 +135,7 @@ def slab(case, first_node, first_element):
             for k in (0, 1):
                 nid += 1
                 index[(i, j, k)] = nid
-                nodes[nid] = (x, y, bottom(x, y) + k)
+                nodes[nid] = (x, y, indenter_bottom(case, x, y) + k)
     elements, eid = {}, first_element
     for i in range(len(xs) - 1):
         for j in range(len(xs) - 1):
