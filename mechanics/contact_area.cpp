@@ -130,11 +130,11 @@ ContactAreas ContactAreaMeter::measure(const Points& x, const ContactSolution& c
         sticks[i] = contact.state[i] == NodeContact::stick;
     }
     // A free node ringed by nodes in contact is inside the patch; it sticks if they all do.
+    const auto touching = [&](int k) { return contact.state[std::size_t(k)] != NodeContact::free; };
+    const auto sticking = [&](int k) { return contact.state[std::size_t(k)] == NodeContact::stick; };
     for (std::size_t i = 0; i < n; ++i) {
         const std::vector<int>& ring = m_neighbours[i];
         if (closed[i] || ring.empty()) continue;
-        const auto touching = [&](int k) { return contact.state[std::size_t(k)] != NodeContact::free; };
-        const auto sticking = [&](int k) { return contact.state[std::size_t(k)] == NodeContact::stick; };
         closed[i] = std::all_of(ring.begin(), ring.end(), touching);
         sticks[i] = closed[i] && std::all_of(ring.begin(), ring.end(), sticking);
     }
