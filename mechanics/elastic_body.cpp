@@ -2,10 +2,12 @@
 
 #include "mechanics/quadratic_tets.hpp"
 #include "mechanics/stopwatch.hpp"
+#include "mechanics/supernodal_solve.hpp"
 
 #include <Eigen/CholmodSupport>
 
 #include <dlfcn.h>
+#include <tbb/parallel_for.h>
 
 #include <array>
 #include <chrono>
@@ -64,6 +66,7 @@ public:
         cholmod_finish(&common);
         return out;
     }
+    const cholmod_factor& factor() const { return *m_cholmodFactor; }
 };
 
 } // namespace
@@ -78,11 +81,12 @@ struct ElasticBody::Impl {
     bool factorized = false;
     std::vector<int> free_of_dof; ///< free-dof index per mesh dof, -1 where clamped
     ConcurrentLLT solver;
+    SupernodalSolve single; ///< the factor in single precision (ElasticBody::precondition)
     /// Guards the factorization on demand and the solves that use the solver's own workspace
     /// (blocks of right-hand sides); solve_concurrently needs no lock.
     mutable std::mutex solver_mutex;
     ElasticBodyResponses responses;
-    Eigen::MatrixXd field_responses; ///< 3 #V x 3n, on demand (candidate_field_responses)
+    Eigen::MatrixXf field_responses; ///< 3 #V x 3n, on demand (candidate_field_responses)
     ElasticBodyStats stats;
 
     Impl(const TetMesh& m, const std::vector<Material>& mat, const std::vector<bool>& fixed,
@@ -119,6 +123,7 @@ void ElasticBody::Impl::factorize() {
     if (solver.info() != Eigen::Success)
         throw std::runtime_error("stiffness factorization failed: the body is not held "
                                  "(no clamped node) or a material is invalid");
+    single = SupernodalSolve(solver.factor());
     stats.factorize_s = seconds_since(t0);
     factorized = true;
 }
@@ -237,24 +242,37 @@ Eigen::VectorXd ElasticBody::solve(const Eigen::VectorXd& f_full) const {
     return u;
 }
 
-const Eigen::MatrixXd& ElasticBody::candidate_field_responses() const {
+Eigen::VectorXd ElasticBody::precondition(const Eigen::VectorXd& f_full) const {
+    Impl& m = *m_impl;
+    m.ensure_factorized();
+    Eigen::VectorXd f(m.stats.free_dofs);
+    for (std::size_t d = 0; d < m.free_of_dof.size(); ++d)
+        if (m.free_of_dof[d] >= 0) f(m.free_of_dof[d]) = f_full(Eigen::Index(d));
+    const Eigen::VectorXd u_free = m.single.solve(f);
+    Eigen::VectorXd u = Eigen::VectorXd::Zero(f_full.size());
+    for (std::size_t d = 0; d < m.free_of_dof.size(); ++d)
+        if (m.free_of_dof[d] >= 0) u(Eigen::Index(d)) = u_free(m.free_of_dof[d]);
+    return u;
+}
+
+const Eigen::MatrixXf& ElasticBody::candidate_field_responses() const {
     Impl& m = *m_impl;
     const std::lock_guard<std::mutex> lock(m.solver_mutex);
     if (m.field_responses.size() > 0) return m.field_responses;
     if (!m.factorized) m.factorize();
     const int nc = 3 * int(m.candidates.size());
-    Eigen::MatrixXd out = Eigen::MatrixXd::Zero(Eigen::Index(m.free_of_dof.size()), nc);
-    constexpr int kBlock = 256;
-    for (int c0 = 0; c0 < nc; c0 += kBlock) {
-        const int c1 = std::min(nc, c0 + kBlock);
-        Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(m.stats.free_dofs, c1 - c0);
+    Eigen::MatrixXf out = Eigen::MatrixXf::Zero(Eigen::Index(m.free_of_dof.size()), nc);
+    constexpr int kBlock = 64;
+    tbb::parallel_for(0, (nc + kBlock - 1) / kBlock, [&](int block) {
+        const int c0 = block * kBlock, c1 = std::min(nc, c0 + kBlock);
+        Eigen::MatrixXf u = Eigen::MatrixXf::Zero(m.stats.free_dofs, c1 - c0);
         for (int c = c0; c < c1; ++c)
-            rhs(m.free_of_dof[3 * m.candidates[c / 3] + c % 3], c - c0) = 1;
-        const Eigen::MatrixXd u = m.solver.solve(rhs);
+            u(m.free_of_dof[3 * m.candidates[c / 3] + c % 3], c - c0) = 1;
+        m.single.solve_in_place(u);
         for (std::size_t d = 0; d < m.free_of_dof.size(); ++d)
             if (m.free_of_dof[d] >= 0)
                 out.row(Eigen::Index(d)).segment(c0, c1 - c0) = u.row(m.free_of_dof[d]);
-    }
+    });
     m.field_responses = std::move(out);
     return m.field_responses;
 }

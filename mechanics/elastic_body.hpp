@@ -72,11 +72,16 @@ public:
     /// back-substitution (after a factorization, the first time, for a body built from cached
     /// responses). Thread safe: calls on several threads run at once.
     Eigen::VectorXd solve(const Eigen::VectorXd& f_full) const;
+    /// solve() with the factor in single precision (SupernodalSolve): about twice as fast and
+    /// good to about cond(K) times float's round-off, for iterations whose fixed point does
+    /// not depend on it. Thread safe.
+    Eigen::VectorXd precondition(const Eigen::VectorXd& f_full) const;
     /// Every dof's displacement (3 #V rows, mm; clamped dofs 0) per unit force on each
-    /// candidate dof (3n columns, N): what a full solve under candidate forces needs, as one
-    /// dense product. Computed on the first call (3n back-substitutions, BLAS-3 in blocks) and
-    /// kept: 8 x 3 #V x 3n bytes (43 MB on the coarse dome, 226 MB on medium). Thread safe.
-    const Eigen::MatrixXd& candidate_field_responses() const;
+    /// candidate dof (3n columns, N), from the single-precision factor (precondition): what a
+    /// full solve under a change of the candidate forces needs, as one dense product. Computed
+    /// on the first call (3n solves, in blocks on all cores) and kept: 4 x 3 #V x 3n bytes
+    /// (147 MB on the very_coarse quadratic dome). Thread safe.
+    const Eigen::MatrixXf& candidate_field_responses() const;
     const ElasticBodyStats& stats() const;
 
 private:

@@ -82,14 +82,32 @@ void gather_candidates(const Eigen::VectorXd& u, const std::vector<int>& candida
         out.row(j) = u.segment<3>(3 * candidates[std::size_t(j)]).transpose();
 }
 
-/// `u` plus K^-1 of the contact forces, from the candidates' field responses: one dense product
-/// in place of a second back-substitution per iteration.
-Eigen::VectorXd with_contact_forces(Eigen::VectorXd u, const Eigen::MatrixXd& field,
-                                    const ContactSolution& contact) {
+/// The contact forces of `contact` on its active candidates (n x 3, zero elsewhere).
+RowForces active_forces(const ContactSolution& contact, Eigen::Index n) {
+    RowForces F = RowForces::Zero(n, 3);
     for (int j : contact.active)
-        u.noalias() +=
-            field.middleCols<3>(3 * Eigen::Index(j)) * contact.forces_N.row(j).transpose();
-    return u;
+        F.row(j) = contact.forces_N.row(j);
+    return F;
+}
+
+/// `u` plus K^-1 of the force change `dF` on the candidates (n x 3), from the candidates'
+/// field responses: one dense product in place of a second back-substitution per iteration.
+Eigen::VectorXd with_force_change(Eigen::VectorXd u, const Eigen::MatrixXf& field,
+                                  const RowForces& dF) {
+    Eigen::VectorXf du = Eigen::VectorXf::Zero(u.size());
+    for (Eigen::Index j = 0; j < dF.rows(); ++j)
+        if (dF.row(j).squaredNorm() > 0)
+            du.noalias() += field.middleCols<3>(3 * j) * dF.row(j).transpose().cast<float>();
+    return u + du.cast<double>();
+}
+
+/// The candidates' compliance times the forces `F` (n x 3), as n x 3 rows.
+RowForces compliance_times(const Eigen::MatrixXd& C, const RowForces& F) {
+    Eigen::VectorXd out = Eigen::VectorXd::Zero(C.rows());
+    for (Eigen::Index j = 0; j < F.rows(); ++j)
+        if (F.row(j).squaredNorm() > 0)
+            out.noalias() += C.middleCols<3>(3 * j) * F.row(j).transpose();
+    return Eigen::Map<const RowForces>(out.data(), F.rows(), 3);
 }
 
 /// Keeps det F > 0 (and away from 0): blends `accelerated` back towards the plain update `u`,
@@ -154,13 +172,21 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
     // rather than cycle between the two maps, and the history restarts on the sliding map.
     bool slides = false;
     int sliding_iterates = 0;
-    const Eigen::MatrixXd& field = m_body.candidate_field_responses();
+    const Eigen::MatrixXf& field = m_body.candidate_field_responses();
+    // The contact forces the right-hand side holds (the last iterate's; the previous step's to
+    // start): only their change goes through the field responses, so that the fixed point is
+    // exact whatever the single-precision factor's round-off.
+    RowForces lagged = previous ? active_forces(*previous, n) : RowForces::Zero(n, 3);
     for (int it = 1; it <= options.max_iterations; ++it) {
         out.iterations = it;
-        // The nonlinear remainder r = f_int - K0 u moved to the right-hand side: -K0^-1 r =
-        // u - K0^-1 f_int (no product with K0).
-        const Eigen::VectorXd u_r = out.u - m_body.solve(gradient(out.u));
+        // The nonlinear remainder r = f_int - K0 u moved to the right-hand side with the lagged
+        // contact forces: u_r = u - K0^-1 (f_int - B' F_lag) (no product with K0).
+        Eigen::VectorXd f = gradient(out.u);
+        for (Eigen::Index j = 0; j < n; ++j)
+            f.segment<3>(3 * candidates[std::size_t(j)]) -= lagged.row(j).transpose();
+        const Eigen::VectorXd u_r = out.u - m_body.precondition(f);
         gather_candidates(u_r, candidates, extra);
+        extra -= compliance_times(m_body.compliance(), lagged);
         ContactSolution contact = solve_contact_step(m_body.compliance(), gap_mm, load, previous,
                                                      contact_options, &extra, slides);
         if (!slides && contact.sliding && ++sliding_iterates == 2) {
@@ -174,7 +200,9 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
             return out;
         }
         // The fixed-point map's image and its increment.
-        const Eigen::VectorXd u_star = with_contact_forces(u_r, field, contact);
+        RowForces forces = active_forces(contact, n);
+        const Eigen::VectorXd u_star = with_force_change(u_r, field, forces - lagged);
+        lagged = std::move(forces);
         const Eigen::VectorXd delta = u_star - out.u;
         out.contact = std::move(contact);
         out.increment_mm = delta.cwiseAbs().maxCoeff();
