@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <cstdio>
+#include <cstdlib>
+#include <optional>
 #include <utility>
 #include <vector>
 
@@ -110,23 +113,51 @@ RowForces compliance_times(const Eigen::MatrixXd& C, const RowForces& F) {
     return Eigen::Map<const RowForces>(out.data(), F.rows(), 3);
 }
 
-/// Keeps det F > 0 (and away from 0): blends `accelerated` back towards the plain update `u`,
-/// then shortens it, until every J (`min_jacobian(u)`) stays at or above `bound`. Returns false
-/// (`u` kept) when the step falls to 1e-6; drops the mixing's history once the step is below 0.3.
-template <class MinJacobian>
-bool relax_step(const MinJacobian& min_jacobian, const Eigen::VectorXd& accelerated, double bound,
-                AndersonMixing& mixing, Eigen::VectorXd& u) {
-    double step = 1.0;
-    Eigen::VectorXd trial = accelerated;
-    while (min_jacobian(trial) < bound && step > 1e-6) {
-        step *= 0.5;
-        trial = u + step * (accelerated - u);
-        if (step < 0.3) mixing.drop_history(); // the history led astray: restart it
+/// Keeps det F > 0 (and away from 0) with no pass of its own over the elements: an update is
+/// taken whole, and the next gradient's pass (which finds every J) shortens it when some J fell
+/// below the bound: blended back towards where it started, halving, until every J is at or above
+/// it (the mixing's history dropped once the step is below 0.3; given up below 1e-6). A start
+/// from a guess falls back to the previous step's displacement instead.
+class LazyRelaxation {
+public:
+    void guess(Eigen::VectorXd fallback) {
+        m_fallback = std::move(fallback);
+        m_guess = true;
     }
-    if (step <= 1e-6) return false;
-    u = std::move(trial);
-    return true;
-}
+    void update(Eigen::VectorXd from, Eigen::VectorXd to) {
+        m_from = std::move(from);
+        m_to = std::move(to);
+        m_step = 1.0;
+    }
+    /// The gradient at `u` (shortened as above; `gradient(u, min_j)` gives both), or none when
+    /// the step fell below 1e-6. A start with J below the bound is kept (the step's first).
+    template <class Gradient>
+    std::optional<Eigen::VectorXd> gradient(const Gradient& gradient, double bound,
+                                            AndersonMixing& mixing, Eigen::VectorXd& u) {
+        double min_j = 0;
+        Eigen::VectorXd g = gradient(u, min_j);
+        while (min_j < bound && (m_guess || m_step > 0)) {
+            if (m_guess) {
+                u = std::move(m_fallback);
+                m_guess = false;
+            } else {
+                m_step *= 0.5;
+                if (m_step <= 1e-6) return std::nullopt;
+                if (m_step < 0.3) mixing.drop_history(); // the history led astray: restart it
+                u = m_from + m_step * (m_to - m_from);
+            }
+            g = gradient(u, min_j);
+        }
+        m_guess = false;
+        m_step = 0;
+        return g;
+    }
+
+private:
+    Eigen::VectorXd m_fallback, m_from, m_to;
+    bool m_guess = false;
+    double m_step = 0; ///< of the update in progress; 0: none
+};
 
 std::variant<NeoHookean, NeoHookeanQuadratic>
 make_energy(const TetMesh& mesh, const std::vector<Material>& materials, Volumetric volumetric) {
@@ -149,6 +180,13 @@ Eigen::VectorXd HyperelasticContact::gradient(const Eigen::VectorXd& u) const {
     return std::visit([&](const auto& e) { return e.gradient(u); }, m_energy);
 }
 
+Eigen::VectorXd HyperelasticContact::gradient(const Eigen::VectorXd& u, double& min_j) const {
+    if (const auto* quadratic = std::get_if<NeoHookeanQuadratic>(&m_energy))
+        return quadratic->gradient(u, min_j);
+    min_j = min_jacobian(u);
+    return min_j > 0 ? gradient(u) : Eigen::VectorXd();
+}
+
 double HyperelasticContact::min_jacobian(const Eigen::VectorXd& u) const {
     return std::visit([&](const auto& e) { return e.min_jacobian(u); }, m_energy);
 }
@@ -163,7 +201,11 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
     const Eigen::Index n = Eigen::Index(candidates.size()), dofs = m_dofs;
     HyperelasticStep out;
     out.u = u_previous ? *u_previous : Eigen::VectorXd::Zero(dofs);
-    if (u_guess && min_jacobian(*u_guess) >= options.min_jacobian) out.u = *u_guess;
+    LazyRelaxation relaxation;
+    if (u_guess) {
+        relaxation.guess(std::move(out.u));
+        out.u = *u_guess;
+    }
     out.status = "max_iterations";
     AndersonMixing mixing;
     RowForces extra(n, 3);
@@ -181,7 +223,14 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
         out.iterations = it;
         // The nonlinear remainder r = f_int - K0 u moved to the right-hand side with the lagged
         // contact forces: u_r = u - K0^-1 (f_int - B' F_lag) (no product with K0).
-        Eigen::VectorXd f = gradient(out.u);
+        std::optional<Eigen::VectorXd> gradient_here = relaxation.gradient(
+            [this](const Eigen::VectorXd& u, double& min_j) { return gradient(u, min_j); },
+            options.min_jacobian, mixing, out.u);
+        if (!gradient_here) {
+            out.status = "inverted";
+            return out;
+        }
+        Eigen::VectorXd f = gradient_here->size() ? std::move(*gradient_here) : gradient(out.u);
         for (Eigen::Index j = 0; j < n; ++j)
             f.segment<3>(3 * candidates[std::size_t(j)]) -= lagged.row(j).transpose();
         const Eigen::VectorXd u_r = out.u - m_body.precondition(f);
@@ -206,6 +255,7 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
         const Eigen::VectorXd delta = u_star - out.u;
         out.contact = std::move(contact);
         out.increment_mm = delta.cwiseAbs().maxCoeff();
+        if (std::getenv("CHROMASIM_TRACE")) fprintf(stderr, "TRACE it %d inc %.3e active %zu slides %d\n", it, out.increment_mm, out.contact.active.size(), int(slides));
         if (out.increment_mm <= options.tolerance_mm) {
             out.u = u_star;
             out.min_jacobian = min_jacobian(out.u);
@@ -213,14 +263,11 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
             out.status = out.converged ? "ok" : "inverted";
             return out;
         }
-        // Accelerate, then keep every J above the bound.
+        // Accelerate; the next gradient keeps every J above the bound.
         mixing.note_increment(out.increment_mm);
-        const Eigen::VectorXd accelerated = mixing.next(delta, u_star);
-        if (!relax_step([this](const Eigen::VectorXd& x) { return min_jacobian(x); }, accelerated,
-                        options.min_jacobian, mixing, out.u)) {
-            out.status = "inverted";
-            return out;
-        }
+        Eigen::VectorXd accelerated = mixing.next(delta, u_star);
+        relaxation.update(std::move(out.u), accelerated);
+        out.u = std::move(accelerated);
     }
     out.min_jacobian = min_jacobian(out.u);
     return out;

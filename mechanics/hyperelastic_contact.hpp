@@ -65,6 +65,8 @@ public:
 
 private:
     Eigen::VectorXd gradient(const Eigen::VectorXd& u) const;
+    /// The gradient and min_jacobian(u) (one pass on quadratic tets); empty where it is <= 0.
+    Eigen::VectorXd gradient(const Eigen::VectorXd& u, double& min_j) const;
     double min_jacobian(const Eigen::VectorXd& u) const;
 
     const ElasticBody& m_body;

@@ -7,6 +7,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <stdexcept>
 
@@ -100,13 +101,28 @@ double NeoHookeanQuadratic::energy(const Eigen::VectorXd& u) const {
 }
 
 Eigen::VectorXd NeoHookeanQuadratic::gradient(const Eigen::VectorXd& u) const {
+    double lowest = 0;
+    Eigen::VectorXd g = gradient(u, lowest);
+    require_positive(lowest - 1);
+    return g;
+}
+
+Eigen::VectorXd NeoHookeanQuadratic::gradient(const Eigen::VectorXd& u,
+                                              double& min_jacobian) const {
     std::vector<Vector30d> per_tet(std::size_t(m_T.rows()));
+    std::vector<double> lowest(std::size_t(m_T.rows()));
     parallel_for_each(m_T.rows(), [&](Eigen::Index t) {
         Vector30d g = Vector30d::Zero();
         const std::size_t i = std::size_t(t);
+        double j_min = std::numeric_limits<double>::infinity();
         for (int q = 0; q < 4; ++q) {
             const Kinematics k = from_displacement_gradient(displacement_gradient(u, int(t), q));
-            require_positive(k.jm1);
+            const double J = 1 + k.jm1;
+            if (!(J > 0)) { // inverted (or NaN): no gradient
+                j_min = std::isnan(J) ? -std::numeric_limits<double>::infinity() : J;
+                break;
+            }
+            j_min = std::min(j_min, J);
             const Gradients10& G = m_geometry.gradients[std::size_t(4 * t + q)];
             const Eigen::Matrix3d P = m_geometry.weight[std::size_t(4 * t + q)] *
                                       first_piola(k, m_mu[i], m_kappa[i] * k.jm1);
@@ -114,7 +130,10 @@ Eigen::VectorXd NeoHookeanQuadratic::gradient(const Eigen::VectorXd& u) const {
                 g.segment<3>(3 * a).noalias() += P * G.row(a).transpose();
         }
         per_tet[i] = g;
+        lowest[i] = j_min;
     });
+    min_jacobian = *std::min_element(lowest.begin(), lowest.end());
+    if (!(min_jacobian > 0)) return {};
     Eigen::VectorXd out = Eigen::VectorXd::Zero(dofs());
     for (Eigen::Index t = 0; t < m_T.rows(); ++t)
         for (int a = 0; a < 10; ++a)

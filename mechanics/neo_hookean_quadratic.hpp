@@ -33,6 +33,9 @@ public:
     /// Gradient (N), 3 #V: the internal nodal forces. Throws std::domain_error if J <= 0 at a
     /// quadrature point.
     Eigen::VectorXd gradient(const Eigen::VectorXd& u) const;
+    /// The gradient and min_jacobian(u) in one pass over the quadrature points: `min_jacobian`
+    /// is set, and the gradient is empty where it is <= 0 (no throw).
+    Eigen::VectorXd gradient(const Eigen::VectorXd& u, double& min_jacobian) const;
     /// Hessian (N/mm), 3 #V x 3 #V, symmetric. With `project_psd`, each quadrature point's
     /// 9 x 9 tangent in F has its negative eigenvalues clamped to zero, so the matrix is
     /// positive semi-definite. Throws std::domain_error if J <= 0 at a quadrature point.
