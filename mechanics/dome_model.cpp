@@ -304,16 +304,19 @@ void DomeModel::Impl::solve_hyperelastic(const ContactLoad& load, const ObjectSh
         predicted = Eigen::Map<const Eigen::VectorXd>(previous->node_step_mm.data(), dofs) /
                     double(targets.size());
     int contact_iterations = 0, cutbacks = 0;
+    HyperelasticOptions step_options = options.hyperelastic;
+    step_options.first_step = previous ? previous->first_step : 1.0;
     HyperelasticStep step;
     for (std::size_t k = 0; k < targets.size();) {
         const Eigen::Vector2d shift = last ? last->object_displacement_mm : Eigen::Vector2d::Zero();
         const Eigen::VectorXd guess = predicted.size() ? Eigen::VectorXd(u + predicted) : predicted;
         step = hyper->step(object_gap(object, candidate_X, shift), targets[k], last,
-                           u.size() ? &u : nullptr, options.hyperelastic, options.contact,
+                           u.size() ? &u : nullptr, step_options, options.contact,
                            guess.size() ? &guess : nullptr);
         r.material_iterations += step.iterations;
         contact_iterations += step.contact.iterations;
         predicted.resize(0);
+        step_options.first_step = step.next_first_step;
         if (!step.converged) { // retried as two halves from the same state
             if (cutbacks++ == kMaxCutbacks) break;
             targets.insert(targets.begin() + std::ptrdiff_t(k),
@@ -338,6 +341,7 @@ void DomeModel::Impl::solve_hyperelastic(const ContactLoad& load, const ObjectSh
     }
     r.contact.iterations = contact_iterations;
     r.min_jacobian = step.min_jacobian;
+    r.first_step = step_options.first_step;
     r.node_displacement_mm = Eigen::Map<const Points>(u.data(), mesh.V.rows(), 3);
 }
 

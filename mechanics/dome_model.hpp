@@ -89,6 +89,8 @@ struct FrameResult {
     /// Neo-Hookean frames solved from a previous frame: node_displacement_mm less that frame's
     /// (empty otherwise). The next frame starts from node_displacement_mm plus this step.
     Points node_step_mm;
+    /// The next frame's HyperelasticOptions::first_step (large-deformation frames).
+    double first_step = 1.0;
     /// Per candidate (candidate_nodes() order; empty unless requested): contact pressure
     /// (normal force over tributary area) and tangential traction on the dome. The stick /
     /// slip / free state per candidate is contact.state, the displacement contact.displacement_mm.

@@ -3,8 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <cstdio>
-#include <cstdlib>
 #include <optional>
 #include <utility>
 #include <vector>
@@ -168,6 +166,15 @@ make_energy(const TetMesh& mesh, const std::vector<Material>& materials, Volumet
                                                          materials, volumetric);
 }
 
+/// The first step's share that cancels the map's component along the first increment d1: with
+/// share w, the second increment d2 is (1 + w (lambda - 1)) d1 along it, so w / (1 - d2.d1 /
+/// d1.d1) makes it vanish; kept in [0.1, 1] (a share above 1 would extrapolate).
+double next_first_step(double share, const Eigen::VectorXd& d1, const Eigen::VectorXd& d2) {
+    const double ratio = d2.dot(d1) / d1.squaredNorm();
+    if (!std::isfinite(ratio) || ratio >= 1.0) return 1.0;
+    return std::clamp(share / (1.0 - ratio), 0.1, 1.0);
+}
+
 } // namespace
 
 HyperelasticContact::HyperelasticContact(const TetMesh& mesh,
@@ -219,6 +226,8 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
     // start): only their change goes through the field responses, so that the fixed point is
     // exact whatever the single-precision factor's round-off.
     RowForces lagged = previous ? active_forces(*previous, n) : RowForces::Zero(n, 3);
+    out.next_first_step = options.first_step;
+    Eigen::VectorXd first_increment;
     for (int it = 1; it <= options.max_iterations; ++it) {
         out.iterations = it;
         // The nonlinear remainder r = f_int - K0 u moved to the right-hand side with the lagged
@@ -255,7 +264,7 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
         const Eigen::VectorXd delta = u_star - out.u;
         out.contact = std::move(contact);
         out.increment_mm = delta.cwiseAbs().maxCoeff();
-        if (std::getenv("CHROMASIM_TRACE")) fprintf(stderr, "TRACE it %d inc %.3e active %zu slides %d\n", it, out.increment_mm, out.contact.active.size(), int(slides));
+        if (it == 2) out.next_first_step = next_first_step(options.first_step, first_increment, delta);
         if (out.increment_mm <= options.tolerance_mm) {
             out.u = u_star;
             out.min_jacobian = min_jacobian(out.u);
@@ -266,6 +275,10 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
         // Accelerate; the next gradient keeps every J above the bound.
         mixing.note_increment(out.increment_mm);
         Eigen::VectorXd accelerated = mixing.next(delta, u_star);
+        if (it == 1) {
+            first_increment = delta;
+            accelerated = out.u + options.first_step * delta;
+        }
         relaxation.update(std::move(out.u), accelerated);
         out.u = std::move(accelerated);
     }

@@ -31,6 +31,10 @@ struct HyperelasticOptions {
     double tolerance_mm = 1e-4;
     /// The relaxation keeps every tet's J (and nodal J) at or above this.
     double min_jacobian = 0.05;
+    /// The first iteration moves this share of its increment (the later ones are Anderson's).
+    /// The plain map overshoots along a frame's increment (its second increment is about -1.6
+    /// times the first): a caller passes the previous step's next_first_step.
+    double first_step = 1.0;
 };
 
 /// One step's result.
@@ -40,6 +44,9 @@ struct HyperelasticStep {
     int iterations = 0;
     double increment_mm = 0; ///< largest displacement change of the last iteration
     double min_jacobian = 1; ///< smallest tet or nodal J of u
+    /// The first step's share for the next step (HyperelasticOptions::first_step), from the
+    /// map's ratio along this step's first increment: the one that would have cancelled it.
+    double next_first_step = 1;
     bool converged = false;
     std::string status = "ok"; ///< ok | max_iterations | contact: <status> | inverted
 };
