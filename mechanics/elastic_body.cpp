@@ -46,12 +46,12 @@ void keep_blas_on_calling_thread() {
     });
 }
 
-/// CHOLMOD's supernodal LLT whose single right-hand-side solve may run on several threads at
-/// once: CHOLMOD is re-entrant when each thread brings its own cholmod_common, and a solve only
-/// reads the factor.
+/// CHOLMOD's supernodal LLT whose solves (of a vector or a block of columns) may run on several
+/// threads at once: CHOLMOD is re-entrant when each thread brings its own cholmod_common, and a
+/// solve only reads the factor.
 class ConcurrentLLT : public Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> {
 public:
-    Eigen::VectorXd solve_concurrently(Eigen::VectorXd b) const {
+    template <class Dense> Dense solve_concurrently(Dense b) const {
         cholmod_common common;
         cholmod_start(&common);
         cholmod_dense b_view = Eigen::viewAsCholmod(b);
@@ -60,8 +60,7 @@ public:
             cholmod_finish(&common);
             throw std::runtime_error("CHOLMOD's back-substitution failed (out of memory?)");
         }
-        Eigen::VectorXd out =
-            Eigen::Map<const Eigen::VectorXd>(static_cast<double*>(x->x), b.size());
+        Dense out = Eigen::Map<const Dense>(static_cast<double*>(x->x), b.rows(), b.cols());
         cholmod_free_dense(&x, &common);
         cholmod_finish(&common);
         return out;
@@ -82,8 +81,8 @@ struct ElasticBody::Impl {
     std::vector<int> free_of_dof; ///< free-dof index per mesh dof, -1 where clamped
     ConcurrentLLT solver;
     SupernodalSolve single; ///< the factor in single precision (ElasticBody::precondition)
-    /// Guards the factorization on demand and the solves that use the solver's own workspace
-    /// (blocks of right-hand sides); solve_concurrently needs no lock.
+    /// Guards the factorization and the field responses, both made on demand; solves need no
+    /// lock (solve_concurrently, SupernodalSolve).
     mutable std::mutex solver_mutex;
     ElasticBodyResponses responses;
     Eigen::MatrixXf field_responses; ///< 3 #V x 3n, on demand (candidate_field_responses)
@@ -160,23 +159,23 @@ void ElasticBody::Impl::precompute_responses() {
     compliance.resize(nc, nc);
     responses.observed.resize(3 * Eigen::Index(observed_nodes.size() + observed_points.tet.size()),
                               nc);
-    // CHOLMOD's solve is not re-entrant (one workspace): blocks of right-hand sides in turn,
-    // each solved with BLAS-3 supernodal triangular solves.
+    // Blocks of right-hand sides, each solved with BLAS-3 supernodal triangular solves in its
+    // own CHOLMOD workspace, on all cores; each block fills its own columns.
     constexpr int kBlock = 256;
-    for (int c0 = 0; c0 < nc; c0 += kBlock) {
-        const int c1 = std::min(nc, c0 + kBlock);
+    tbb::parallel_for(0, (nc + kBlock - 1) / kBlock, [&](int block) {
+        const int c0 = block * kBlock, c1 = std::min(nc, c0 + kBlock);
         Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(stats.free_dofs, c1 - c0);
         for (int c = c0; c < c1; ++c) {
             const int d = free_of_dof[3 * candidates[c / 3] + c % 3];
             if (d < 0) throw std::runtime_error("a contact candidate node is clamped");
             rhs(d, c - c0) = 1;
         }
-        const Eigen::MatrixXd u = solver.solve(rhs);
+        const Eigen::MatrixXd u = solver.solve_concurrently(std::move(rhs));
         for (int r = 0; r < nc; ++r)
             compliance.row(r).segment(c0, c1 - c0) =
                 u.row(free_of_dof[3 * candidates[r / 3] + r % 3]);
         fill_observed(c0, u);
-    }
+    });
     compliance = 0.5 * (compliance + compliance.transpose()).eval(); // exact symmetry
     stats.compliance_s = seconds_since(t0);
 }
