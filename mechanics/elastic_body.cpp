@@ -100,6 +100,20 @@ struct ElasticBody::Impl {
         if (!factorized) factorize();
     }
     void precompute_responses();
+    /// `solve` (free dofs to free dofs) on a full-size vector: the clamped dofs' entries are
+    /// ignored, and 0 in the result. Factorizes first if need be.
+    template <class Solve>
+    Eigen::VectorXd on_free_dofs(const Eigen::VectorXd& f_full, const Solve& solve) {
+        ensure_factorized();
+        Eigen::VectorXd f(stats.free_dofs);
+        for (std::size_t d = 0; d < free_of_dof.size(); ++d)
+            if (free_of_dof[d] >= 0) f(free_of_dof[d]) = f_full(Eigen::Index(d));
+        const Eigen::VectorXd u_free = solve(std::move(f));
+        Eigen::VectorXd u = Eigen::VectorXd::Zero(f_full.size());
+        for (std::size_t d = 0; d < free_of_dof.size(); ++d)
+            if (free_of_dof[d] >= 0) u(Eigen::Index(d)) = u_free(free_of_dof[d]);
+        return u;
+    }
     void fill_observed(int c0, const Eigen::MatrixXd& u);
 };
 
@@ -229,29 +243,13 @@ Points ElasticBody::observed_displacement(const Eigen::Ref<const Points>& forces
 }
 
 Eigen::VectorXd ElasticBody::solve(const Eigen::VectorXd& f_full) const {
-    Impl& m = *m_impl;
-    m.ensure_factorized();
-    Eigen::VectorXd f(m.stats.free_dofs);
-    for (std::size_t d = 0; d < m.free_of_dof.size(); ++d)
-        if (m.free_of_dof[d] >= 0) f(m.free_of_dof[d]) = f_full(Eigen::Index(d));
-    const Eigen::VectorXd u_free = m.solver.solve_concurrently(std::move(f));
-    Eigen::VectorXd u = Eigen::VectorXd::Zero(f_full.size());
-    for (std::size_t d = 0; d < m.free_of_dof.size(); ++d)
-        if (m.free_of_dof[d] >= 0) u(Eigen::Index(d)) = u_free(m.free_of_dof[d]);
-    return u;
+    return m_impl->on_free_dofs(
+        f_full, [&](Eigen::VectorXd f) { return m_impl->solver.solve_concurrently(std::move(f)); });
 }
 
 Eigen::VectorXd ElasticBody::precondition(const Eigen::VectorXd& f_full) const {
-    Impl& m = *m_impl;
-    m.ensure_factorized();
-    Eigen::VectorXd f(m.stats.free_dofs);
-    for (std::size_t d = 0; d < m.free_of_dof.size(); ++d)
-        if (m.free_of_dof[d] >= 0) f(m.free_of_dof[d]) = f_full(Eigen::Index(d));
-    const Eigen::VectorXd u_free = m.single.solve(f);
-    Eigen::VectorXd u = Eigen::VectorXd::Zero(f_full.size());
-    for (std::size_t d = 0; d < m.free_of_dof.size(); ++d)
-        if (m.free_of_dof[d] >= 0) u(Eigen::Index(d)) = u_free(m.free_of_dof[d]);
-    return u;
+    return m_impl->on_free_dofs(f_full,
+                                [&](const Eigen::VectorXd& f) { return m_impl->single.solve(f); });
 }
 
 const Eigen::MatrixXf& ElasticBody::candidate_field_responses() const {
