@@ -180,8 +180,7 @@ double next_first_step(double share, const Eigen::VectorXd& d1, const Eigen::Vec
 HyperelasticContact::HyperelasticContact(const TetMesh& mesh,
                                          const std::vector<Material>& materials,
                                          Volumetric volumetric, const ElasticBody& body)
-    : m_body(body), m_energy(make_energy(mesh, materials, volumetric)),
-      m_dofs(3 * mesh.V.rows()) {}
+    : m_body(body), m_energy(make_energy(mesh, materials, volumetric)), m_dofs(3 * mesh.V.rows()) {}
 
 Eigen::VectorXd HyperelasticContact::gradient(const Eigen::VectorXd& u) const {
     return std::visit([&](const auto& e) { return e.gradient(u); }, m_energy);
@@ -264,7 +263,8 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
         const Eigen::VectorXd delta = u_star - out.u;
         out.contact = std::move(contact);
         out.increment_mm = delta.cwiseAbs().maxCoeff();
-        if (it == 2) out.next_first_step = next_first_step(options.first_step, first_increment, delta);
+        if (it == 2)
+            out.next_first_step = next_first_step(options.first_step, first_increment, delta);
         if (out.increment_mm <= options.tolerance_mm) {
             out.u = u_star;
             out.min_jacobian = min_jacobian(out.u);

@@ -81,8 +81,10 @@ template <class Y> void SupernodalSolve::backward(Y& y) const {
                 below.row(i) = y.row(rows[i]);
             w.noalias() -= block.bottomRows(m).transpose() * below.topRows(m);
         }
-        block.topRows(sn.columns).template triangularView<Eigen::Lower>().transpose().solveInPlace(
-            w);
+        block.topRows(sn.columns)
+            .template triangularView<Eigen::Lower>()
+            .transpose()
+            .solveInPlace(w);
     }
 }
 

@@ -47,8 +47,8 @@ private:
     Eigen::Index m_n = 0;
     int m_max_below = 0; ///< the most rows below a diagonal block
     std::vector<Supernode> m_supernodes;
-    std::vector<float> m_values;   ///< each supernode's block, column-major
-    std::vector<int> m_below_rows; ///< each supernode's rows below its diagonal block
+    std::vector<float> m_values;    ///< each supernode's block, column-major
+    std::vector<int> m_below_rows;  ///< each supernode's rows below its diagonal block
     std::vector<int> m_permutation; ///< row k of the factor is row m_permutation[k] of A
 };
 
