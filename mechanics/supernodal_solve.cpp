@@ -39,11 +39,6 @@ SupernodalSolve::SupernodalSolve(const cholmod_factor_struct& L) {
     }
 }
 
-std::size_t SupernodalSolve::bytes() const {
-    return m_values.size() * sizeof(float) + m_below_rows.size() * sizeof(int) +
-           m_permutation.size() * sizeof(int) + m_supernodes.size() * sizeof(Supernode);
-}
-
 Eigen::VectorXd SupernodalSolve::solve(const Eigen::VectorXd& b) const {
     if (b.size() != m_n) throw std::invalid_argument("SupernodalSolve: wrong right-hand side");
     Eigen::MatrixXf x = b.cast<float>();

@@ -25,8 +25,6 @@ public:
 
     bool empty() const { return m_n == 0; }
     Eigen::Index size() const { return m_n; }
-    /// Bytes held (the float entries and the pattern).
-    std::size_t bytes() const;
 
     /// x with A x = b up to the factor's single-precision round-off. Thread safe (reads only).
     Eigen::VectorXd solve(const Eigen::VectorXd& b) const;
