@@ -34,14 +34,17 @@ public:
         m_dG.clear();
     }
 
-    /// Counts an iteration's largest increment (mm) towards the patience.
-    void note_increment(double increment_mm) {
+    /// Counts an iteration's largest increment (mm) towards the patience; true when the history
+    /// restarted for it.
+    bool note_increment(double increment_mm) {
         if (increment_mm < m_best_increment) {
             m_best_increment = increment_mm;
             m_since_best = 0;
         } else if (++m_since_best >= kPatience) {
             restart();
+            return true;
         }
+        return false;
     }
 
     /// The next iterate after one with image `g` and residual `f` = g - x, added to the history.
@@ -227,6 +230,10 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
     RowForces lagged = previous ? active_forces(*previous, n) : RowForces::Zero(n, 3);
     out.next_first_step = options.first_step;
     Eigen::VectorXd first_increment;
+    // Once the mixing stalled (its history restarted without a new smallest increment), the
+    // rest of the step is the damped map: Anderson's secant model across changes of the contact
+    // sets can hold an orbit that the damped map, contracting along the overshoot, leaves.
+    bool damped = false;
     for (int it = 1; it <= options.max_iterations; ++it) {
         out.iterations = it;
         // The nonlinear remainder r = f_int - K0 u moved to the right-hand side with the lagged
@@ -273,12 +280,10 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
             return out;
         }
         // Accelerate; the next gradient keeps every J above the bound.
-        mixing.note_increment(out.increment_mm);
+        damped = mixing.note_increment(out.increment_mm) || damped;
         Eigen::VectorXd accelerated = mixing.next(delta, u_star);
-        if (it == 1) {
-            first_increment = delta;
-            accelerated = out.u + options.first_step * delta;
-        }
+        if (it == 1) first_increment = delta;
+        if (it == 1 || damped) accelerated = out.u + options.first_step * delta;
         relaxation.update(std::move(out.u), accelerated);
         out.u = std::move(accelerated);
     }
