@@ -94,6 +94,16 @@ RowForces active_forces(const ContactSolution& contact, Eigen::Index n) {
     return F;
 }
 
+/// Whether some node in contact in both `a` and `b` sticks in one and slips in the other.
+bool stick_slip_changed(const ContactSolution& a, const ContactSolution& b) {
+    if (a.state.size() != b.state.size()) return false;
+    for (std::size_t j = 0; j < a.state.size(); ++j)
+        if (a.state[j] != b.state[j] && a.state[j] != NodeContact::free &&
+            b.state[j] != NodeContact::free)
+            return true;
+    return false;
+}
+
 /// `u` plus K^-1 of the force change `dF` on the candidates (n x 3), from the candidates'
 /// field responses: one dense product in place of a second back-substitution per iteration.
 Eigen::VectorXd with_force_change(Eigen::VectorXd u, const Eigen::MatrixXf& field,
@@ -230,10 +240,11 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
     RowForces lagged = previous ? active_forces(*previous, n) : RowForces::Zero(n, 3);
     out.next_first_step = options.first_step;
     Eigen::VectorXd first_increment;
-    // Once the mixing stalled (its history restarted without a new smallest increment), the
-    // rest of the step is the damped map: Anderson's secant model across changes of the contact
-    // sets can hold an orbit that the damped map, contracting along the overshoot, leaves.
-    bool damped = false;
+    // Each stall (the history restarted without a new smallest increment) switches between the
+    // mixing and the map damped by first_step: Anderson's secant model across changes of the
+    // contact sets can hold an orbit that the damped map leaves, and the damped map drifts
+    // along a slowly growing mode that the mixing resolves.
+    bool damped = false, sets_changed = false;
     for (int it = 1; it <= options.max_iterations; ++it) {
         out.iterations = it;
         // The nonlinear remainder r = f_int - K0 u moved to the right-hand side with the lagged
@@ -264,6 +275,7 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
             return out;
         }
         // The fixed-point map's image and its increment.
+        sets_changed = sets_changed || (it > 1 && stick_slip_changed(out.contact, contact));
         RowForces forces = active_forces(contact, n);
         const Eigen::VectorXd u_star = with_force_change(u_r, field, forces - lagged);
         lagged = std::move(forces);
@@ -280,7 +292,10 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
             return out;
         }
         // Accelerate; the next gradient keeps every J above the bound.
-        damped = mixing.note_increment(out.increment_mm) || damped;
+        if (mixing.note_increment(out.increment_mm)) {
+            damped = sets_changed;
+            sets_changed = false;
+        }
         Eigen::VectorXd accelerated = mixing.next(delta, u_star);
         if (it == 1) first_increment = delta;
         if (it == 1 || damped) accelerated = out.u + options.first_step * delta;
