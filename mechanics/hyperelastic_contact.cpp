@@ -240,10 +240,11 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
     RowForces lagged = previous ? active_forces(*previous, n) : RowForces::Zero(n, 3);
     out.next_first_step = options.first_step;
     Eigen::VectorXd first_increment;
-    // Each stall (the history restarted without a new smallest increment) switches between the
-    // mixing and the map damped by first_step: Anderson's secant model across changes of the
-    // contact sets can hold an orbit that the damped map leaves, and the damped map drifts
-    // along a slowly growing mode that the mixing resolves.
+    // At each stall (the history restarted without a new smallest increment) the step goes on
+    // with the map damped by first_step when a node flipped between stick and slip since the
+    // last one, else with the mixing: Anderson's secant model across such flips can hold an
+    // orbit that the damped map leaves (near mu 1.1), while on smooth stretches the damped map
+    // can drift along a slowly growing mode that only the mixing resolves.
     bool damped = false, sets_changed = false;
     for (int it = 1; it <= options.max_iterations; ++it) {
         out.iterations = it;
