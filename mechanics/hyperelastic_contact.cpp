@@ -34,17 +34,14 @@ public:
         m_dG.clear();
     }
 
-    /// Counts an iteration's largest increment (mm) towards the patience; true when the history
-    /// restarted for it.
-    bool note_increment(double increment_mm) {
+    /// Counts an iteration's largest increment (mm) towards the patience.
+    void note_increment(double increment_mm) {
         if (increment_mm < m_best_increment) {
             m_best_increment = increment_mm;
             m_since_best = 0;
         } else if (++m_since_best >= kPatience) {
             restart();
-            return true;
         }
-        return false;
     }
 
     /// The next iterate after one with image `g` and residual `f` = g - x, added to the history.
@@ -92,16 +89,6 @@ RowForces active_forces(const ContactSolution& contact, Eigen::Index n) {
     for (int j : contact.active)
         F.row(j) = contact.forces_N.row(j);
     return F;
-}
-
-/// Whether some node in contact in both `a` and `b` sticks in one and slips in the other.
-bool stick_slip_changed(const ContactSolution& a, const ContactSolution& b) {
-    if (a.state.size() != b.state.size()) return false;
-    for (std::size_t j = 0; j < a.state.size(); ++j)
-        if (a.state[j] != b.state[j] && a.state[j] != NodeContact::free &&
-            b.state[j] != NodeContact::free)
-            return true;
-    return false;
 }
 
 /// `u` plus K^-1 of the force change `dF` on the candidates (n x 3), from the candidates'
@@ -240,12 +227,6 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
     RowForces lagged = previous ? active_forces(*previous, n) : RowForces::Zero(n, 3);
     out.next_first_step = options.first_step;
     Eigen::VectorXd first_increment;
-    // At each stall (the history restarted without a new smallest increment) the step goes on
-    // with the map damped by first_step when a node flipped between stick and slip since the
-    // last one, else with the mixing: Anderson's secant model across such flips can hold an
-    // orbit that the damped map leaves (near mu 1.1), while on smooth stretches the damped map
-    // can drift along a slowly growing mode that only the mixing resolves.
-    bool damped = false, sets_changed = false;
     for (int it = 1; it <= options.max_iterations; ++it) {
         out.iterations = it;
         // The nonlinear remainder r = f_int - K0 u moved to the right-hand side with the lagged
@@ -276,7 +257,6 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
             return out;
         }
         // The fixed-point map's image and its increment.
-        sets_changed = sets_changed || (it > 1 && stick_slip_changed(out.contact, contact));
         RowForces forces = active_forces(contact, n);
         const Eigen::VectorXd u_star = with_force_change(u_r, field, forces - lagged);
         lagged = std::move(forces);
@@ -293,13 +273,12 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
             return out;
         }
         // Accelerate; the next gradient keeps every J above the bound.
-        if (mixing.note_increment(out.increment_mm)) {
-            damped = sets_changed;
-            sets_changed = false;
-        }
+        mixing.note_increment(out.increment_mm);
         Eigen::VectorXd accelerated = mixing.next(delta, u_star);
-        if (it == 1) first_increment = delta;
-        if (it == 1 || damped) accelerated = out.u + options.first_step * delta;
+        if (it == 1) {
+            first_increment = delta;
+            accelerated = out.u + options.first_step * delta;
+        }
         relaxation.update(std::move(out.u), accelerated);
         out.u = std::move(accelerated);
     }

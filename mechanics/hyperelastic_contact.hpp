@@ -10,10 +10,9 @@
 ///   contact forces F on the candidates from the compliance C of K0, with u_r as an extra
 ///     displacement of the candidates (solve_contact_step: history, friction, force control)
 ///   u* = u_r + K0^-1 B' F                     (the candidates' field responses, one product)
-/// and accelerates the sequence with Anderson mixing over the last 10 iterations (after a stall
-/// whose iterations flipped a node between stick and slip, the map damped by `first_step`).
-/// The update is shortened while any tet's (or nodal) J would fall below `min_jacobian`: the
-/// iteration never leaves the set det F > 0. At the fixed point
+/// and accelerates the sequence with Anderson mixing over the last 10 iterations, restarted when
+/// it stalls. The update is shortened while any tet's (or nodal) J would fall below
+/// `min_jacobian`: the iteration never leaves the set det F > 0. At the fixed point
 /// f_int(u) = B' F and the contact conditions hold on u. No tangent factorization per
 /// iteration: one back-substitution, one gradient and one contact solve each.
 #include "mechanics/contact.hpp"
