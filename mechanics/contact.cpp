@@ -301,7 +301,8 @@ ActiveSets start_sets(const ContactSolution* previous, const Eigen::VectorXd& ga
 /// at tau. Returns the largest violation of the law and sets `changed` when a node changes
 /// state.
 double update_friction(const RowForces& u, const LinearSolution& lin, const RowVectors2& anchor,
-                       const Eigen::VectorXd& r_stiff, double mu, ActiveSets& sets, bool& changed) {
+                       const Eigen::VectorXd& r_stiff, double mu, bool held, ActiveSets& sets,
+                       bool& changed) {
     double law_error = 0;
     for (int j : sets.A) {
         const std::size_t jj = std::size_t(j);
@@ -312,7 +313,8 @@ double update_friction(const RowForces& u, const LinearSolution& lin, const RowV
         const double limit = mu * std::max(lin.lambda(j), 0.0);
         // A node on the cone's surface (|tau| = mu lambda to rounding) keeps its state: both
         // give the same forces, and flipping would never settle.
-        const bool slips = tau.norm() > limit * (sets.slip[jj] ? 1.0 - 1e-10 : 1.0 + 1e-10);
+        const bool slips = held ? sets.slip[jj] != 0
+                                : tau.norm() > limit * (sets.slip[jj] ? 1.0 - 1e-10 : 1.0 + 1e-10);
         const Eigen::Vector2d projected = slips ? Eigen::Vector2d(limit * tau.normalized()) : tau;
         law_error = std::max(law_error, (t - projected).norm());
         changed = changed || slips != (sets.slip[jj] != 0);
@@ -407,7 +409,8 @@ void apply_normal_changes(const StepProblem& p, const NormalChanges& ch, bool ch
 /// The semi-smooth Newton loop of a step under the normal force `P`: solves the linear system
 /// of the sets in `x`, updates the sets, until none changes and the friction law holds. Counts
 /// the iterations in `sol` and sets its status (ok | max_iterations | singular).
-void iterate_sets(const StepProblem& p, double P, NewtonIterate& x, ContactSolution& sol) {
+void iterate_sets(const StepProblem& p, double P, NewtonIterate& x, ContactSolution& sol,
+                  bool held) {
     const int n = int(p.gap.size());
     sol.status = "max_iterations";
     const double tol_mm = 1e-9 * std::max(1.0, std::min(p.gap.maxCoeff(), 1e2));
@@ -435,11 +438,12 @@ void iterate_sets(const StepProblem& p, double P, NewtonIterate& x, ContactSolut
         for (int j : x.sets.A)
             in_A[std::size_t(j)] = 1;
         const NormalChanges ch =
-            normal_changes(p, x, uz, in_A, cautious ? cautious_tol_mm : tol_mm, cautious);
+            held ? NormalChanges{}
+                 : normal_changes(p, x, uz, in_A, cautious ? cautious_tol_mm : tol_mm, cautious);
         bool changed = !ch.release.empty() || !ch.add.empty();
-        const double law_error =
-            p.kind.all_slip ? 0.0
-                            : update_friction(u, x.lin, x.anchor, p.r_stiff, p.mu, x.sets, changed);
+        const double law_error = p.kind.all_slip ? 0.0
+                                                 : update_friction(u, x.lin, x.anchor, p.r_stiff,
+                                                                   p.mu, held, x.sets, changed);
         apply_normal_changes(p, ch, changed, in_A, x);
         if (changed) continue;
         if (law_error <= 1e-12 * P) {
@@ -529,7 +533,7 @@ ContactSolution untouched(const ContactLoad& load, int n, const StepKind& kind) 
 ContactSolution solve_step(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_mm,
                            const ContactLoad& load, const ContactSolution* previous,
                            const ContactOptions& options, const RowForces* extra_mm,
-                           const StepKind& kind) {
+                           const StepKind& kind, const ContactSolution* held) {
     const int n = int(gap_mm.size());
     ContactSolution sol = untouched(load, n, kind);
     const double P = load.normal_force_N;
@@ -543,10 +547,10 @@ ContactSolution solve_step(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_
     const double mu = std::max(0.0, load.mu);
     const StepProblem p = step_problem(C, gap_mm, extra_mm, mu, kind, options);
     NewtonIterate x{
-        start_sets(previous, p.gap, p.r_stiff, mu, kind),
+        start_sets(held ? held : previous, p.gap, p.r_stiff, mu, kind),
         LinearSolution{Eigen::VectorXd::Zero(n), RowVectors2::Zero(n, 2), 0.0, kind.w_given},
         start_anchors(previous, n, w_prev, extra_mm)};
-    iterate_sets(p, P, x, sol);
+    iterate_sets(p, P, x, sol, held != nullptr);
     sol.converged = sol.status == "ok";
 
     record_contact(p, x, load.tangential == TangentialControl::force, w_prev, sol);
@@ -568,7 +572,7 @@ ContactSolution solve_step(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_
 ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_mm,
                                    const ContactLoad& load, const ContactSolution* previous,
                                    const ContactOptions& options, const RowForces* extra_mm,
-                                   bool slides) {
+                                   bool slides, const ContactSolution* held) {
     const double mu = std::max(0.0, load.mu);
     // A contact that slid under force control keeps sliding while the pull's share of the
     // friction limit, Q / (mu P), does not drop (a firmer grip or a lighter pull re-sticks it).
@@ -581,7 +585,8 @@ ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::Vector
                        previous->load.tangential == TangentialControl::force &&
                        share(load) >= share(previous->load) * (1 - kGrossSlipTolerance));
     const StepKind kind = step_kind(load, mu, previous, slid);
-    ContactSolution sol = solve_step(C, gap_mm, load, previous, options, extra_mm, kind);
+    ContactSolution sol = solve_step(C, gap_mm, load, previous, options, extra_mm, kind, held);
+    if (held) return sol;
     // Under force control a contact pulled near mu P with no sticking node left slides: its
     // stick zone is smaller than the mesh resolves (Mindlin's c = a (1 - Q / (mu P))^(1/3)),
     // and the travel of a contact slipping everywhere that close to mu P is only fixed by the
@@ -593,7 +598,7 @@ ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::Vector
         sol.converged && !sol.active.empty() && sol.slipping.size() == sol.active.size();
     if (kind.w_unknown && !kind.full_slip && near_limit && (no_stick || sol.status == "singular"))
         sol = solve_step(C, gap_mm, load, previous, options, extra_mm,
-                         step_kind(load, mu, previous, true));
+                         step_kind(load, mu, previous, true), nullptr);
     return sol;
 }
 

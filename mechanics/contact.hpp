@@ -154,10 +154,13 @@ double safety_margin(double mu, double normal_force_N, double tangential_force_N
 /// correction of a hyperelastic solve): the total displacement is C F + extra. `slides`: under
 /// force control, solve the step as sliding (earlier solves of the same step found its stick
 /// zone vanished near mu P), so that an outer iteration does not cycle between the two.
+/// `held` (optional): keep its contact and slip sets instead of updating them (an outer
+/// iteration that cycles on a node at the cone's edge converges on held sets, then checks them).
 ContactSolution solve_contact_step(const Eigen::MatrixXd& C, const Eigen::VectorXd& gap_mm,
                                    const ContactLoad& load, const ContactSolution* previous,
                                    const ContactOptions& options = {},
-                                   const RowForces* extra_mm = nullptr, bool slides = false);
+                                   const RowForces* extra_mm = nullptr, bool slides = false,
+                                   const ContactSolution* held = nullptr);
 
 /// How a frame's load is reached from rest: the normal force ramps up in `normal_steps` equal
 /// steps with the tangential load at zero, then the tangential load ramps up in

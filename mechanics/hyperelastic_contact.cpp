@@ -157,6 +157,46 @@ private:
     double m_step = 0; ///< of the update in progress; 0: none
 };
 
+/// Near its fixed point the map is only piecewise smooth where a node sits on the friction
+/// cone's edge: the node flips between stick and slip and the mixing cycles (seed000_train's
+/// 8th trial, mu 1.13 at 2.5 N). After `kHoldAfter` iterations within `kNear` tolerances the
+/// contact and slip sets of the last iterate are held, so the map is smooth; at its fixed point
+/// the sets are released for one free iteration, which converges if they were right, else holds
+/// the sets it found (at most `kMaxHolds` times). An iteration still far from its fixed point
+/// (a large step) never holds: its sets are still moving.
+class SetHolding {
+public:
+    enum class Action { iterate, converged, hold, release };
+    const ContactSolution* held() const { return m_holding ? &m_sets : nullptr; }
+    /// What to do after an iteration whose increment is `small` (<= the tolerance) or `near`
+    /// (<= kNear tolerances) and whose contact solution is `contact`.
+    Action next(bool small, bool near, const ContactSolution& contact) {
+        if (m_holding) {
+            if (!small) return Action::iterate;
+            m_holding = false;
+            m_checking = true;
+            return Action::release;
+        }
+        if (small) return Action::converged;
+        if (near) ++m_near_iterations;
+        const bool stalled = m_checking || m_near_iterations >= kHoldAfter;
+        m_checking = false;
+        if (!stalled || m_holds == kMaxHolds) return Action::iterate;
+        ++m_holds;
+        m_holding = true;
+        m_sets = contact;
+        return Action::hold;
+    }
+
+    static constexpr double kNear = 10;
+
+private:
+    static constexpr int kHoldAfter = 30, kMaxHolds = 4;
+    ContactSolution m_sets;
+    bool m_holding = false, m_checking = false;
+    int m_near_iterations = 0, m_holds = 0;
+};
+
 std::variant<NeoHookean, NeoHookeanQuadratic>
 make_energy(const TetMesh& mesh, const std::vector<Material>& materials, Volumetric volumetric) {
     if (mesh.quadratic())
@@ -227,6 +267,8 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
     RowForces lagged = previous ? active_forces(*previous, n) : RowForces::Zero(n, 3);
     out.next_first_step = options.first_step;
     Eigen::VectorXd first_increment;
+    // Contact sets held once the iteration cycles on them (SetHolding).
+    SetHolding holding;
     for (int it = 1; it <= options.max_iterations; ++it) {
         out.iterations = it;
         // The nonlinear remainder r = f_int - K0 u moved to the right-hand side with the lagged
@@ -244,8 +286,9 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
         const Eigen::VectorXd u_r = out.u - m_body.precondition(f);
         gather_candidates(u_r, candidates, extra);
         extra -= compliance_times(m_body.compliance(), lagged);
-        ContactSolution contact = solve_contact_step(m_body.compliance(), gap_mm, load, previous,
-                                                     contact_options, &extra, slides);
+        ContactSolution contact =
+            solve_contact_step(m_body.compliance(), gap_mm, load, previous, contact_options, &extra,
+                               slides, holding.held());
         if (!slides && contact.sliding && ++sliding_iterates == 2) {
             slides = true;
             mixing.restart();
@@ -265,7 +308,15 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
         out.increment_mm = delta.cwiseAbs().maxCoeff();
         if (it == 2)
             out.next_first_step = next_first_step(options.first_step, first_increment, delta);
-        if (out.increment_mm <= options.tolerance_mm) {
+        const SetHolding::Action action =
+            holding.next(out.increment_mm <= options.tolerance_mm,
+                         out.increment_mm <= SetHolding::kNear * options.tolerance_mm, out.contact);
+        if (action == SetHolding::Action::release) { // the sets' fixed point: check them
+            out.u = u_star;
+            mixing.drop_history();
+            continue;
+        }
+        if (action == SetHolding::Action::converged) {
             out.u = u_star;
             out.min_jacobian = min_jacobian(out.u);
             out.converged = out.min_jacobian > 0;
@@ -274,11 +325,14 @@ HyperelasticStep HyperelasticContact::step(const Eigen::VectorXd& gap_mm, const 
         }
         // Accelerate; the next gradient keeps every J above the bound.
         mixing.note_increment(out.increment_mm);
-        Eigen::VectorXd accelerated = mixing.next(delta, u_star);
-        if (it == 1) {
-            first_increment = delta;
-            accelerated = out.u + options.first_step * delta;
+        if (action == SetHolding::Action::hold) {
+            mixing.restart();
+            mixing.forget_best();
         }
+        Eigen::VectorXd accelerated = mixing.next(delta, u_star);
+        if (it == 1) first_increment = delta;
+        if (it == 1 || action == SetHolding::Action::hold) // a new map: damped, as the first
+            accelerated = out.u + options.first_step * delta;
         relaxation.update(std::move(out.u), accelerated);
         out.u = std::move(accelerated);
     }

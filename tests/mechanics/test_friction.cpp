@@ -61,6 +61,33 @@ TEST_CASE("one node under a displacement cycle: elastic stick, slip at mu P, rev
     }
 }
 
+TEST_CASE("held sets: kept whatever the load, and the free solution reproduced",
+          "[mechanics][friction]") {
+    // The node above (k = 2 N/mm, mu P = 0.5 N) slips beyond w = 0.25 mm.
+    Eigen::MatrixXd C = Eigen::MatrixXd::Zero(3, 3);
+    C.diagonal() << 0.5, 0.5, 1.0;
+    const Eigen::VectorXd gap = Eigen::VectorXd::Zero(1);
+    const double P = 1.0, mu = 0.5;
+    const ContactSolution rest = solve_contact_step(C, gap, {P, {0, 0}, mu}, nullptr);
+    const ContactSolution stuck = solve_contact_step(C, gap, displaced(P, 0.2, mu), &rest);
+    const ContactSolution slid = solve_contact_step(C, gap, displaced(P, 0.4, mu), &rest);
+    REQUIRE(stuck.state[0] == NodeContact::stick);
+    REQUIRE(slid.state[0] == NodeContact::slip);
+    // The stick set held at w = 0.4 mm: the node stays at its anchor, beyond the cone.
+    const ContactSolution held =
+        solve_contact_step(C, gap, displaced(P, 0.4, mu), &rest, {}, nullptr, false, &stuck);
+    REQUIRE(held.converged);
+    CHECK(held.state[0] == NodeContact::stick);
+    CHECK(held.tangential_force_N.x() == Approx(2.0 * 0.4).margin(1e-12));
+    // The slip set held where it is right gives the free solution.
+    const ContactSolution same =
+        solve_contact_step(C, gap, displaced(P, 0.4, mu), &rest, {}, nullptr, false, &slid);
+    REQUIRE(same.converged);
+    CHECK(same.state[0] == NodeContact::slip);
+    CHECK(same.tangential_force_N.x() == Approx(mu * P).margin(1e-12));
+    CHECK((same.forces_N - slid.forces_N).cwiseAbs().maxCoeff() < 1e-12);
+}
+
 TEST_CASE("force and displacement control agree, a zero increment changes nothing",
           "[mechanics][friction]") {
     const DomeModel& model = coarse_model();
