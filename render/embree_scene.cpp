@@ -538,6 +538,11 @@ EmbreeScene::Triangle EmbreeScene::interface_triangle(std::uint32_t prim) const 
     return t;
 }
 
+std::uint32_t EmbreeScene::interface_triangles() const {
+    if (!has_interface()) return 0;
+    return std::uint32_t(m_impl->slots[geometry_id(SurfaceKind::inner_surface)].F.rows());
+}
+
 void EmbreeScene::count_rays(bool on) {
     m_impl->rays.store(0);
     m_impl->counting = on;

@@ -115,6 +115,8 @@ public:
         Vec3 n[3];
     };
     Triangle interface_triangle(std::uint32_t prim) const;
+    /// How many triangles the inner surface has (0 without one).
+    std::uint32_t interface_triangles() const;
 
     /// The hits of the ray origin + t * direction, t in [tnear_mm, tfar_mm], among `kinds`,
     /// in one traversal: the closest hit of a kind other than the markers (coating, inner

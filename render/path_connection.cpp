@@ -259,6 +259,38 @@ std::vector<Vec3> sphere_mirrors(const Vec3& p, const Vec3& l, double R, double 
     return kept;
 }
 
+/// The point of inner-surface triangle `prim` (of `scene`) at barycentric weights (b1, b2).
+Vec3 surface_at(const EmbreeScene& scene, std::uint32_t prim, double b1, double b2) {
+    const EmbreeScene::Triangle t = scene.interface_triangle(prim);
+    return (1.0 - b1 - b2) * t.p[0] + b1 * t.p[1] + b2 * t.p[2];
+}
+
+/// `x` on inner-surface triangle `prim` as a material point (PointLedPaths::SurfacePoint).
+PointLedPaths::SurfacePoint surface_point(const EmbreeScene& scene, std::uint32_t prim,
+                                          const Vec3& x) {
+    const EmbreeScene::Triangle t = scene.interface_triangle(prim);
+    const Vec3 e1 = t.p[1] - t.p[0], e2 = t.p[2] - t.p[0], d = x - t.p[0];
+    // The least-squares weights on the triangle's plane (Cramer's rule on its Gram matrix).
+    const double g11 = e1.dot(e1), g12 = e1.dot(e2), g22 = e2.dot(e2);
+    const double det = g11 * g22 - g12 * g12, r1 = e1.dot(d), r2 = e2.dot(d);
+    if (!(det > 0.0)) return {};
+    const double b1 = (g22 * r1 - g12 * r2) / det, b2 = (g11 * r2 - g12 * r1) / det;
+    return {prim, b1, b2, surface_at(scene, prim, b1, b2)};
+}
+
+/// Where a frame's solve from p starts: towards the material point `at` on the deformed
+/// surface (the connection's point moves with the surface), or along `rest` (the direction at
+/// rest) where it is unknown or has not moved. Fewer Newton steps under a press, and it finds
+/// connections that a start along `rest` loses (the light a pressed frame lost).
+Vec3 towards(const EmbreeScene& scene, const Vec3& p, const PointLedPaths::SurfacePoint& at,
+             const Vec3& rest) {
+    if (at.prim >= scene.interface_triangles()) return rest;
+    const Vec3 x = surface_at(scene, at.prim, at.b1, at.b2);
+    if (x == at.rest_mm) return rest; // the rest's own answer, to the bit
+    const Vec3 w = x - p;
+    return w.norm() > 0.0 ? Vec3(w.normalized()) : rest;
+}
+
 } // namespace
 
 std::optional<InterfaceConnection> PathIntegrator::along(const EmbreeScene& scene, Chain chain,
@@ -450,13 +482,16 @@ Vec3 PathIntegrator::led_flux_point(const EmbreeScene& scene, const Vec3& p, con
     Vec3 sum = Vec3::Zero();
     // Each connection counted once (two starts may find the same: within kSameConnection),
     // where it arrives in front of the normal with nothing in the way.
-    std::array<std::vector<Vec3>, 2> solved; // per chain, the directions
+    std::array<std::vector<Vec3>, 2> solved;                    // per chain, the directions
+    std::array<std::vector<PointLedPaths::SurfacePoint>, 2> at; // and their first surface points
     const auto add = [&](const std::optional<InterfaceConnection>& c, Chain chain) {
         if (!c) return false;
-        std::vector<Vec3>& seen = solved[chain == Chain::refracted ? 0 : 1];
+        const int ch = chain == Chain::refracted ? 0 : 1;
+        std::vector<Vec3>& seen = solved[std::size_t(ch)];
         for (const Vec3& w : seen)
             if ((w - c->direction).squaredNorm() < kSameConnection * kSameConnection) return false;
         seen.push_back(c->direction);
+        if (found) at[std::size_t(ch)].push_back(surface_point(scene, c->prim[0], c->x_mm[0]));
         if (!arriving_cosine(scene, *c, chain, n, l)) return false;
         sum += (c->fresnel / c->jacobian_mm2_per_sr) * c->direction;
         return true;
@@ -464,13 +499,20 @@ Vec3 PathIntegrator::led_flux_point(const EmbreeScene& scene, const Vec3& p, con
     // From the rest's connections, continued as the surface deforms (the sphere model's
     // refraction where the rest had none), else from the sphere model's.
     const bool from_rest = starts && starts->refracted.squaredNorm() > 0.0;
-    const auto c = from_rest ? solve_connection(scene, p, l, Chain::refracted, starts->refracted, 1)
-                             : connect(scene, p, l, Chain::refracted, 0.5, *radius);
+    const auto c =
+        from_rest ? solve_connection(scene, p, l, Chain::refracted,
+                                     towards(scene, p, starts->refracted_at, starts->refracted), 1)
+                  : connect(scene, p, l, Chain::refracted, 0.5, *radius);
     if (add(c, Chain::refracted) && refracted) *refracted = *c;
     if (starts) {
-        for (const Vec3& w : starts->reflected)
+        for (std::size_t i = 0; i < starts->reflected.size(); ++i) {
+            const bool known = i < starts->reflected_at.size();
+            const Vec3 w =
+                towards(scene, p, known ? starts->reflected_at[i] : PointLedPaths::SurfacePoint{},
+                        starts->reflected[i]);
             add(solve_connection(scene, p, l, Chain::refracted_reflected, w, 1),
                 Chain::refracted_reflected);
+        }
     } else {
         // The sphere model's starts once (sphere_candidates and each connect would otherwise
         // scan the circle again).
@@ -484,6 +526,8 @@ Vec3 PathIntegrator::led_flux_point(const EmbreeScene& scene, const Vec3& p, con
     if (found) {
         found->refracted = solved[0].empty() ? Vec3::Zero() : solved[0].front();
         found->reflected = solved[1];
+        found->refracted_at = at[0].empty() ? PointLedPaths::SurfacePoint{} : at[0].front();
+        found->reflected_at = at[1];
     }
     return sum;
 }

@@ -76,6 +76,17 @@ struct InterfaceConnection {
 struct PointLedPaths {
     Vec3 refracted = Vec3::Zero();
     std::vector<Vec3> reflected;
+    /// Where each connection meets the inner surface first, as a material point: its
+    /// triangle, barycentric weights of the second and third corners (prim ~0u: unknown) and
+    /// the point they give at rest. A frame's solve starts towards that point on the deformed
+    /// surface, or along the rest's direction where the surface there has not moved.
+    struct SurfacePoint {
+        std::uint32_t prim = ~0u;
+        double b1 = 0.0, b2 = 0.0;
+        Vec3 rest_mm = Vec3::Zero();
+    };
+    SurfacePoint refracted_at;
+    std::vector<SurfacePoint> reflected_at;
 };
 
 class PathIntegrator {
