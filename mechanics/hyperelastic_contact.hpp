@@ -14,9 +14,9 @@
 /// it stalls; a step that cycles near its fixed point on a node at the friction cone's edge
 /// holds its contact sets until it converges on them, then checks them (SetHolding). The update
 /// is shortened while any tet's (or nodal) J would fall below `min_jacobian`: the iteration
-/// never leaves the set det F > 0. At the fixed point
-/// f_int(u) = B' F and the contact conditions hold on u. No tangent factorization per
-/// iteration: one back-substitution, one gradient and one contact solve each.
+/// never leaves the set det F > 0. At the fixed point f_int(u) = B' F and the contact
+/// conditions hold on u. No tangent factorization per iteration: one back-substitution, one
+/// gradient and one contact solve each.
 #include "mechanics/contact.hpp"
 #include "mechanics/elastic_body.hpp"
 #include "mechanics/neo_hookean.hpp"
