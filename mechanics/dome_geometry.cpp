@@ -9,6 +9,7 @@
 #include <functional>
 #include <map>
 #include <numbers>
+#include <random>
 #include <set>
 #include <stdexcept>
 
@@ -237,7 +238,38 @@ MeshLevel mesh_level(const std::string& name) {
         "'; allowed: very_coarse, coarse, medium, fine, refined, reference");
 }
 
-std::vector<Eigen::Vector3d> marker_directions(const DomeParams& dome) {
+namespace {
+
+/// A tangent frame (t1, t2) of the unit sphere at n, (t1, t2, n) right-handed.
+std::pair<Eigen::Vector3d, Eigen::Vector3d> tangent_frame(const Eigen::Vector3d& n) {
+    const Eigen::Vector3d t1 =
+        (std::abs(n.z()) > 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitZ())
+            .cross(n)
+            .normalized();
+    return {t1, n.cross(t1)};
+}
+
+/// The markers' mid-thickness radius in layer `layer` (0 inner, 1 outer).
+double marker_mid_radius(const DomeParams& dome, int layer) {
+    return 0.5 * (dome.radii_mm[std::size_t(2 * layer)] + dome.radii_mm[std::size_t(2 * layer + 1)]);
+}
+
+/// Moves each direction by an offset uniform in a disc of `jitter_mm` on the sphere of radius
+/// `r_mm` (std::mt19937_64 seeded per layer and marker, turned into doubles by hand).
+void jitter(std::vector<Eigen::Vector3d>& dirs, double jitter_mm, double r_mm,
+            std::uint64_t seed) {
+    for (std::size_t m = 0; m < dirs.size(); ++m) {
+        std::mt19937_64 engine(seed * 0x9E3779B97F4A7C15ull + m);
+        const double u = double(engine() >> 11) * 0x1.0p-53, v = double(engine() >> 11) * 0x1.0p-53;
+        const double rho = jitter_mm * std::sqrt(u), phi = 2 * kPi * v;
+        const auto [t1, t2] = tangent_frame(dirs[m]);
+        dirs[m] = (dirs[m] + rho / r_mm * (std::cos(phi) * t1 + std::sin(phi) * t2)).normalized();
+    }
+}
+
+} // namespace
+
+std::vector<Eigen::Vector3d> marker_directions(const DomeParams& dome, int layer) {
     std::vector<Eigen::Vector3d> dirs{Eigen::Vector3d::UnitZ()};
     const double step = deg(dome.ring_step_deg);
     for (int k = 1; k <= dome.ring_count; ++k) {
@@ -248,12 +280,16 @@ std::vector<Eigen::Vector3d> marker_directions(const DomeParams& dome) {
                               std::sin(k * step) * std::sin(phi), std::cos(k * step));
         }
     }
+    if (dome.marker_jitter_mm > 0)
+        jitter(dirs, dome.marker_jitter_mm, marker_mid_radius(dome, layer),
+               dome.marker_jitter_seed * 2 + std::uint64_t(layer));
     return dirs;
 }
 
 std::vector<double> marker_face_margins_mm(const DomeParams& dome, const TetMesh& mesh) {
-    const auto dirs = marker_directions(dome);
-    std::vector<double> margin(2 * dirs.size(), 0.0);
+    const std::array<std::vector<Eigen::Vector3d>, 2> layer_dirs{marker_directions(dome, 0),
+                                                                 marker_directions(dome, 1)};
+    std::vector<double> margin(2 * layer_dirs[0].size(), 0.0);
     // Interfaces bounding each marker layer: inner surface and 1|2; 3|2 and 3|4 (the coating).
     const std::array<std::array<int, 4>, 4> interfaces{{{kInnerMarkerLayer, -1, 0, 0},
                                                         {kInnerMarkerLayer, kClearLayer, 1, 0},
@@ -272,6 +308,7 @@ std::vector<double> marker_face_margins_mm(const DomeParams& dome, const TetMesh
             // its three vertices on the rim circle).
             if (std::abs(n.dot(centre)) < 0.9) continue;
             const double sag = r - std::abs(n.dot(v0));
+            const auto& dirs = layer_dirs[std::size_t(layer)];
             for (std::size_t m = 0; m < dirs.size(); ++m)
                 if (dirs[m].dot(centre) >= cos_near) {
                     double& mm = margin[std::size_t(layer) * dirs.size() + m];
@@ -285,7 +322,9 @@ std::vector<double> marker_face_margins_mm(const DomeParams& dome, const TetMesh
 }
 
 MarkerDiscs marker_discs(const DomeParams& dome, const std::vector<double>& margin_mm) {
-    const auto dirs = marker_directions(dome);
+    const std::array<std::vector<Eigen::Vector3d>, 2> layer_dirs{marker_directions(dome, 0),
+                                                                 marker_directions(dome, 1)};
+    const auto& dirs = layer_dirs[0];
     const int rim = dome.marker_rim_points;
     MarkerDiscs discs;
     discs.markers_per_layer = int(dirs.size());
@@ -293,23 +332,17 @@ MarkerDiscs marker_discs(const DomeParams& dome, const std::vector<double>& marg
     discs.points_per_marker = 3 * (1 + rim);
     discs.points.resize(2 * dirs.size() * std::size_t(discs.points_per_marker), 3);
     // Markers sit at mid-thickness of the inner (layer 1) and outer (layer 3) marker layers.
-    const double mid[2] = {0.5 * (dome.radii_mm[0] + dome.radii_mm[1]),
-                           0.5 * (dome.radii_mm[2] + dome.radii_mm[3])};
+    const double mid[2] = {marker_mid_radius(dome, 0), marker_mid_radius(dome, 1)};
     if (!margin_mm.empty() && margin_mm.size() != 2 * dirs.size())
         throw std::invalid_argument("marker_discs: one margin per marker needed");
     int row = 0;
     for (int l = 0; l < 2; ++l)
-        for (const Eigen::Vector3d& n : dirs) {
+        for (const Eigen::Vector3d& n : layer_dirs[std::size_t(l)]) {
             const std::size_t m = discs.thickness_mm.size();
             const double layer = dome.radii_mm[2 * l + 1] - dome.radii_mm[2 * l];
             const double margin = margin_mm.empty() ? 0.005 : margin_mm[m];
             discs.thickness_mm.push_back(std::min(dome.marker_thickness_mm, layer - 2 * margin));
-            // Tangent frame of the sphere at n (any frame: the disc is round).
-            const Eigen::Vector3d t1 =
-                (std::abs(n.z()) > 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitZ())
-                    .cross(n)
-                    .normalized();
-            const Eigen::Vector3d t2 = n.cross(t1); // (t1, t2, n) right-handed
+            const auto [t1, t2] = tangent_frame(n); // any frame: the disc is round
             for (const double offset : {0.0, -0.5, 0.5}) {
                 const double r = mid[l] + offset * discs.thickness_mm[m];
                 discs.points.row(row++) = r * n;

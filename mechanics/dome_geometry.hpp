@@ -4,6 +4,7 @@
 #include "mechanics/tet_mesh.hpp"
 
 #include <array>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,11 @@ struct DomeParams {
     /// its own layer and the outer faces stay off the rendered coating.
     double marker_thickness_mm = 0.5;
     int marker_rim_points = 12; ///< polygon resolution of each disc's rim
+    /// Printing tolerance: each marker's centre moves within its layer's sphere by an offset
+    /// drawn uniformly in a disc of this radius (mm), independently per marker and layer, from
+    /// `marker_jitter_seed` (0 mm: the CAD's layout).
+    double marker_jitter_mm = 0.0;
+    std::uint64_t marker_jitter_seed = 0;
 };
 
 /// Mesh resolution: named levels map to a target surface edge length and a tet volume bound.
@@ -50,9 +56,10 @@ struct MeshLevel {
 /// std::invalid_argument otherwise.
 MeshLevel mesh_level(const std::string& name);
 
-/// Unit directions of the markers of one layer: apex + rings k = 1..ring_count at polar angle
-/// k * step with round(6 sin(k step) / sin(step)) markers each (82 for the default) [K].
-std::vector<Eigen::Vector3d> marker_directions(const DomeParams& dome);
+/// Unit directions of the markers of layer `layer` (0 inner, 1 outer): apex + rings
+/// k = 1..ring_count at polar angle k * step with round(6 sin(k step) / sin(step)) markers each
+/// (82 for the default) [K], each moved by the layer's jitter (DomeParams::marker_jitter_mm).
+std::vector<Eigen::Vector3d> marker_directions(const DomeParams& dome, int layer = 0);
 
 /// The marker discs of both layers as closed thin volumes, undeformed: spherical-shell
 /// sectors (the rims lie on spheres about the dome centre, like the layers). Per marker,

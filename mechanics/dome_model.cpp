@@ -104,6 +104,11 @@ std::uint64_t cache_key(const DomeModelOptions& o) {
                   o.dome.ring_count, o.dome.marker_radius_mm, o.dome.marker_rim_points,
                   o.dome.marker_thickness_mm);
     text += buf;
+    if (o.dome.marker_jitter_mm > 0) {
+        std::snprintf(buf, sizeof buf, "marker jitter %.17g %llu\n", o.dome.marker_jitter_mm,
+                      static_cast<unsigned long long>(o.dome.marker_jitter_seed));
+        text += buf;
+    }
     for (const Material& m : o.materials) {
         std::snprintf(buf, sizeof buf, "material %.17g %.17g\n", m.E_MPa, m.nu);
         text += buf;

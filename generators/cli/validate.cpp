@@ -19,7 +19,10 @@ int run(const std::vector<std::string>& paths) {
         const std::size_t images =
             specs[i].outputs.images ? frames * std::size_t(specs[i].fingers.count) : 0;
         std::cout << paths[i] << ": ok (" << plan.trials.size() << " trials, " << frames
-                  << " frames, " << images << " images)\n";
+                  << " frames, " << images << " images"
+                  << (plan.sensors.empty() ? std::string()
+                                           : ", " + std::to_string(plan.sensors.size()) + " sensors")
+                  << ")\n";
     }
     return 0;
 }

@@ -1,7 +1,10 @@
 #include "generators/output/check.hpp"
 
+#include "generators/io/file_io.hpp"
 #include "generators/output/csv_rows.hpp"
+#include "generators/plan/sensor_variants.hpp"
 #include "generators/spec/spec.hpp"
+#include "generators/spec/spec_schema.hpp"
 #include "mechanics/dome_geometry.hpp"
 
 #include <nlohmann/json.hpp>
@@ -10,6 +13,7 @@
 #include <cmath>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <ostream>
 #include <sstream>
 
@@ -218,6 +222,60 @@ void check_markers(const fs::path& dir, const Bounds& k, const CheckOptions& opt
     }
 }
 
+/// The dataset's spec (spec.resolved.yaml), or nothing when it is missing or this build cannot
+/// read it (an older chromasim's keys).
+std::optional<Spec> stored_spec(const fs::path& dir) {
+    const fs::path path = dir / "spec.resolved.yaml";
+    try {
+        return parse_stored_spec(read_file(path), path.string());
+    } catch (const std::exception&) {
+        return std::nullopt;
+    }
+}
+
+/// Whether `value` is one the factor can draw: in its range, or one of its listed values.
+bool drawable(const Factor& f, double value) {
+    if (f.is_range) return value >= f.min && value <= f.max;
+    return std::find(f.values.begin(), f.values.end(), value) != f.values.end();
+}
+
+/// sensors.csv of a dataset whose spec varies its sensor: one row per trial, naming a sensor
+/// of the plan, each value one its key can draw and the plan's own draw.
+void check_sensors(const fs::path& dir, const CheckOptions& options, CheckReport& report) {
+    const std::optional<Spec> spec = stored_spec(dir);
+    const bool present = fs::exists(dir / "sensors.csv");
+    if (!spec || (!varies_sensor(*spec) && !present)) return;
+    if (!present) {
+        ++report.findings_total;
+        report.findings.push_back({"sensors.csv", 0, -1, -1, "", "", "",
+                                   "missing: the spec varies its sensor"});
+        return;
+    }
+    const Plan plan = make_plan(*spec);
+    CsvRows rows(dir, "sensors.csv", "chromasim check: ");
+    Checker c(rows, report, options);
+    while (rows.next()) {
+        ++report.sensor_rows;
+        const double trial = c.number("trial"), sensor = c.number("sensor");
+        c.at(int(trial), -1, "");
+        if (!(trial >= 0 && trial < double(plan.trials.size()))) {
+            c.find("trial", "not a trial of the spec's plan");
+            continue;
+        }
+        const TrialPlan& planned = plan.trials[std::size_t(trial)];
+        if (sensor != double(planned.sensor)) c.find("sensor", "not the plan's sensor of the trial");
+        if (!(planned.sensor >= 0)) continue;
+        for (const auto& [key, value] : plan.sensors[std::size_t(planned.sensor)].values) {
+            const double written = c.number(key);
+            if (!drawable(spec->varied.at(key), written))
+                c.find(key, "outside the spec's " + value_to_yaml(spec->varied.at(key),
+                                                                  ValueType::Varied));
+            else if (written != value)
+                c.find(key, "not the plan's draw " + format_number(value));
+        }
+    }
+}
+
 /// Two different objects pressed into a fingertip never give the same image bytes.
 void check_images(const std::map<std::string, std::string>& files,
                   const std::map<std::string, std::pair<std::string, double>>& image_objects,
@@ -249,12 +307,14 @@ CheckReport check_dataset(const fs::path& dir, const CheckOptions& options) {
     check_labels(dir, bounds, options, report, image_objects);
     check_markers(dir, bounds, options, report);
     check_images(files, image_objects, report, options);
+    check_sensors(dir, options, report);
     return report;
 }
 
 void print_check_report(const fs::path& dir, const CheckReport& r, std::ostream& out) {
     out << "chromasim check: " << dir.string() << " (written by chromasim " << r.version
         << "): " << r.label_rows << " label rows, " << r.marker_rows << " marker rows, "
+        << (r.sensor_rows > 0 ? std::to_string(r.sensor_rows) + " sensor rows, " : "")
         << r.flagged << " fingertip frame(s) flagged converged = 0; " << r.findings_total
         << " impossible or inconsistent value(s)\n";
     for (const CheckFinding& f : r.findings) {

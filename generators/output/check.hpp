@@ -12,7 +12,7 @@ namespace chromasim::generators {
 
 /// One impossible or inconsistent value.
 struct CheckFinding {
-    std::string file; ///< relative to the dataset: labels.csv, markers.csv, manifest.json
+    std::string file; ///< relative to the dataset: labels.csv, markers.csv, sensors.csv, ...
     long line = 0;    ///< 1-based line of the file (0: the file as a whole)
     int trial = -1, frame = -1;
     std::string finger; ///< left, right, or empty for a frame's own columns
@@ -24,6 +24,7 @@ struct CheckReport {
     std::string version;     ///< chromasim_version in manifest.json
     long label_rows = 0;     ///< labels.csv rows
     long marker_rows = 0;    ///< markers.csv rows (0 when the dataset has none)
+    long sensor_rows = 0;    ///< sensors.csv rows (0 when the spec varies no sensor key)
     long flagged = 0;        ///< fingertip frames with converged = 0 (marked, not errors)
     long findings_total = 0; ///< every finding, also those past the list's limit
     std::vector<CheckFinding> findings; ///< the first `max_findings`

@@ -2,6 +2,8 @@
 
 #include "generators/io/file_io.hpp"
 #include "generators/output/label_cells.hpp"
+#include "generators/output/sensor_table.hpp"
+#include "generators/plan/sensor_variants.hpp"
 
 #include <cerrno>
 #include <cmath>
@@ -285,6 +287,7 @@ void DatasetWriter::begin_trial(const std::string& split, int trial) {
     m_images = 0;
     m_labels.str({});
     m_markers.str({});
+    m_sensor.clear();
     m_labels << std::setprecision(9);
     m_markers << std::setprecision(9);
     m_strain.clear();
@@ -350,6 +353,7 @@ void DatasetWriter::end_trial(TrialRecord record) {
         write(std::string(kProgress) + "/" + name + ".labels.csv", m_labels.str());
     if (m_spec.outputs.markers)
         write(std::string(kProgress) + "/" + name + ".markers.csv", m_markers.str());
+    if (!m_sensor.empty()) write(std::string(kProgress) + "/" + name + ".sensors.csv", m_sensor);
     for (const auto& [relative, text] : m_strain)
         write(relative, text.str());
     m_strain.clear();
@@ -409,6 +413,7 @@ void DatasetWriter::assemble(const ManifestInfo& info, int trials) {
     if (m_spec.outputs.labels)
         assemble_csv("labels.csv", labels_header(m_spec.fingers.count), ".labels.csv");
     if (m_spec.outputs.markers) assemble_csv("markers.csv", kMarkersHeader, ".markers.csv");
+    if (varies_sensor(m_spec)) assemble_csv("sensors.csv", sensors_header(m_spec), ".sensors.csv");
     std::vector<TrialRecord> records;
     for (const auto& [trial, record] : m_records)
         records.push_back(record);

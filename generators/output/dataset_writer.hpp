@@ -129,6 +129,8 @@ public:
                                      int frame, std::string* relative = nullptr,
                                      const char* extension = "png");
     void write_labels(const FrameLabels& row);
+    /// The trial's sensors.csv row (a spec that varies its sensor: sensor_table.hpp).
+    void write_sensor(std::string row) { m_sensor = std::move(row); }
     /// One row per marker: centre displacement of marker `m` of layer `layer`.
     void write_marker(const FrameLabels& frame, const std::string& finger, const char* layer,
                       int marker, const double x0_mm[3], const double u_mm[3]);
@@ -139,7 +141,8 @@ public:
     /// with every file's SHA-256: from here on the trial is complete. `record` holds the
     /// trial's counts; its file list is filled here.
     void end_trial(TrialRecord record);
-    /// Assembles labels.csv and markers.csv from the shards of every trial in plan order and
+    /// Assembles labels.csv, markers.csv and (a varied sensor) sensors.csv from the shards of
+    /// every trial in plan order and
     /// writes manifest.json (last). Every trial of the plan (slice) must be complete, `trials`
     /// of them. Then call finish().
     void assemble(const ManifestInfo& info, int trials);
@@ -177,6 +180,7 @@ private:
     std::string m_split;
     int m_trial = -1, m_images = 0;
     std::ostringstream m_labels, m_markers;
+    std::string m_sensor;
     std::map<std::string, std::ostringstream> m_strain; ///< by relative path
 };
 

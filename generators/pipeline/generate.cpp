@@ -6,11 +6,13 @@
 #include "generators/io/image_io.hpp"
 #include "generators/io/stopwatch.hpp"
 #include "generators/output/dataset_writer.hpp"
+#include "generators/output/sensor_table.hpp"
 #include "generators/pipeline/light_cache_store.hpp"
 #include "generators/plan/plan.hpp"
+#include "generators/plan/sensor_variants.hpp"
 #include "render/renderer.hpp"
 
-
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <csignal>
@@ -50,9 +52,10 @@ void test_kill_point() {
     if (kill_at > 0 && ++steps >= kill_at) std::raise(SIGKILL);
 }
 
-/// What every trial shares: the simulator, the writer and the report.
+/// What every trial shares: the simulator (of the trial's sensor), the writer and the report.
 struct Stages {
-    Simulator& simulator;
+    Simulator* simulator;
+    const Plan& plan;
     DatasetWriter& writer;
     GenerateReport& report;
     std::ostream& log;
@@ -64,12 +67,12 @@ struct Stages {
 void write_images(Stages& s, const FrameLabels& labels, int f, SolvedFrame& frame,
                   LabelRow& row) {
     auto t0 = Clock::now();
-    const StageSettings& settings = s.simulator.settings();
+    const StageSettings& settings = s.simulator->settings();
     // An unmoved scene renders to the same image: a reused frame keeps its render.
-    if (s.simulator.render(frame)) ++s.report.renders;
+    if (s.simulator->render(frame)) ++s.report.renders;
     std::optional<render::Image> recorded;
     if (settings.outputs.images)
-        recorded = s.simulator.recorded(frame, noise_index(labels.trial, f, labels.frame));
+        recorded = s.simulator->recorded(frame, noise_index(labels.trial, f, labels.frame));
     s.report.render_s += seconds_since(t0);
     t0 = Clock::now();
     const std::string finger = finger_name(f);
@@ -87,11 +90,11 @@ void write_images(Stages& s, const FrameLabels& labels, int f, SolvedFrame& fram
 /// One fingertip's frame after its mechanics: images, markers, strain.
 void finish_finger(Stages& s, const FrameLabels& labels, int f, SolvedFrame& frame,
                    LabelRow& row) {
-    const StageSettings& settings = s.simulator.settings();
-    if (s.simulator.renders()) write_images(s, labels, f, frame, row);
+    const StageSettings& settings = s.simulator->settings();
+    if (s.simulator->renders()) write_images(s, labels, f, frame, row);
     const auto t0 = Clock::now();
     if (settings.outputs.markers)
-        write_markers(s.writer, labels, finger_name(f), s.simulator.model(), frame.result);
+        write_markers(s.writer, labels, finger_name(f), s.simulator->model(), frame.result);
     if (settings.outputs.strain)
         s.writer.write_strain(labels, finger_name(f), frame.result.strain.eps_xx);
     s.report.write_s += seconds_since(t0);
@@ -105,7 +108,9 @@ void finish_finger(Stages& s, const FrameLabels& labels, int f, SolvedFrame& fra
 void run_trial(Stages& s, const TrialPlan& trial) {
     const GenerateReport before = s.report;
     s.writer.begin_trial(trial.split, trial.id);
-    TrialRun run(s.simulator, trial);
+    if (trial.sensor >= 0)
+        s.writer.write_sensor(sensors_row(trial, s.plan.sensors[std::size_t(trial.sensor)]));
+    TrialRun run(*s.simulator, trial);
     while (!run.done()) {
         FrameLabels labels = run.next();
         for (int f = 0; f < run.fingers(); ++f) {
@@ -133,9 +138,10 @@ void run_trial(Stages& s, const TrialPlan& trial) {
     if (s.progress) s.progress->clear();
     if (!s.quiet)
         s.log << "  trial " << trial.id + 1 << "/" << s.report.planned_trials << " (" << trial.split
-              << ", " << s.simulator.settings().objects[std::size_t(trial.object)].object.name
-              << ", mu " << trial.mu << ", grip " << trial.grip_N
-              << " N): " << trial.frames.size() << " frames"
+              << ", " << s.simulator->settings().objects[std::size_t(trial.object)].object.name
+              << ", mu " << trial.mu << ", grip " << trial.grip_N << " N"
+              << (trial.sensor >= 0 ? ", sensor " + std::to_string(trial.sensor) : std::string())
+              << "): " << trial.frames.size() << " frames"
               << (trial.first_slip_frame >= 0
                       ? ", slips at frame " + std::to_string(trial.first_slip_frame)
                       : std::string())
@@ -241,24 +247,66 @@ void log_light_cache(const GenerateReport& report, const LightCacheOutcome& cach
     if (!cache.note.empty()) log << "chromasim: light cache: " << cache.note << '\n';
 }
 
-/// What every trial shares, computed once: the dome model and, with images, the renderer
-/// (exposure, light cache) and the camera sensor model.
+/// What every trial of one sensor shares, computed once: the dome model and, with images, the
+/// renderer (exposure, light cache) and the camera sensor model. Adds its times to `report`.
 std::unique_ptr<Simulator> precompute(const Spec& spec, StageSettings settings,
                                       const std::filesystem::path& cache_dir,
                                       GenerateReport& report, std::ostream& log) {
     const auto t0 = Clock::now();
     auto simulator = std::make_unique<Simulator>(spec, std::move(settings), cache_dir);
     LightCacheOutcome cache;
+    GenerateReport times;
     if (simulator->renders()) {
         cache = simulator->prepare_renderer();
-        report.light_cache_s = cache.seconds;
-        report.light_cache_from_file = cache.from_file;
+        times.light_cache_s = cache.seconds;
+        times.light_cache_from_file = cache.from_file;
     }
-    report.precompute_s = seconds_since(t0);
-    log_dome_model(simulator->model(), report.precompute_s, cache_dir, log);
-    log_light_cache(report, cache, cache_dir, log);
+    times.precompute_s = seconds_since(t0);
+    log_dome_model(simulator->model(), times.precompute_s, cache_dir, log);
+    log_light_cache(times, cache, cache_dir, log);
+    report.precompute_s += times.precompute_s;
+    report.light_cache_s += times.light_cache_s;
+    report.light_cache_from_file = times.light_cache_from_file;
     return simulator;
 }
+
+/// The simulator of each trial's sensor: the spec's own, or one per sensor variant, built
+/// when its first trial comes (one at a time: the caches keep the others' precomputes).
+class Simulators {
+public:
+    Simulators(const Spec& spec, const Plan& plan, StageSettings settings,
+               std::filesystem::path cache_dir, GenerateReport& report, std::ostream& log)
+        : m_spec(spec), m_plan(plan), m_settings(std::move(settings)),
+          m_cache_dir(std::move(cache_dir)), m_report(report), m_log(log) {}
+
+    /// The simulator of sensor `sensor` (-1: the spec's own), built now if it is not the
+    /// current one.
+    Simulator& of(int sensor) {
+        if (m_simulator && sensor == m_sensor) return *m_simulator;
+        m_simulator.reset(); // one dome model and light cache in memory at a time
+        m_sensor = sensor;
+        if (sensor < 0) {
+            m_simulator = precompute(m_spec, m_settings, m_cache_dir, m_report, m_log);
+            return *m_simulator;
+        }
+        const Spec variant = sensor_spec(m_spec, m_plan.sensors[std::size_t(sensor)]);
+        m_log << "chromasim: sensor " << sensor << " of " << m_plan.sensors.size() << '\n';
+        m_simulator = precompute(variant, stage_settings(variant), m_cache_dir, m_report, m_log);
+        return *m_simulator;
+    }
+    /// The current simulator, else the first sensor's (its mesh for the manifest).
+    Simulator& any() { return m_simulator ? *m_simulator : of(m_plan.sensors.empty() ? -1 : 0); }
+
+private:
+    const Spec& m_spec;
+    const Plan& m_plan;
+    StageSettings m_settings;
+    std::filesystem::path m_cache_dir;
+    GenerateReport& m_report;
+    std::ostream& m_log;
+    std::unique_ptr<Simulator> m_simulator;
+    int m_sensor = -1;
+};
 
 void log_up_to_date(const GenerateOptions& options, std::ostream& log) {
     log << "chromasim: " << options.out_dir.string() << " already holds this "
@@ -267,17 +315,23 @@ void log_up_to_date(const GenerateOptions& options, std::ostream& log) {
         << "; nothing to do.\n";
 }
 
-/// Runs `trials` in order; an error keeps the complete trials for --resume and says so.
-void run_trials(Stages& stages, const std::vector<const TrialPlan*>& trials,
-                const GenerateOptions& options) {
+/// Runs `trials` in order, each on its sensor's simulator; an error keeps the complete trials
+/// for --resume and says so.
+void run_trials(Stages& stages, Simulators& simulators,
+                const std::vector<const TrialPlan*>& trials, const GenerateOptions& options) {
     std::size_t frames = 0;
     for (const TrialPlan* trial : trials)
         frames += trial->frames.size();
     Progress progress(stages.log, frames, options.terminal, options.quiet);
     stages.progress = &progress;
     try {
-        for (const TrialPlan* trial : trials)
+        for (const TrialPlan* trial : trials) {
+            if (stages.simulator == nullptr || trial->sensor >= 0) {
+                progress.clear();
+                stages.simulator = &simulators.of(trial->sensor);
+            }
             run_trial(stages, *trial);
+        }
         progress.finish();
     } catch (const std::exception& e) {
         progress.clear();
@@ -322,23 +376,29 @@ GenerateReport generate(const Spec& spec, const GenerateOptions& options, std::o
             << " held the whole dataset; moved it into place\n";
         return report;
     }
-    const TrialSelection trials = select_trials(plan, options, writer, log);
+    TrialSelection trials = select_trials(plan, options, writer, log);
     report.resumed_trials = int(trials.owned.size() - trials.to_run.size());
 
-    // 2. Precompute what every trial shares: mesh, factorization, contact compliance, scene.
-    const std::unique_ptr<Simulator> simulator =
-        precompute(spec, std::move(settings), options.cache_dir, report, log);
+    // 2. Precompute what every trial of a sensor shares: mesh, factorization, contact
+    // compliance, scene; the spec's own sensor at once, a varied sensor's before its first
+    // trial (trials grouped by sensor, plan order within).
+    Simulators simulators(spec, plan, std::move(settings), options.cache_dir, report, log);
+    Stages stages{nullptr, plan, writer, report, log, options.quiet};
+    if (plan.sensors.empty())
+        stages.simulator = &simulators.of(-1);
+    else
+        std::stable_sort(trials.to_run.begin(), trials.to_run.end(),
+                         [](const TrialPlan* a, const TrialPlan* b) { return a->sensor < b->sensor; });
 
     // 3. Trials, one after the other; in each, frames: mechanics, render (only if images are
     // asked for), writers.
-    Stages stages{*simulator, writer, report, log, options.quiet};
-    run_trials(stages, trials.to_run, options);
+    run_trials(stages, simulators, trials.to_run, options);
 
     // 4. The dataset's counts, over every trial (resumed ones too), then assemble (a part:
     // seal) and rename.
     report = dataset_counts(writer, report);
     const auto t0 = Clock::now();
-    const ManifestInfo info = manifest_info(simulator->model(), spec.outputs.strain,
+    const ManifestInfo info = manifest_info(simulators.any().model(), spec.outputs.strain,
                                             report.planned_trials);
     if (shard.sharded())
         writer.seal_part({CHROMASIM_VERSION, CHROMASIM_ARCH, shard, spec.source_path.string(),

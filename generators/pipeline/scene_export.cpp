@@ -4,6 +4,7 @@
 #include "generators/io/stopwatch.hpp"
 #include "generators/pipeline/generate.hpp"
 #include "generators/pipeline/sensor_bridge.hpp"
+#include "generators/plan/sensor_variants.hpp"
 #include "render/fisheye_camera.hpp"
 
 #include <algorithm>
@@ -341,14 +342,18 @@ mechanics::FrameResult solve_to_frame(const mechanics::DomeModel& model, const T
 
 } // namespace
 
-SceneExportReport export_scene(const Spec& spec, const SceneSelection& which,
+SceneExportReport export_scene(const Spec& spec_in, const SceneSelection& which,
                                const std::filesystem::path& out, const SceneExportOptions& options,
                                std::ostream& log) {
     const auto t_start = Clock::now();
     // 1. Validate, then work: the trial, finger and frame and the output path; the object's
-    // mesh file, the camera and the optics are read before the mechanics start.
-    const Plan plan = make_plan(spec);
-    const TrialPlan& trial = selected_trial(plan, spec.name, which);
+    // mesh file, the camera and the optics (of the trial's sensor) are read before the
+    // mechanics start.
+    const Plan plan = make_plan(spec_in);
+    const TrialPlan& trial = selected_trial(plan, spec_in.name, which);
+    const Spec spec = trial.sensor >= 0
+                          ? sensor_spec(spec_in, plan.sensors[std::size_t(trial.sensor)])
+                          : spec_in;
     SceneExportReport report;
     report.trial = which.trial;
     report.finger = which.finger;

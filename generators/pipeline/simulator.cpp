@@ -2,6 +2,7 @@
 
 #include "generators/io/stopwatch.hpp"
 #include "generators/pipeline/sensor_bridge.hpp"
+#include "generators/plan/sensor_variants.hpp"
 
 #include <tbb/parallel_for.h>
 
@@ -51,6 +52,11 @@ Simulator::Simulator(const Spec& spec, std::filesystem::path cache_dir)
 Simulator::Simulator(const Spec& spec, StageSettings settings, std::filesystem::path cache_dir)
     : m_spec(spec), m_settings(std::move(settings)), m_cache_dir(std::move(cache_dir)),
       m_request(frame_request(m_settings)) {
+    if (varies_sensor(spec))
+        throw SpecError(spec.source_path.string() + ": the spec varies its sensor (" +
+                        what_varies(spec) +
+                        "); a Simulator is one sensor: make it from sensor_spec(spec, "
+                        "make_plan(spec).sensors[k])");
     const auto t0 = Clock::now();
     mechanics::DomeModelOptions options = m_settings.dome;
     options.cache_dir = m_cache_dir;

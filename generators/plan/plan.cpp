@@ -1,41 +1,20 @@
 #include "generators/plan/plan.hpp"
 
+#include "generators/plan/sensor_variants.hpp"
+#include "generators/plan/stream.hpp"
 #include "mechanics/contact.hpp"
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <numbers>
-#include <random>
 
 namespace chromasim::generators {
 
 namespace {
 
-/// A random stream: std::mt19937_64, whose output the standard fixes, turned into doubles by
-/// hand (the std distributions differ between standard libraries), so a plan is the same
-/// everywhere.
-class Stream {
-public:
-    explicit Stream(std::uint64_t seed) : m_engine(seed) {}
-    /// Uniform in [0, 1), 53 random bits.
-    double uniform() { return double(m_engine() >> 11) * 0x1.0p-53; }
-
-private:
-    std::mt19937_64 m_engine;
-};
-
 /// Streams of a plan: each trial's own, one per Latin hypercube factor, the split shuffle.
 constexpr std::uint64_t kTrialStream = 0, kLhsStream = 100, kSplitStream = 200;
-
-/// The index in [0, n) that a uniform u in [0, 1) falls on.
-std::size_t pick(std::size_t n, double u) {
-    return std::min(n - 1, std::size_t(u * double(n)));
-}
-
-double draw(const Factor& f, double u) {
-    return f.is_range ? f.min + u * (f.max - f.min) : f.values[pick(f.values.size(), u)];
-}
 
 /// A uniform permutation of 0 .. n-1 (Fisher-Yates).
 std::vector<std::size_t> shuffled(std::size_t n, Stream stream) {
@@ -60,12 +39,20 @@ std::array<std::size_t, kFactors> grid_sizes(const Spec& spec) {
             values(p.grip_N),    values(p.load_rate_N_per_s), values(p.target_load_N)};
 }
 
-std::size_t trial_count(const Spec& spec) {
-    if (spec.sampling.method != "full_grid") return std::size_t(spec.sampling.trials);
+std::size_t grid_cells(const Spec& spec) {
     std::size_t cells = 1;
     for (const std::size_t n : grid_sizes(spec))
         cells *= n;
-    return cells * std::size_t(spec.sampling.repetitions);
+    return cells;
+}
+
+/// Trials of the plan: a full grid's cells, times its sensors when they are crossed with it,
+/// times its repetitions.
+std::size_t trial_count(const Spec& spec) {
+    if (spec.sampling.method != "full_grid") return std::size_t(spec.sampling.trials);
+    const bool crossed = spec.sampling.sensor_assignment == "crossed" && varies_sensor(spec);
+    return grid_cells(spec) * (crossed ? std::size_t(spec.sampling.sensor_variants) : 1) *
+           std::size_t(spec.sampling.repetitions);
 }
 
 /// Full grid: the gridded factors' uniforms land on their cell's value (the last factor
@@ -305,6 +292,7 @@ Plan make_plan(const Spec& spec) {
         plan.trials.push_back(make_trial(spec, k, u, stream));
     }
     assign_splits(spec, plan);
+    assign_sensors(spec, plan, spec.sampling.method == "full_grid" ? grid_cells(spec) : 1);
     return plan;
 }
 

@@ -64,6 +64,12 @@ FingerSetup grasp_finger(const Spec& spec, const Spec::Object& object, double mu
 /// The unit vector of `finger`'s load direction in its x-y plane.
 Eigen::Vector2d load_direction(const FingerSetup& finger);
 
+/// One sensor a trial can use: a draw of every key the spec varies (Spec::varied).
+struct SensorVariant {
+    int id = 0; ///< index into Plan::sensors
+    std::vector<std::pair<std::string, double>> values; ///< Spec::varied's keys, in its order
+};
+
 struct TrialPlan {
     int id = 0;        ///< trial index in the plan, from 0
     std::string split; ///< splits[].name
@@ -74,10 +80,13 @@ struct TrialPlan {
     std::vector<FingerSetup> fingers;
     std::vector<FramePlan> frames;
     int first_slip_frame = -1; ///< first frame of phase slip; -1 when no finger slips
+    int sensor = -1; ///< index into Plan::sensors; -1: the spec's own sensor (nothing varies)
 };
 
 struct Plan {
     std::vector<TrialPlan> trials;
+    /// The sensors drawn from a spec that varies its sensor (empty when it does not).
+    std::vector<SensorVariant> sensors;
     /// Frames over all trials (one frame holds one image per fingertip).
     std::size_t frame_count() const;
 };
@@ -92,7 +101,8 @@ struct Plan {
 /// - slide: grasp and hold frames as above, then protocol.slide.frames frames at travels
 ///   evenly spaced from start_mm to end_mm under displacement control.
 /// Frame times are k / frame_rate_Hz, k = 1, 2, ... (slide frames: the hold's end plus
-/// travel / speed). Pure and deterministic: equal specs give equal plans.
+/// travel / speed). A spec that varies its sensor also gets its sensors (sensor_variants.hpp).
+/// Pure and deterministic: equal specs give equal plans.
 Plan make_plan(const Spec& spec);
 
 /// One part of a sharded run (`generate --shard K/N`): shard `index` of `count`. Trial t of

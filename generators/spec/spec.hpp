@@ -5,6 +5,7 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -29,6 +30,10 @@ struct Factor {
     double min = 0.0, max = 0.0; ///< the range (is_range only)
     bool operator==(const Factor&) const = default;
 };
+
+/// The smallest and the largest value a factor can take.
+double lowest(const Factor& f);
+double highest(const Factor& f);
 
 struct LayerMaterial {
     double E_MPa = 1.0; ///< Young's modulus, MPa (= N/mm^2)
@@ -69,7 +74,15 @@ struct Spec {
         Rgb led_rgb{1.0, 1.0, 1.0};
         double refractive_index = 1.4;
         double marker_thickness_mm = 0.5;
+        double marker_radius_mm = 0.5;
+        double marker_jitter_mm = 0.0; ///< each marker's centre moved within this radius
+        /// Not a spec key: the sensor's index in the plan (plan/sensor_variants.hpp), which
+        /// seeds its marker jitter; -1: the spec's own sensor.
+        int variant = -1;
         Rgb coating_albedo{0.85, 0.85, 0.85};
+        double coating_albedo_scale = 1.0; ///< multiplies the coating's albedo (both modes)
+        /// multiply the markers' absorption (both modes: the RGB values or the spectra)
+        double inner_marker_absorption_scale = 1.0, outer_marker_absorption_scale = 1.0;
         Rgb inner_marker_absorption_per_mm{0.2, 3.0, 0.3};
         Rgb outer_marker_absorption_per_mm{3.0, 0.3, 0.2};
         Rgb outer_marker_albedo{0.10, 0.70, 0.75};
@@ -127,6 +140,9 @@ struct Spec {
         std::string method = "full_grid"; ///< full_grid | random | latin_hypercube
         int repetitions = 1;              ///< full_grid: every grid cell this many times
         int trials = 1;                   ///< random, latin_hypercube: number of trials
+        int sensor_variants = 8; ///< sensors drawn from the varied keys; 0: one per trial
+        /// random (each trial picks a sensor) | crossed (full_grid: every cell on every sensor)
+        std::string sensor_assignment = "random";
     } sampling;
 
     /// One split of the `splits` list: a fraction of the trials, assigned by a seeded shuffle.
@@ -176,6 +192,11 @@ struct Spec {
         bool variance = false;   ///< EXR channels variance.R/G/B
         bool strain = false;     ///< strain/<split>/<trial>/<finger>.csv (eps_xx grids)
     } outputs;
+
+    /// The `varied` keys written as a list or a range, by schema key ("sensor.materials.
+    /// clear_layer.E_MPa"); each one's field holds its nominal value (a list's first item, a
+    /// range's middle) until plan.hpp's sensor_spec() puts a variant's draw there.
+    std::map<std::string, Factor> varied;
 
     /// The resolved spec (every key, defaults filled) as YAML, in schema order. Written next to
     /// the dataset and hashed to tell whether an existing output came from the same spec.

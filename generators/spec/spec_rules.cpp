@@ -41,6 +41,27 @@ SchemaRule unique_name(const std::string& list) {
     return r;
 }
 
+/// A list item's name goes into labels.csv as a cell (and a split's into folder names): no
+/// character may end the cell, the line or the folder.
+SchemaRule plain_name(const std::string& list) {
+    SchemaRule r;
+    r.key = list + "[].name";
+    r.diagnose = [list](const Spec& s, std::size_t i) -> std::string {
+        const SchemaEntry* entry = find_schema_entry(list + "[].name");
+        const std::string name = std::get<std::string>(entry->get(s, i));
+        for (const char c : name)
+            if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f)
+                return "holds a control character";
+        if (name.find_first_of(",\"/\\") != std::string::npos)
+            return "holds a comma, a quote, a slash or a backslash";
+        if (name == "." || name == "..") return "names a folder's own or parent folder";
+        return "";
+    };
+    r.allowed = "text without commas, quotes, slashes, backslashes or control characters (it "
+                "is a labels.csv cell, and a split's name is a folder's)";
+    return r;
+}
+
 SchemaRule split_sum() {
     SchemaRule r;
     r.key = "splits";
@@ -75,12 +96,6 @@ SchemaRule led_beside_lens() {
 /// the smallest rate).
 double max_frames_per_trial(const Spec& s) {
     const Spec::Protocol& p = s.protocol;
-    const auto lowest = [](const Factor& f) {
-        return f.is_range ? f.min : *std::min_element(f.values.begin(), f.values.end());
-    };
-    const auto highest = [](const Factor& f) {
-        return f.is_range ? f.max : *std::max_element(f.values.begin(), f.values.end());
-    };
     const double phases =
         std::round(p.grasp_s * p.frame_rate_Hz) + std::round(p.hold_s * p.frame_rate_Hz);
     if (p.type == "slide") return phases + p.slide_frames;
@@ -95,6 +110,19 @@ SchemaRule trial_length() {
     r.problem = "with the grasp, hold and load durations plans a trial longer than 1000000 frames";
     r.allowed = "(grasp_s + hold_s + max target_load_N / min load_rate_N_per_s) * frame_rate_Hz "
                 "(slide: the slide frames instead of the load) up to 1000000 frames per trial";
+    return r;
+}
+
+SchemaRule crossed_sensors() {
+    SchemaRule r;
+    r.key = "sampling.sensor_assignment";
+    r.holds = [](const Spec& s, std::size_t) {
+        return s.sampling.sensor_assignment != "crossed" ||
+               (s.sampling.method == "full_grid" && s.sampling.sensor_variants > 0);
+    };
+    r.problem = "is crossed, which needs a full grid and a number of sensors";
+    r.allowed = "crossed with sampling.method full_grid and sampling.sensor_variants >= 1, or "
+                "random";
     return r;
 }
 
@@ -200,6 +228,37 @@ SchemaRule spectra_dir() {
     return spectra;
 }
 
+/// The coating's albedo times its scale stays a reflectance: at most 1 (RGB in RGB mode, the
+/// coating's spectrum in spectral mode), for the scale's highest draw.
+SchemaRule coating_albedo_scale() {
+    SchemaRule rule;
+    rule.reads_files = true;
+    rule.key = "sensor.optics.coating_albedo_scale";
+    rule.diagnose = [key = rule.key](const Spec& s, std::size_t) -> std::string {
+        const auto varied = s.varied.find(key);
+        const double scale =
+            varied != s.varied.end() ? highest(varied->second) : s.sensor.coating_albedo_scale;
+        double albedo = *std::max_element(s.sensor.coating_albedo.begin(),
+                                          s.sensor.coating_albedo.end());
+        if (s.render.spectral && (s.outputs.images || s.outputs.exr)) {
+            try {
+                const auto files = render::SensorSpectraFiles::in_directory(spectra_directory(s));
+                const render::Spectrum c = render::read_spectrum_csv(
+                    files.coating_albedo, render::SpectrumQuantity::albedo)[0];
+                albedo = *std::max_element(c.values.begin(), c.values.end());
+            } catch (const std::exception&) {
+                return ""; // sensor.optics.spectra_dir's rule names the bad file
+            }
+        }
+        if (scale * albedo <= 1.0) return "";
+        return "scales the coating's largest albedo " + format_number(albedo) + " to " +
+               format_number(scale * albedo);
+    };
+    rule.allowed = "at most 1 / the coating's largest albedo (sensor.optics.coating_albedo in "
+                   "RGB mode, its spectrum in spectral mode), for every value it may draw";
+    return rule;
+}
+
 /// A Kannala-Brandt camera maps every pixel back to one ray.
 SchemaRule invertible_camera() {
     SchemaRule camera;
@@ -245,11 +304,15 @@ SchemaRule flat_tilt() {
 
 std::vector<SchemaRule> build_rules() {
     std::vector<SchemaRule> rules{some_output(),       exr_channels(), mesh_file(),
-                                  invertible_camera(), flat_tilt(),    spectra_dir()};
-    for (const char* list : {"objects", "friction", "splits"})
+                                  invertible_camera(), flat_tilt(),    spectra_dir(),
+                                  coating_albedo_scale()};
+    for (const char* list : {"objects", "friction", "splits"}) {
+        rules.push_back(plain_name(list));
         rules.push_back(unique_name(list));
+    }
     rules.push_back(split_sum());
     rules.push_back(led_beside_lens());
+    rules.push_back(crossed_sensors());
     rules.push_back(slide_travel());
     rules.push_back(trial_length());
     return rules;

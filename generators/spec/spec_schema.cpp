@@ -147,6 +147,8 @@ const char* type_name(ValueType type) {
         return "vec3";
     case ValueType::Factor:
         return "factor";
+    case ValueType::Varied:
+        return "varied";
     }
     return "?";
 }
@@ -169,6 +171,7 @@ std::string allowed_cell(const SchemaEntry& e) {
     case ValueType::Vec3:
         return "3 numbers, each in " + range_text(e);
     case ValueType::Factor:
+    case ValueType::Varied:
         return "number, list of numbers or {min, max}, each in " + range_text(e);
     }
     return "";
@@ -206,6 +209,10 @@ Reading rules (an error names the file, line:column, key, value and what is allo
 - `factor`: a factor of the sampling plan: one number (`1.5`), a non-empty list of numbers
   (`[1.0, 1.5, 2.0]`) or a uniform range (`{min: 2, max: 3}`, both keys, min <= max); every
   number in the allowed range. How trials draw from it: `sampling.method`.
+- `varied`: a sensor value, written as one number; or as a list or a range (as a factor)
+  to randomize the sensor: each of `sampling.sensor_variants` sensors draws every varied key
+  once (a list item or a uniform value), every trial uses one of them, and `sensors.csv`
+  records which and its values (docs/DATASET_FORMAT.md).
 - Lists of mappings: `objects`, `friction` and `splits` are YAML lists whose items are
   mappings with the keys written `objects[].KEY` below, e.g.
   `objects: [{name: flat, shape: flat}, {name: curved, shape: sphere, radius_mm: 45}]`. A
@@ -299,6 +306,7 @@ ScalarCheck check_scalar(const SchemaEntry& entry, std::string_view text, bool q
     case ValueType::Rgb:
     case ValueType::Vec3:
     case ValueType::Factor:
+    case ValueType::Varied:
         return detail::check_number(entry, text, quoted);
     case ValueType::Integer:
         return detail::check_integer(entry, text, quoted);
@@ -335,8 +343,19 @@ std::string describe_allowed(const SchemaEntry& entry) {
     case ValueType::Factor:
         return "a number, a non-empty list of numbers, or {min, max} with min <= max, each in " +
                detail::range_text(entry) + unit;
+    case ValueType::Varied:
+        return "number in " + detail::range_text(entry) + unit +
+               ", or a list or {min, max} of them (a varied sensor)";
     }
     return "";
+}
+
+double lowest(const Factor& f) {
+    return f.is_range ? f.min : *std::min_element(f.values.begin(), f.values.end());
+}
+
+double highest(const Factor& f) {
+    return f.is_range ? f.max : *std::max_element(f.values.begin(), f.values.end());
 }
 
 std::string format_number(double x) {
@@ -363,8 +382,12 @@ std::string value_to_yaml(const SpecValue& value, ValueType type) {
         return "[" + format_number(c[0]) + ", " + format_number(c[1]) + ", " + format_number(c[2]) +
                "]";
     }
-    case ValueType::Factor: {
+    case ValueType::Factor:
+    case ValueType::Varied: {
         const Factor& f = std::get<Factor>(value);
+        // A sensor value that does not vary reads as the plain number it is.
+        if (type == ValueType::Varied && !f.is_range && f.values.size() == 1)
+            return format_number(f.values[0]);
         if (f.is_range)
             return "{min: " + format_number(f.min) + ", max: " + format_number(f.max) + "}";
         std::string out = "[";

@@ -25,11 +25,14 @@ enum class ValueType {
     Rgb,     ///< a list of exactly 3 numbers, each range-checked
     Vec3,    ///< a list of exactly 3 numbers (x, y, z of a point), each range-checked
     Factor,  ///< a sampling factor: a number, a list of numbers or {min, max}, range-checked
+    /// A sensor value that may vary: a number, or a list or {min, max} drawn once per sensor
+    /// variant (sampling.sensor_variants); read and stored as a Factor.
+    Varied,
 };
 
 /// A validated value; the alternative matches the entry's ValueType (Number -> double,
 /// Integer -> int64_t, Bool -> bool, Enum and String -> string, Rgb and Vec3 -> Rgb, the
-/// std::array<double, 3> both are stored in, Factor -> Factor).
+/// std::array<double, 3> both are stored in, Factor and Varied -> Factor).
 using SpecValue = std::variant<double, std::int64_t, bool, std::string, Rgb, Factor>;
 
 /// An interval of allowed numbers; each end is inclusive ("[") or exclusive ("(").

@@ -113,6 +113,31 @@ SchemaEntry factor(std::string key, Factor def, Range range, std::string unit, s
                       std::move(doc), access);
 }
 
+/// A `varied` entry: one number is the field's value; a list or a range goes into
+/// Spec::varied under the key, and the field holds its nominal value (the list's first item,
+/// the range's middle).
+template <class Access>
+SchemaEntry varied(std::string key, double def, Range range, std::string unit, std::string doc,
+                   Access access) {
+    SchemaEntry e = make_entry(std::move(key), ValueType::Varied, Factor{std::vector<double>{def}},
+                               std::move(unit), range, std::move(doc), access);
+    e.set = [key = e.key, access](Spec& s, std::size_t, const SpecValue& v) {
+        const Factor& f = std::get<Factor>(v);
+        if (!f.is_range && f.values.size() == 1) {
+            access(s) = f.values.front();
+            s.varied.erase(key);
+            return;
+        }
+        access(s) = f.is_range ? 0.5 * (f.min + f.max) : f.values.front();
+        s.varied[key] = f;
+    };
+    e.get = [key = e.key, access](const Spec& s, std::size_t) -> SpecValue {
+        const auto it = s.varied.find(key);
+        return it != s.varied.end() ? it->second : Factor{std::vector<double>{access(s)}};
+    };
+    return e;
+}
+
 template <class Access>
 SchemaEntry vec3(std::string key, Rgb def, Range range, std::string unit, std::string doc,
                  Access access) {
@@ -140,12 +165,12 @@ template <class Access>
 void add_layer(std::vector<SchemaEntry>& out, const std::string& layer, double E_MPa,
                const std::string& what, Access layer_access) {
     const std::string key = "sensor.materials." + layer;
-    out.push_back(number(
+    out.push_back(varied(
         key + ".E_MPa", E_MPa, left_open(0, 1000), "MPa",
         "Young's modulus of the " + what + " [G].", [layer_access](auto& s) -> auto& {
             return layer_access(s).E_MPa;
         }));
-    out.push_back(number(
+    out.push_back(varied(
         key + ".nu", 0.45, closed(0, 0.4999), "",
         "Poisson's ratio of the " + words(layer) + " (nearly incompressible: 0.45 to 0.49) [G].",
         [layer_access](auto& s) -> auto& { return layer_access(s).nu; }));
@@ -252,14 +277,14 @@ void add_camera_model(std::vector<SchemaEntry>& out) {
                        "Camera position in the dome frame (origin: the dome centre; the inner "
                        "surface has radius 10.5 mm), both models.",
                        CHROMASIM_FIELD(sensor.camera_position_mm)));
-    out.push_back(number("sensor.camera.roll_deg", 0, closed(-180, 180), "deg",
+    out.push_back(varied("sensor.camera.roll_deg", 0, closed(-180, 180), "deg",
                          "Camera rotation about the dome's x axis (applied first; 0, 0, 0: "
                          "looking along +z, image x along +x).",
                          CHROMASIM_FIELD(sensor.camera_roll_deg)));
-    out.push_back(number("sensor.camera.pitch_deg", 0, closed(-180, 180), "deg",
+    out.push_back(varied("sensor.camera.pitch_deg", 0, closed(-180, 180), "deg",
                          "Camera rotation about the dome's y axis (applied second).",
                          CHROMASIM_FIELD(sensor.camera_pitch_deg)));
-    out.push_back(number("sensor.camera.yaw_deg", 0, closed(-180, 180), "deg",
+    out.push_back(varied("sensor.camera.yaw_deg", 0, closed(-180, 180), "deg",
                          "Camera rotation about the dome's z axis (applied last).",
                          CHROMASIM_FIELD(sensor.camera_yaw_deg)));
 }
@@ -290,7 +315,7 @@ void add_sensor_leds(std::vector<SchemaEntry>& out) {
 }
 
 void add_sensor_optics(std::vector<SchemaEntry>& out) {
-    out.push_back(number("sensor.camera.half_fov_deg", 84, left_open(10, 100), "deg",
+    out.push_back(varied("sensor.camera.half_fov_deg", 84, left_open(10, 100), "deg",
                          "Half field of view: the polar angle at the image-circle edge "
                          "(equidistant) or of the imaged field (kannala_brandt).",
                          CHROMASIM_FIELD(sensor.camera_half_fov_deg)));
@@ -301,12 +326,20 @@ void add_sensor_optics(std::vector<SchemaEntry>& out) {
                "down (FUSE CAD [K]; 0: none); it hides LEDs below the rim from most of the dome.",
                CHROMASIM_FIELD(sensor.lens_radius_mm)));
     add_sensor_leds(out);
-    out.push_back(number("sensor.optics.marker_thickness_mm", 0.5, left_open(0, 0.5), "mm",
+    out.push_back(varied("sensor.optics.marker_thickness_mm", 0.5, left_open(0, 0.5), "mm",
                          "Thickness of the marker discs [K]: closed volumes deformed with the "
                          "mesh, at most 98 % of their layer's 0.5 mm; light is absorbed over "
                          "its path inside.",
                          CHROMASIM_FIELD(sensor.marker_thickness_mm)));
-    out.push_back(number("sensor.optics.refractive_index", 1.4, closed(1, 2), "",
+    out.push_back(varied("sensor.optics.marker_radius_mm", 0.5, left_open(0, 1), "mm",
+                         "Radius of the marker discs [K]: 0.5 mm (1.0 mm across), as printed.",
+                         CHROMASIM_FIELD(sensor.marker_radius_mm)));
+    out.push_back(number("sensor.optics.marker_jitter_mm", 0, closed(0, 0.5), "mm",
+                         "Printing tolerance of the marker layout: each marker's centre moves in "
+                         "its layer by an offset uniform in a disc of this radius, drawn per "
+                         "sensor (every sensor variant its own) [G].",
+                         CHROMASIM_FIELD(sensor.marker_jitter_mm)));
+    out.push_back(varied("sensor.optics.refractive_index", 1.4, closed(1, 2), "",
                          "Refractive index of the clear layers, index-matched among themselves "
                          "[G] (silicones and clear resins: 1.40 to 1.47); the path integrator "
                          "refracts at the hollow dome's inner surface (air inside); 1: no "
@@ -316,6 +349,10 @@ void add_sensor_optics(std::vector<SchemaEntry>& out) {
                       "Diffuse albedo of the white coating, linear RGB [G] (RGB mode only: "
                       "render.spectral false).",
                       CHROMASIM_FIELD(sensor.coating_albedo)));
+    out.push_back(varied("sensor.optics.coating_albedo_scale", 1, left_open(0, 2), "",
+                         "Multiplies the coating's albedo, RGB or spectrum, which must stay at "
+                         "most 1 [G].",
+                         CHROMASIM_FIELD(sensor.coating_albedo_scale)));
     out.push_back(rgb("sensor.optics.inner_marker_absorption_per_mm", {0.2, 3.0, 0.3},
                       closed(0, 100), "1/mm",
                       "Absorption coefficient of the inner markers (magenta filter), RGB [G] "
@@ -326,10 +363,17 @@ void add_sensor_optics(std::vector<SchemaEntry>& out) {
                       "Absorption coefficient of the outer markers (cyan), RGB [G] (RGB mode "
                       "only).",
                       CHROMASIM_FIELD(sensor.outer_marker_absorption_per_mm)));
+    out.push_back(varied("sensor.optics.inner_marker_absorption_scale", 1, left_open(0, 10), "",
+                         "Multiplies the inner markers' absorption, RGB or spectrum: the dye's "
+                         "concentration [G].",
+                         CHROMASIM_FIELD(sensor.inner_marker_absorption_scale)));
+    out.push_back(varied("sensor.optics.outer_marker_absorption_scale", 1, left_open(0, 10), "",
+                         "Multiplies the outer markers' absorption, RGB or spectrum [G].",
+                         CHROMASIM_FIELD(sensor.outer_marker_absorption_scale)));
     out.push_back(rgb("sensor.optics.outer_marker_albedo", {0.10, 0.70, 0.75}, closed(0, 1), "",
                       "Albedo of the outer markers (cyan), linear RGB [G] (RGB mode only).",
                       CHROMASIM_FIELD(sensor.outer_marker_albedo)));
-    out.push_back(number("sensor.optics.outer_marker_scatter_fraction", 0.5, closed(0, 1), "",
+    out.push_back(varied("sensor.optics.outer_marker_scatter_fraction", 0.5, closed(0, 1), "",
                          "Fraction of the light at an outer marker that it scatters back; the "
                          "rest is filtered through it [G].",
                          CHROMASIM_FIELD(sensor.outer_marker_scatter_fraction)));
@@ -477,6 +521,16 @@ void add_sampling_and_splits(std::vector<SchemaEntry>& out) {
     out.push_back(integer("sampling.trials", 1, closed(1, 1000000), "",
                           "random and latin_hypercube: number of trials.",
                           CHROMASIM_FIELD(sampling.trials)));
+    out.push_back(integer("sampling.sensor_variants", 8, closed(0, 1000000), "",
+                          "Sensors drawn from the `varied` keys given as lists or ranges, each "
+                          "trial using one (sensor_assignment); each costs a mechanics "
+                          "precompute and a light cache (0: one per trial).",
+                          CHROMASIM_FIELD(sampling.sensor_variants)));
+    out.push_back(choice("sampling.sensor_assignment", "random", {"random", "crossed"},
+                         "How trials get their sensor: random (each picks one) or crossed "
+                         "(full_grid: every grid cell runs on every sensor, like seed 001's "
+                         "participants, so trials times sensor_variants).",
+                         CHROMASIM_FIELD(sampling.sensor_assignment)));
     out.push_back(text("splits[].name", "all",
                        "Name of the split (e.g. train, test), unique in the list; its images go to "
                        "images/<name>/.",
@@ -502,18 +556,18 @@ void add_render_sensor(std::vector<SchemaEntry>& out) {
                           "Seed of the sensor noise, independent of the top-level seed; mixed "
                           "with the frame index, so every frame has its own noise.",
                           CHROMASIM_FIELD(render.sensor.seed)));
-    out.push_back(number("render.sensor.gain", 1, left_open(0, render::kSensorMaxGain), "",
+    out.push_back(varied("render.sensor.gain", 1, left_open(0, render::kSensorMaxGain), "",
                          "Exposure multiplier on the linear render before photo-conversion "
                          "(1.0 in the render = full well): more light, relatively less shot "
                          "noise.",
                          CHROMASIM_FIELD(render.sensor.gain)));
-    out.push_back(number("render.sensor.full_well_e", 10000,
+    out.push_back(varied("render.sensor.full_well_e", 10000,
                          left_open(0, render::kSensorMaxFullWellE), "e-",
                          "Full-well capacity: photo-electrons at linear value 1.0, where the "
                          "pixel saturates; sets the shot noise (sqrt of the electron count)." +
                              defaults,
                          CHROMASIM_FIELD(render.sensor.full_well_e)));
-    out.push_back(number("render.sensor.read_noise_e", 2.3, closed(0, render::kSensorMaxReadNoiseE),
+    out.push_back(varied("render.sensor.read_noise_e", 2.3, closed(0, render::kSensorMaxReadNoiseE),
                          "e-",
                          "Read noise, standard deviation of a Gaussian in electrons." + defaults,
                          CHROMASIM_FIELD(render.sensor.read_noise_e)));
@@ -532,14 +586,14 @@ void add_render_sensor(std::vector<SchemaEntry>& out) {
                          "1 + k1 t^2 + k2 t^4), t = theta / sensor.camera.half_fov_deg).",
                          CHROMASIM_FIELD(render.sensor.vignetting)));
     out.push_back(
-        number("render.sensor.vignetting.k1", -0.3,
+        varied("render.sensor.vignetting.k1", -0.3,
                closed(-render::kSensorMaxVignettingCoeff, render::kSensorMaxVignettingCoeff), "",
                "t^2 coefficient of the polynomial vignetting [G]: -0.3 gives 70 % "
                "illumination at the edge of the field, an assumed mild fall-off (not from the "
                "lens's datasheet); fit your own to a flat-field image.",
                CHROMASIM_FIELD(render.sensor.vignetting_k1)));
     out.push_back(
-        number("render.sensor.vignetting.k2", 0,
+        varied("render.sensor.vignetting.k2", 0,
                closed(-render::kSensorMaxVignettingCoeff, render::kSensorMaxVignettingCoeff), "",
                "t^4 coefficient of the polynomial vignetting [G].",
                CHROMASIM_FIELD(render.sensor.vignetting_k2)));

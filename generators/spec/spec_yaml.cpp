@@ -8,6 +8,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <map>
@@ -254,6 +255,7 @@ SpecValue read_value(const SpecReader& r, const SchemaEntry& entry, const std::s
     case ValueType::Vec3:
         return read_rgb(r, entry, key, key_node, value);
     case ValueType::Factor:
+    case ValueType::Varied:
         return read_factor(r, entry, key, key_node, value);
     default:
         return read_scalar(r, entry, key, key_node, value);
@@ -405,7 +407,51 @@ void check_quotes_closed(const SpecReader& r, const std::string& text) {
 }
 
 /// The one document of the text, which must be a mapping.
+/// The length of the UTF-8 sequence at text[i] (1 to 4), or 0 when it is not valid UTF-8 (a
+/// stray continuation byte, a truncated or overlong sequence, a surrogate, beyond U+10FFFF).
+std::size_t utf8_length(std::string_view text, std::size_t i) {
+    const auto byte = [&](std::size_t k) { return static_cast<unsigned char>(text[k]); };
+    const unsigned char b = byte(i);
+    if (b < 0x80) return 1;
+    const std::size_t n = b >= 0xF0 ? 4 : b >= 0xE0 ? 3 : b >= 0xC2 ? 2 : 0;
+    if (n == 0 || b > 0xF4 || i + n > text.size()) return 0;
+    for (std::size_t k = 1; k < n; ++k)
+        if ((byte(i + k) & 0xC0) != 0x80) return 0;
+    const unsigned char c = byte(i + 1);
+    if ((b == 0xE0 && c < 0xA0) || (b == 0xED && c >= 0xA0) || (b == 0xF0 && c < 0x90) ||
+        (b == 0xF4 && c >= 0x90))
+        return 0;
+    return n;
+}
+
+/// A spec is UTF-8 text without control characters (tab and line ends aside), as YAML
+/// requires: names and paths go into JSON, CSV and folder names, which need it.
+void check_text(const SpecReader& r, const std::string& text) {
+    YAML::Mark at;
+    at.line = at.column = 0;
+    for (std::size_t i = 0; i < text.size();) {
+        const unsigned char b = static_cast<unsigned char>(text[i]);
+        const std::size_t n = utf8_length(text, i);
+        const bool control = b == 0x7f || (b < 0x20 && b != '\t' && b != '\n' && b != '\r');
+        if (n == 0 || control) {
+            char hex[8];
+            std::snprintf(hex, sizeof hex, "0x%02X", unsigned(b));
+            throw SpecError(where(r.file, at) + ": malformed text: byte " + hex + " is " +
+                            (control ? "a control character" : "not UTF-8") +
+                            "; allowed: UTF-8 text without control characters (save the file "
+                            "as UTF-8)");
+        }
+        ++at.column;
+        if (b == '\n') {
+            ++at.line;
+            at.column = 0;
+        }
+        i += n;
+    }
+}
+
 YAML::Node parse_document(const SpecReader& r, const std::string& text) {
+    check_text(r, text);
     check_quotes_closed(r, text);
     YAML::Node doc;
     try {
@@ -470,15 +516,51 @@ std::string rule_problem(const SchemaRule& rule, const Spec& spec, std::size_t i
     return rule.holds(spec, i) ? std::string() : rule.problem;
 }
 
+/// `spec` with its varied keys at the ends of their ranges: each key alone at its lowest and
+/// at its highest, then all at their lowest and all at their highest, each with a note for
+/// messages. A rule between keys must hold for every sensor a variant can draw.
+std::vector<std::pair<Spec, std::string>> varied_extremes(const Spec& spec) {
+    std::vector<std::pair<Spec, std::string>> out;
+    if (spec.varied.empty()) return out;
+    const auto at = [](Spec& s, const std::string& key, double value) {
+        find_schema_entry(key)->set(s, 0, Factor{std::vector<double>{value}});
+    };
+    for (const bool high : {false, true}) {
+        const char* end = high ? "highest" : "lowest";
+        Spec all = spec;
+        for (const auto& [key, factor] : spec.varied) {
+            const double value = high ? highest(factor) : lowest(factor);
+            Spec one = spec;
+            at(one, key, value);
+            at(all, key, value);
+            out.emplace_back(std::move(one), " (with " + key + " at its " + end + ", " +
+                                                 format_number(value) + ")");
+        }
+        out.emplace_back(std::move(all), std::string(" (with every varied key at its ") + end +
+                                             ")");
+    }
+    return out;
+}
+
+void check_rules_on(const SpecReader& r, const Spec& spec, bool check_files,
+                    const std::string& note);
+
 void check_rules(const SpecReader& r, const Spec& spec, bool check_files) {
+    check_rules_on(r, spec, check_files, "");
+    for (const auto& [extreme, note] : varied_extremes(spec))
+        check_rules_on(r, extreme, false, note);
+}
+
+void check_rules_on(const SpecReader& r, const Spec& spec, bool check_files,
+                    const std::string& note) {
     for (const SchemaRule& rule : spec_rules()) {
         if (rule.reads_files && !check_files) continue;
         const std::size_t brackets = rule.key.find("[]");
         if (brackets == std::string::npos) {
             const std::string problem = rule_problem(rule, spec, 0);
             if (problem.empty()) continue;
-            fail(r, first_mark(r, {rule.key}), rule.key, resolved_text(spec, rule.key), problem,
-                 rule.allowed);
+            fail(r, first_mark(r, {rule.key}), rule.key, resolved_text(spec, rule.key),
+                 problem + note, rule.allowed);
         }
         const std::string list = rule.key.substr(0, brackets);
         for (std::size_t i = 0; i < find_schema_list(list)->size(spec); ++i) {
@@ -487,7 +569,7 @@ void check_rules(const SpecReader& r, const Spec& spec, bool check_files) {
             const std::string item = list + "[" + std::to_string(i) + "]";
             const std::string key = item + rule.key.substr(brackets + 2);
             fail(r, first_mark(r, {key, item, list}), key, resolved_text(spec, rule.key, i),
-                 problem, rule.allowed);
+                 problem + note, rule.allowed);
         }
     }
 }

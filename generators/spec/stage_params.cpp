@@ -38,6 +38,10 @@ mechanics::DomeModelOptions dome_options(const Spec& spec) {
                    material(spec.sensor.outer_marker_layer), material(spec.sensor.coating)};
     o.contact_candidate_angle_deg = spec.sensor.contact_candidate_angle_deg;
     o.dome.marker_thickness_mm = spec.sensor.marker_thickness_mm;
+    o.dome.marker_radius_mm = spec.sensor.marker_radius_mm;
+    o.dome.marker_jitter_mm = spec.sensor.marker_jitter_mm;
+    o.dome.marker_jitter_seed =
+        spec.seed * 0x9E3779B97F4A7C15ull + std::uint64_t(spec.sensor.variant + 1);
     return o;
 }
 
@@ -105,11 +109,21 @@ render::CameraParams camera_params(const Spec& spec) {
     return c;
 }
 
+namespace {
+void scale(render::Spectrum& s, double factor) {
+    for (double& v : s.values)
+        v *= factor;
+}
+} // namespace
+
 render::OpticsParams optics_params(const Spec& spec) {
+    const Spec::Sensor& c = spec.sensor;
     render::OpticsParams o;
-    o.coating_albedo = vec(spec.sensor.coating_albedo);
-    o.inner_marker_absorption_per_mm = vec(spec.sensor.inner_marker_absorption_per_mm);
-    o.outer_marker_absorption_per_mm = vec(spec.sensor.outer_marker_absorption_per_mm);
+    o.coating_albedo = vec(c.coating_albedo) * c.coating_albedo_scale;
+    o.inner_marker_absorption_per_mm =
+        vec(c.inner_marker_absorption_per_mm) * c.inner_marker_absorption_scale;
+    o.outer_marker_absorption_per_mm =
+        vec(c.outer_marker_absorption_per_mm) * c.outer_marker_absorption_scale;
     o.outer_marker_albedo = vec(spec.sensor.outer_marker_albedo);
     o.outer_marker_scatter_fraction = spec.sensor.outer_marker_scatter_fraction;
     o.led_count = spec.sensor.led_count;
@@ -122,9 +136,13 @@ render::OpticsParams optics_params(const Spec& spec) {
     o.lens_radius_mm = spec.sensor.lens_radius_mm;
     o.led_rgb = vec(spec.sensor.led_rgb);
     o.exposure = spec.render.exposure;
-    if (spec.render.spectral)
+    if (spec.render.spectral) {
         o.spectra = render::load_sensor_spectra(
             render::SensorSpectraFiles::in_directory(spectra_directory(spec)));
+        scale(o.spectra->coating_albedo, c.coating_albedo_scale);
+        scale(o.spectra->inner_marker_absorption_per_mm, c.inner_marker_absorption_scale);
+        scale(o.spectra->outer_marker_absorption_per_mm, c.outer_marker_absorption_scale);
+    }
     return o;
 }
 

@@ -102,6 +102,15 @@ class Dataset:
         """markers.csv as columns (164 rows per fingertip per frame)."""
         return _table(self.path("markers.csv"))
 
+    def frame_sensor(self) -> np.ndarray:
+        """The sensor (sensors.csv) that made each labels row, an int64 array; all -1 when
+        the spec varies no sensor. Group by it for a leave-one-sensor-out split."""
+        if not os.path.exists(self.path("sensors.csv")):
+            return np.full(self.frames, -1, dtype=np.int64)
+        table = _table(self.path("sensors.csv"))
+        of_trial = dict(zip(table["trial"].astype(np.int64), table["sensor"].astype(np.int64)))
+        return np.array([of_trial[int(t)] for t in self.labels["trial"]], dtype=np.int64)
+
     def strain_files(self) -> list[tuple[str, int, str, str]]:
         """(split, trial, finger, path) of every strain file, in trial then finger order."""
         out = []

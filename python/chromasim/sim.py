@@ -59,10 +59,12 @@ class Sensor:
     spec: a spec file's path, or a dict with a spec's contents (relative file paths in it start
     at the working directory). cache_dir: the cache folder (None: the command line's default,
     $CHROMASIM_CACHE_DIR or ~/.cache/chromasim; False: no cache). seed: replaces the spec's seed
-    (its trials' draws)."""
+    (its trials' draws). variant: for a spec that varies its sensor (`varied` keys written as
+    lists or ranges), which of the sensors `generate` draws (0 to sampling.sensor_variants - 1;
+    sensors.csv names each trial's)."""
 
     def __init__(self, spec: str | os.PathLike | Mapping, *, cache_dir=None,
-                 seed: int | None = None):
+                 seed: int | None = None, variant: int | None = None):
         if cache_dir is None:
             cache = _core.default_cache_dir()
         elif cache_dir is False:
@@ -72,11 +74,16 @@ class Sensor:
         if seed is not None and (isinstance(seed, bool) or not isinstance(seed, numbers.Integral)
                                  or seed < 0):
             raise ValueError(f"seed = {seed!r}: allowed: an integer >= 0")
+        if variant is not None and (isinstance(variant, bool)
+                                    or not isinstance(variant, numbers.Integral)):
+            raise ValueError(f"variant = {variant!r}: allowed: an integer")
         if isinstance(spec, Mapping):
             text = json.dumps(spec, indent=2)  # JSON is YAML: errors point into this text
-            self._core = _core.Sensor(text=text, name="<dict>", cache_dir=cache, seed=seed)
+            self._core = _core.Sensor(text=text, name="<dict>", cache_dir=cache, seed=seed,
+                                      variant=variant)
         elif isinstance(spec, (str, os.PathLike)):
-            self._core = _core.Sensor(path=os.fspath(spec), cache_dir=cache, seed=seed)
+            self._core = _core.Sensor(path=os.fspath(spec), cache_dir=cache, seed=seed,
+                                      variant=variant)
         else:
             raise TypeError(f"spec: expected a spec file's path or a dict, got "
                             f"{type(spec).__name__}")

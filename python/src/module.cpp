@@ -5,6 +5,7 @@
 
 #include "generators/pipeline/generate.hpp"
 #include "generators/plan/plan.hpp"
+#include "generators/plan/sensor_variants.hpp"
 #include "generators/spec/spec.hpp"
 
 #include <pybind11/stl.h>
@@ -54,6 +55,27 @@ Spec read_spec(const std::optional<std::string>& path, const std::optional<std::
     Spec spec = path ? generators::load_spec(*path) : generators::parse_spec(*text, name);
     if (seed) spec.seed = *seed;
     return spec;
+}
+
+/// The spec of one sensor: a spec that varies its sensor needs `variant`, an index into its
+/// plan's sensors (the sensors `generate` draws).
+Spec one_sensor(const Spec& spec, std::optional<int> variant) {
+    if (!generators::varies_sensor(spec)) {
+        if (variant) throw py::value_error("variant: the spec varies no sensor key");
+        return spec;
+    }
+    const generators::Plan plan = generators::make_plan(spec);
+    const int count = int(plan.sensors.size());
+    if (!variant)
+        throw SpecError(spec.source_path.string() + ": the spec varies its sensor (" +
+                        generators::what_varies(spec) +
+                        "): give variant = 0 to " + std::to_string(count - 1) +
+                        ", one of the sensors generate draws");
+    if (*variant < 0 || *variant >= count)
+        throw py::index_error("variant " + std::to_string(*variant) + ": the spec draws " +
+                              std::to_string(count) + " sensors (0 to " +
+                              std::to_string(count - 1) + ")");
+    return generators::sensor_spec(spec, plan.sensors[std::size_t(*variant)]);
 }
 
 /// The index of the spec object named `object` (or at that index).
@@ -127,13 +149,15 @@ void bind_sensor(py::module_& m) {
     using generators::Simulator;
     py::class_<Simulator, std::shared_ptr<Simulator>>(m, "Sensor")
         .def(py::init([](std::optional<std::string> path, std::optional<std::string> text,
-                         std::string name, std::string cache_dir, std::optional<std::uint64_t> seed) {
-                 Spec spec = read_spec(path, text, name, seed);
+                         std::string name, std::string cache_dir, std::optional<std::uint64_t> seed,
+                         std::optional<int> variant) {
+                 Spec spec = one_sensor(read_spec(path, text, name, seed), variant);
                  py::gil_scoped_release release;
                  return std::make_shared<Simulator>(spec, cache_dir);
              }),
              py::arg("path") = py::none(), py::arg("text") = py::none(),
-             py::arg("name") = "<text>", py::arg("cache_dir") = "", py::arg("seed") = py::none())
+             py::arg("name") = "<text>", py::arg("cache_dir") = "", py::arg("seed") = py::none(),
+             py::arg("variant") = py::none())
         .def_property_readonly("name", [](const Simulator& s) { return s.spec().name; })
         .def_property_readonly("seed", [](const Simulator& s) { return s.spec().seed; })
         .def_property_readonly("source", [](const Simulator& s) { return s.spec().source_path.string(); })

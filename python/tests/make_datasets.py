@@ -2,7 +2,8 @@
 
 Usage: python3 make_datasets.py CHROMASIM_EXE OUT_DIR
 Writes OUT_DIR/quickstart (datasets_spec/quickstart.yaml: 2 trials, both fingertips, images)
-and OUT_DIR/tiny_sliding (specs/tiny_sliding.yaml: strain fields). `chromasim generate`
+OUT_DIR/tiny_sliding (specs/tiny_sliding.yaml: strain fields) and OUT_DIR/tiny_participants
+(specs/tiny_participants.yaml: three sensors crossed with the grid). `chromasim generate`
 does nothing for a folder that already holds the dataset of the same spec, so a second run
 is cheap; a folder left by another spec or chromasim version (an earlier build in the same
 build tree) is regenerated with --overwrite. CTest runs this once as the fixture of every
@@ -18,6 +19,7 @@ ROOT = os.path.dirname(os.path.dirname(HERE))
 SPECS = {
     "quickstart": os.path.join(ROOT, "datasets_spec", "quickstart.yaml"),
     "tiny_sliding": os.path.join(HERE, "specs", "tiny_sliding.yaml"),
+    "tiny_participants": os.path.join(HERE, "specs", "tiny_participants.yaml"),
 }
 
 

@@ -123,6 +123,25 @@ def test_spec_errors_name_the_place_and_write_nothing(tmp_path):
     assert sorted(os.listdir(tmp_path)) == ["bad.yaml"]
 
 
+def test_a_varied_spec_gives_one_sensor_per_variant(tmp_path):
+    spec = {"sensor": {"mesh_level": "very_coarse", "element_order": 1,
+                       "material_model": "linear",
+                       "materials": {"clear_layer": {"E_MPa": [0.2, 0.4]}}},
+            "sampling": {"sensor_variants": 2}, "outputs": {"images": False}}
+    with pytest.raises(sim.SpecError, match=r"varies its sensor .*give variant = 0 to 1"):
+        sim.Sensor(spec, cache_dir=tmp_path)
+    with pytest.raises(IndexError, match=r"variant 2: the spec draws 2 sensors"):
+        sim.Sensor(spec, cache_dir=tmp_path, variant=2)
+    depth = {}
+    for k in (0, 1):
+        s = sim.Sensor(spec, cache_dir=tmp_path, variant=k)
+        e = float(s.resolved_yaml.split("clear_layer:")[1].split("E_MPa:")[1].split()[0])
+        f = s.contact("flat", mu=0.8, fingers=1).step(grip_N=1.0, load_N=0.0)
+        depth[e] = f.labels["left_indentation_mm"]
+    assert sorted(depth) == [0.2, 0.4]  # this seed's two sensors drew both moduli
+    assert depth[0.2] > depth[0.4]
+
+
 def test_bad_arguments_raise_clear_python_errors(sensor):
     grasp = sensor.contact(0, mu=0.8)
     with pytest.raises(ValueError, match=r"grip_N = -1\.0: allowed: a finite number > 0"):

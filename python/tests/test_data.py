@@ -57,3 +57,17 @@ def test_package_version_is_the_project_version():
     cmake = pathlib.Path(__file__).resolve().parents[2] / "CMakeLists.txt"
     version = re.search(r"project\(chromasim VERSION (\S+)", cmake.read_text()).group(1)
     assert chromasim.__version__ == version
+
+
+def test_frame_sensor_names_each_rows_sensor(datasets, quickstart):
+    d = open_dataset(datasets["tiny_participants"])
+    sensor = d.frame_sensor()
+    assert sensor.shape == (d.frames,)
+    # Crossed: every friction condition on every sensor, twice; one sensor per trial.
+    trials = d.labels["trial"].astype(int)
+    assert set(sensor) == {0, 1, 2}
+    for t in set(trials):
+        assert len(set(sensor[trials == t])) == 1
+    by_sensor = {s: sorted(set(d.labels["friction"][sensor == s])) for s in (0, 1, 2)}
+    assert all(v == ["mu050", "mu100"] for v in by_sensor.values())
+    assert (quickstart.frame_sensor() == -1).all()  # nothing varies

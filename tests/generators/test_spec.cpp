@@ -330,7 +330,8 @@ TEST_CASE("a value out of its range is rejected", "[generators][spec]") {
               "in [16, 4096] (px)");
         CHECK(error_of("sensor:\n  materials:\n    clear_layer: {nu: 0.5}\n") ==
               "bad.yaml:3:23: sensor.materials.clear_layer.nu: value '0.5' is out of range; "
-              "allowed: number in [0, 0.4999]");
+              "allowed: number in [0, 0.4999], or a list or {min, max} of them (a varied "
+              "sensor)");
         CHECK_THAT(error_of("seed: 2147483648\n"), Contains("value '2147483648' is out of range"));
         CHECK_THAT(error_of("seed: 99999999999999999999\n"), Contains("is out of range"));
     }
@@ -340,7 +341,7 @@ TEST_CASE("a value out of its range is rejected", "[generators][spec]") {
               "allowed: number in (0, 1000] (mm/s)");
         CHECK(error_of("sensor:\n  camera:\n    half_fov_deg: 10\n") ==
               "bad.yaml:3:19: sensor.camera.half_fov_deg: value '10' is out of range; allowed: "
-              "number in (10, 100] (deg)");
+              "number in (10, 100] (deg), or a list or {min, max} of them (a varied sensor)");
         const Spec edge = parse_spec("protocol:\n  slide: {speed_mm_per_s: 1000, frames: 1}\n"
                                      "sensor:\n  camera: {half_fov_deg: 10.000001}\n"
                                      "seed: 2147483647\nrender: {exposure: 1e-300}\n",
@@ -754,4 +755,24 @@ TEST_CASE("validate is as strict as generate and places each error at its line:c
                       Catch::Contains("spectra.yaml:4:") &&
                           Catch::Contains("sensor.optics.spectra_dir") &&
                           Catch::Contains("holds spectra that cannot be used ("));
+}
+
+// Validate is as strict as generate: text that would fail the manifest's JSON (not UTF-8) at
+// the end of a run, or split a labels.csv cell or a folder name, is refused before any work.
+TEST_CASE("text that would break the manifest, a CSV cell or a folder is refused",
+          "[generators][spec]") {
+    CHECK(error_of("name: caf\xe9\n") ==
+          "bad.yaml:1:10: malformed text: byte 0xE9 is not UTF-8; allowed: UTF-8 text without "
+          "control characters (save the file as UTF-8)");
+    CHECK_THAT(error_of("seed: 1\nname: a\x01" "b\n"),
+               StartsWith("bad.yaml:2:8: malformed text: byte 0x01 is a control character"));
+    CHECK(parse_spec("name: caf\xc3\xa9\n", "ok.yaml").name == "caf\xc3\xa9");
+    CHECK(error_of("objects: [{name: \"fl,at\", shape: flat}]\n") ==
+          "bad.yaml:1:12: objects[0].name: value '\"fl,at\"' holds a comma, a quote, a slash or "
+          "a backslash; allowed: text without commas, quotes, slashes, backslashes or control "
+          "characters (it is a labels.csv cell, and a split's name is a folder's)");
+    CHECK_THAT(error_of("friction: [{name: \"a\\nb\", mu: 0.5}]\n"),
+               Contains("friction[0].name: value '\"a\\x0ab\"' holds a control character"));
+    CHECK_THAT(error_of("splits: [{name: .., fraction: 1.0}]\n"),
+               Contains("names a folder's own or parent folder"));
 }

@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 
@@ -32,6 +33,33 @@ TEST_CASE("marker pattern has 82 markers per layer in rings of 6, 12, 17, 21, 25
     const std::map<long, int> expected{{0, 1},    {125, 6},  {250, 12},
                                        {375, 17}, {500, 21}, {625, 25}};
     CHECK(per_ring == expected);
+}
+
+TEST_CASE("marker jitter moves each centre within its radius, per layer and seed",
+          "[mechanics][markers]") {
+    DomeParams dome;
+    const auto nominal = marker_directions(dome);
+    dome.marker_jitter_mm = 0.1;
+    dome.marker_jitter_seed = 7;
+    const auto inner = marker_directions(dome, 0), outer = marker_directions(dome, 1);
+    REQUIRE(inner.size() == 82);
+    double largest = 0;
+    int moved_apart = 0;
+    for (std::size_t m = 0; m < 82; ++m) {
+        REQUIRE(inner[m].norm() == Approx(1.0).epsilon(1e-12));
+        // The offset along the sphere of the markers' mid radius (10.75 and 12.45 mm).
+        const double di = std::acos(std::min(1.0, inner[m].dot(nominal[m]))) * 10.75;
+        const double dout = std::acos(std::min(1.0, outer[m].dot(nominal[m]))) * 12.45;
+        CHECK(di <= 0.1 + 1e-9);
+        CHECK(dout <= 0.1 + 1e-9);
+        largest = std::max({largest, di, dout});
+        moved_apart += inner[m].dot(outer[m]) < 1 - 1e-12;
+    }
+    CHECK(largest > 0.08);     // 164 draws uniform in the disc
+    CHECK(moved_apart == 82);  // the layers are printed apart
+    CHECK(marker_directions(dome, 0) == inner);
+    dome.marker_jitter_seed = 8;
+    CHECK(marker_directions(dome, 0) != inner);
 }
 
 TEST_CASE("meshed shell volume is within 1% of the analytic hemispherical shell",

@@ -1,0 +1,65 @@
+#include "generators/plan/sensor_variants.hpp"
+
+#include "generators/plan/stream.hpp"
+#include "generators/spec/spec_schema.hpp"
+
+#include <stdexcept>
+
+namespace chromasim::generators {
+
+namespace {
+
+/// Streams of the sensors' draws and of each trial's pick among them (plan.cpp has the others).
+constexpr std::uint64_t kSensorStream = 300, kSensorPickStream = 301;
+
+SensorVariant draw_variant(const Spec& spec, int id) {
+    SensorVariant v;
+    v.id = id;
+    Stream stream(trial_seed(spec.seed, kSensorStream, std::uint64_t(id)));
+    for (const auto& [key, factor] : spec.varied)
+        v.values.emplace_back(key, draw(factor, stream.uniform()));
+    return v;
+}
+
+} // namespace
+
+std::string what_varies(const Spec& spec) {
+    if (spec.varied.empty()) return "sensor.optics.marker_jitter_mm";
+    return spec.varied.begin()->first + (spec.varied.size() > 1 ? ", ..." : "");
+}
+
+void assign_sensors(const Spec& spec, Plan& plan, std::size_t cells) {
+    if (!varies_sensor(spec)) return;
+    const int variants = spec.sampling.sensor_variants;
+    const std::size_t count = variants > 0 ? std::size_t(variants) : plan.trials.size();
+    const bool crossed = spec.sampling.sensor_assignment == "crossed";
+    plan.sensors.reserve(count);
+    for (std::size_t v = 0; v < count; ++v)
+        plan.sensors.push_back(draw_variant(spec, int(v)));
+    for (TrialPlan& trial : plan.trials) {
+        const auto k = std::size_t(trial.id);
+        if (variants == 0) {
+            trial.sensor = trial.id;
+        } else if (crossed) {
+            trial.sensor = int(k / cells % count);
+        } else {
+            Stream stream(trial_seed(spec.seed, kSensorPickStream, k));
+            trial.sensor = int(pick(count, stream.uniform()));
+        }
+    }
+}
+
+Spec sensor_spec(const Spec& spec, const SensorVariant& variant) {
+    Spec out = spec;
+    for (const auto& [key, value] : variant.values) {
+        const SchemaEntry* entry = find_schema_entry(key);
+        if (!entry || entry->type != ValueType::Varied)
+            throw std::logic_error("sensor_spec: '" + key + "' is not a varied key");
+        entry->set(out, 0, Factor{std::vector<double>{value}});
+    }
+    out.sensor.variant = variant.id;
+    out.resolved_yaml = resolved_spec_yaml(out);
+    return out;
+}
+
+} // namespace chromasim::generators
