@@ -55,10 +55,11 @@ SchemaRule plain_name(const std::string& list) {
         if (name.find_first_of(",\"/\\") != std::string::npos)
             return "holds a comma, a quote, a slash or a backslash";
         if (name == "." || name == "..") return "names a folder's own or parent folder";
+        if (name.size() > 100) return "is longer than 100 bytes";
         return "";
     };
-    r.allowed = "text without commas, quotes, slashes, backslashes or control characters (it "
-                "is a labels.csv cell, and a split's name is a folder's)";
+    r.allowed = "text of at most 100 bytes without commas, quotes, slashes, backslashes or "
+                "control characters (it is a labels.csv cell, and a split's name is a folder's)";
     return r;
 }
 

@@ -769,10 +769,13 @@ TEST_CASE("text that would break the manifest, a CSV cell or a folder is refused
     CHECK(parse_spec("name: caf\xc3\xa9\n", "ok.yaml").name == "caf\xc3\xa9");
     CHECK(error_of("objects: [{name: \"fl,at\", shape: flat}]\n") ==
           "bad.yaml:1:12: objects[0].name: value '\"fl,at\"' holds a comma, a quote, a slash or "
-          "a backslash; allowed: text without commas, quotes, slashes, backslashes or control "
-          "characters (it is a labels.csv cell, and a split's name is a folder's)");
+          "a backslash; allowed: text of at most 100 bytes without commas, quotes, slashes, "
+          "backslashes or control characters (it is a labels.csv cell, and a split's name is a "
+          "folder's)");
     CHECK_THAT(error_of("friction: [{name: \"a\\nb\", mu: 0.5}]\n"),
                Contains("friction[0].name: value '\"a\\x0ab\"' holds a control character"));
     CHECK_THAT(error_of("splits: [{name: .., fraction: 1.0}]\n"),
                Contains("names a folder's own or parent folder"));
+    CHECK_THAT(error_of("splits: [{name: " + std::string(101, 'a') + ", fraction: 1.0}]\n"),
+               Contains("is longer than 100 bytes"));
 }
