@@ -170,8 +170,9 @@ TEST_CASE("a sensor's spec holds its draws and varies nothing", "[generators][se
     CHECK(one.sensor.coating.E_MPa == spec.sensor.coating.E_MPa);
 }
 
-TEST_CASE("generate writes each trial's sensor; its values show in labels and images, check "
-          "verifies them, and shards merge into the same bytes",
+// Generate writes each trial's sensor; its values show in the labels and images, check
+// verifies them, and shards merge into the same bytes.
+TEST_CASE("generate records each trial's sensor, check verifies it, shards merge the same",
           "[generators][sensors]") {
     ScratchDir dir("sensors");
     const fs::path spec_path = dir.write("varied.yaml", varied_spec(2));
