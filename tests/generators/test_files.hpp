@@ -1,6 +1,8 @@
 #pragma once
 // File helpers of the generator tests: a fresh temporary folder per process, labels.csv rows
-// by column name, a file's bytes.
+// by column name, a file's bytes, a spec text's error.
+#include "generators/spec/spec.hpp"
+
 #include <catch2/catch.hpp>
 #include <unistd.h>
 
@@ -13,6 +15,17 @@
 #include <vector>
 
 namespace chromasim::generators::test {
+
+/// The SpecError message that parsing `yaml` (as "bad.yaml") raises; fails the test if none.
+inline std::string error_of(const std::string& yaml) {
+    try {
+        parse_spec(yaml, "bad.yaml");
+    } catch (const SpecError& e) {
+        return e.what();
+    }
+    FAIL("no SpecError for:\n" << yaml);
+    return "";
+}
 
 /// An empty path under the temporary folder; one per process (CTest may run test cases in
 /// parallel processes).

@@ -23,6 +23,7 @@ namespace fs = std::filesystem;
 using namespace chromasim::generators;
 using Catch::Matchers::Contains;
 using Catch::Matchers::StartsWith;
+using chromasim::generators::test::error_of;
 using chromasim::generators::test::read_csv;
 
 namespace {
@@ -53,16 +54,6 @@ sampling: {method: full_grid, repetitions: )" +
 render: {width_px: 32, height_px: 32, samples_per_pixel: 1, integrator: preview}
 outputs: {images: true, labels: true, markers: false}
 )";
-}
-
-std::string error_of(const std::string& yaml) {
-    try {
-        parse_spec(yaml, "bad.yaml");
-    } catch (const SpecError& e) {
-        return e.what();
-    }
-    FAIL("no SpecError for:\n" << yaml);
-    return "";
 }
 
 } // namespace

@@ -6,6 +6,7 @@
 #include "generators/spec/spec_schema.hpp"
 
 #include "scratch_dir.hpp"
+#include "test_files.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -20,6 +21,7 @@ using namespace chromasim::generators;
 using Catch::Matchers::Contains;
 using Catch::Matchers::EndsWith;
 using Catch::Matchers::StartsWith;
+using chromasim::generators::test::error_of;
 
 namespace {
 
@@ -32,16 +34,6 @@ std::filesystem::path repo_file(const std::string& relative) {
 #endif
 }
 
-/// The SpecError message that parsing `yaml` (as "bad.yaml") raises; fails the test if none.
-std::string error_of(const std::string& yaml) {
-    try {
-        parse_spec(yaml, "bad.yaml");
-    } catch (const SpecError& e) {
-        return e.what();
-    }
-    FAIL("no SpecError for:\n" << yaml);
-    return "";
-}
 
 /// Items of the list `entry` lies in (1 outside lists).
 std::size_t items(const Spec& spec, const SchemaEntry& entry) {
