@@ -1,9 +1,13 @@
 // libFuzzer target of the spec loader (docs/VALIDATION.md, "Fuzzing the spec loader"): any
 // bytes as a spec file's text. The loader may accept them (a valid Spec) or reject them with a
 // SpecError that names the file; anything else is a finding: another exception, a crash, an
-// ASan/UBSan report, a hang. Built only with -DCHROMASIM_FUZZ=ON under clang
-// (scripts/fuzz-spec).
+// ASan/UBSan report, a hang. An accepted spec must also be one generate can record: its text
+// values go into JSON (the manifest, the trial records), so they must dump. Built only with
+// -DCHROMASIM_FUZZ=ON under clang (scripts/fuzz-spec).
 #include "generators/spec/spec.hpp"
+#include "generators/spec/spec_schema.hpp"
+
+#include <nlohmann/json.hpp>
 
 #include <cstddef>
 #include <cstdint>
@@ -34,6 +38,19 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         if (std::string_view(e.what()).substr(0, kFile.size()) != kFile)
             finding("a SpecError that does not start with the file name", e.what());
         return 0;
+    }
+    // Every text value of an accepted spec dumps as JSON, as the manifest will write it.
+    nlohmann::json texts = nlohmann::json::array();
+    for (const gen::SchemaEntry& e : gen::spec_schema()) {
+        if (e.type != gen::ValueType::String && e.type != gen::ValueType::Enum) continue;
+        const gen::SchemaList* list = e.list().empty() ? nullptr : gen::find_schema_list(e.list());
+        for (std::size_t i = 0; i < (list ? list->size(spec) : 1); ++i)
+            texts.push_back(std::get<std::string>(e.get(spec, i)));
+    }
+    try {
+        (void)texts.dump();
+    } catch (const std::exception& e) {
+        finding("an accepted spec's text cannot be written as JSON", e.what());
     }
     // An accepted spec's resolved YAML (written next to every dataset) is itself a valid spec
     // that resolves to the same text.
