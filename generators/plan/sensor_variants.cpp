@@ -3,8 +3,6 @@
 #include "generators/plan/stream.hpp"
 #include "generators/spec/spec_schema.hpp"
 
-#include <stdexcept>
-
 namespace chromasim::generators {
 
 namespace {
@@ -51,12 +49,8 @@ void assign_sensors(const Spec& spec, Plan& plan, std::size_t cells) {
 
 Spec sensor_spec(const Spec& spec, const SensorVariant& variant) {
     Spec out = spec;
-    for (const auto& [key, value] : variant.values) {
-        const SchemaEntry* entry = find_schema_entry(key);
-        if (!entry || entry->type != ValueType::Varied)
-            throw std::logic_error("sensor_spec: '" + key + "' is not a varied key");
-        entry->set(out, 0, Factor{std::vector<double>{value}});
-    }
+    for (const auto& [key, value] : variant.values)
+        set_varied_value(out, key, value);
     out.sensor.variant = variant.id;
     out.resolved_yaml = resolved_spec_yaml(out);
     return out;

@@ -6,6 +6,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <stdexcept>
 
 namespace chromasim::generators {
 namespace detail {
@@ -273,6 +274,13 @@ const SchemaEntry* find_schema_entry(std::string_view key) {
         if (e.key == key) return &e;
     }
     return nullptr;
+}
+
+void set_varied_value(Spec& spec, const std::string& key, double value) {
+    const SchemaEntry* entry = find_schema_entry(key);
+    if (!entry || entry->type != ValueType::Varied)
+        throw std::logic_error("set_varied_value: '" + key + "' is not a varied key");
+    entry->set(spec, 0, Factor{std::vector<double>{value}});
 }
 
 bool is_schema_section(std::string_view key) {

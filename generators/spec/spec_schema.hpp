@@ -114,6 +114,10 @@ const SchemaList* find_schema_list(std::string_view name);
 /// The entry with this dotted key, or nullptr.
 const SchemaEntry* find_schema_entry(std::string_view key);
 
+/// Sets the `varied` key `key` to the one value `value` (no longer varied). Throws
+/// std::logic_error if `key` is not a varied key.
+void set_varied_value(Spec& spec, const std::string& key, double value);
+
 /// Whether `key` is a section (a proper prefix of some entry's key, at a dot). "" is the top.
 bool is_schema_section(std::string_view key);
 

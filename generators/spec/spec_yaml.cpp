@@ -522,17 +522,14 @@ std::string rule_problem(const SchemaRule& rule, const Spec& spec, std::size_t i
 std::vector<std::pair<Spec, std::string>> varied_extremes(const Spec& spec) {
     std::vector<std::pair<Spec, std::string>> out;
     if (spec.varied.empty()) return out;
-    const auto at = [](Spec& s, const std::string& key, double value) {
-        find_schema_entry(key)->set(s, 0, Factor{std::vector<double>{value}});
-    };
     for (const bool high : {false, true}) {
         const char* end = high ? "highest" : "lowest";
         Spec all = spec;
         for (const auto& [key, factor] : spec.varied) {
             const double value = high ? highest(factor) : lowest(factor);
             Spec one = spec;
-            at(one, key, value);
-            at(all, key, value);
+            set_varied_value(one, key, value);
+            set_varied_value(all, key, value);
             out.emplace_back(std::move(one), " (with " + key + " at its " + end + ", " +
                                                  format_number(value) + ")");
         }
