@@ -72,7 +72,10 @@ FastIntegrator::Bounce FastIntegrator::classify(const Vec3& o, const Vec3& d, do
     const PathIntegrator::RayEnd end = m_path.ray_end(o, d, tnear, tfar);
     if (end.blocked) return bounce;
     if (const auto& led = end.led) {
-        if (led->second) bounce.then = Then::led;
+        if (led->front) {
+            bounce.then = Then::led;
+            bounce.led_gain = m_path.led_gain(led->k);
+        }
         return bounce;
     }
     if (!hit.hit()) return bounce;
@@ -129,7 +132,7 @@ void FastIntegrator::reflected_leds16(const EmbreeScene& scene, const Vec3& orig
     for (std::size_t i = 0; i < n; ++i)
         if (near[i].then == Then::split && near[i].reflect) {
             const auto led = m_path.led_hit(near[i].p, near[i].reflected, kHitGap_mm, inf);
-            towards_led[i] = led && led->second;
+            towards_led[i] = led && led->front;
         }
     const auto reflects = [&towards_led](std::size_t i) { return towards_led[i]; };
     trace_some(
@@ -138,13 +141,12 @@ void FastIntegrator::reflected_leds16(const EmbreeScene& scene, const Vec3& orig
             return std::pair{near[i].p, near[i].reflected};
         },
         back, cavity_only);
-    for (std::size_t i = 0; i < n; ++i)
-        fresnel[i] =
-            reflects(i) &&
-                    classify(near[i].p, near[i].reflected, kHitGap_mm, back[i], false).then ==
-                        Then::led
-                ? near[i].F
-                : 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+        fresnel[i] = 0.0;
+        if (!reflects(i)) continue;
+        const Bounce b = classify(near[i].p, near[i].reflected, kHitGap_mm, back[i], false);
+        if (b.then == Then::led) fresnel[i] = near[i].F * b.led_gain;
+    }
 }
 
 void FastIntegrator::marker_ids16(const EmbreeScene& scene, const Vec3& origin,
@@ -277,7 +279,7 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
         LanesN<N> L = LanesN<N>::Zero();
         const Bounce& a = near[i];
         if (a.then == Then::led) {
-            L = led_radiance;
+            L = led_radiance * a.led_gain;
         } else if (a.then == Then::straight) {
             L = layers(origin, directions[i], 0.0, first[i], 1.0);
         } else if (a.then == Then::split) {
@@ -286,7 +288,7 @@ void FastIntegrator::radiance16(const EmbreeScene& scene, const Vec3& origin,
             if (a.reflect) {
                 const Bounce& b = far[i];
                 if (b.then == Then::led) {
-                    if (reflected_leds) L += a.F * led_radiance;
+                    if (reflected_leds) L += a.F * led_radiance * b.led_gain;
                 } else if (b.then == Then::straight)
                     L += a.F * layers(a.p, a.reflected, kHitGap_mm, back[i], a.F, true);
                 else if (b.then == Then::split && b.refract)

@@ -45,7 +45,7 @@ FastIntegrator::Lookup<N> FastIntegrator::lookup(std::uint32_t prim, double u, d
             g += w[i] * (normal.x() * flux[0] + normal.y() * flux[1] + normal.z() * flux[2]) +
                  bubble[i] * (normal.x() * edge[0] + normal.y() * edge[1] + normal.z() * edge[2]);
         }
-        at.direct[std::size_t(k)] = std::max(0.0, g);
+        at.direct[std::size_t(k)] = std::max(0.0, g) * m_path.led_gain(k);
     }
     if (!m_frame_triangle.empty()) {
         // The frame's share of each LED's light, interpolated as G_k is, taken off where it

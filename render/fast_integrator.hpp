@@ -8,7 +8,8 @@
 /// Split. The radiance a camera ray brings back from the coating point x (or from an outer
 /// marker it enters) is albedo / pi times the irradiance there, and that irradiance is
 ///   - direct: the LEDs' light straight through the inner surface (the path integrator's
-///     Chains), sum over LEDs k of G_k(x) T_k(x), G_k the LED's unshadowed irradiance and
+///     Chains), sum over LEDs k of G_k(x) T_k(x), G_k the LED's unshadowed irradiance (times
+///     its gain, OpticsParams::led_gain, where a sample looks it up) and
 ///     T_k the markers' transmittance on the way (their coloured shadows), plus
 ///   - indirect: everything else (diffuse interreflection in the dome, light through the
 ///     markers and back, Fresnel and total reflections), smooth over the coating and barely
@@ -252,9 +253,9 @@ public:
                     bool reflected_leds = true) const;
 
     /// The term radiance16 leaves out with reflected_leds = false, for up to 16 camera rays
-    /// from `origin_mm`: fresnel[i] is the Fresnel reflectance F where ray i's reflection off
-    /// the inner surface reaches an LED (the LED's radiance, l.led / the LED's area per
-    /// lane, times F is then its radiance), 0 elsewhere. The same two packets and tests as
+    /// from `origin_mm`: fresnel[i] is the Fresnel reflectance F times the LED's gain where ray
+    /// i's reflection off the inner surface reaches an LED (the LED's radiance, l.led / the
+    /// LED's area per lane, times that is then its radiance), 0 elsewhere. The same two packets and tests as
     /// radiance16 (the camera ray to the inner surface, its reflection to the next surface),
     /// nothing else: no layers, no shading, no random draw.
     void reflected_leds16(const EmbreeScene& scene, const Vec3& origin_mm,
@@ -312,6 +313,7 @@ private:
         Then then = Then::nothing;
         Vec3 p = Vec3::Zero(); ///< where it splits
         double F = 0.0;
+        double led_gain = 1.0; ///< the LED's intensity (Then::led)
         bool refract = false, reflect = false;
         Vec3 refracted = Vec3::Zero(), reflected = Vec3::Zero();
     };

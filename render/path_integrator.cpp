@@ -219,15 +219,16 @@ Vec3 PathIntegrator::led_point(int k, double u1, double u2) const {
            (u2 - 0.5) * o.led_height_mm * m_led_radials[k];
 }
 
-std::optional<std::pair<double, bool>> PathIntegrator::led_hit(const Vec3& origin,
-                                                               const Vec3& direction, double tnear,
-                                                               double tfar) const {
+std::optional<PathIntegrator::LedHit> PathIntegrator::led_hit(const Vec3& origin,
+                                                              const Vec3& direction, double tnear,
+                                                              double tfar) const {
     if (direction.z() == 0.0) return std::nullopt;
     const OpticsParams& o = m_shading.optics();
     const double t = (o.led_z_mm - origin.z()) / direction.z();
     if (!(t > tnear && t < tfar)) return std::nullopt;
-    if (!near_led(origin + t * direction, 0.0)) return std::nullopt;
-    return std::make_pair(t, direction.z() < 0.0);
+    const int k = led_at(origin + t * direction, 0.0);
+    if (k < 0) return std::nullopt;
+    return LedHit{t, direction.z() < 0.0, k};
 }
 
 PathIntegrator::RayEnd PathIntegrator::ray_end(const Vec3& origin, const Vec3& direction,
@@ -235,7 +236,7 @@ PathIntegrator::RayEnd PathIntegrator::ray_end(const Vec3& origin, const Vec3& d
     RayEnd end;
     end.led = led_hit(origin, direction, tnear, tfar);
     end.blocked =
-        m_shading.crosses_mount(origin, direction, tnear, end.led ? end.led->first : tfar);
+        m_shading.crosses_mount(origin, direction, tnear, end.led ? end.led->t_mm : tfar);
     if (end.blocked) end.led.reset();
     return end;
 }
@@ -248,15 +249,15 @@ std::optional<Vec3> PathIntegrator::led_plane_crossing(const Vec3& origin,
     return origin + t * direction;
 }
 
-bool PathIntegrator::near_led(const Vec3& q, double margin_mm) const {
+int PathIntegrator::led_at(const Vec3& q, double margin_mm) const {
     const OpticsParams& o = m_shading.optics();
     for (std::size_t k = 0; k < m_led_centres.size(); ++k) {
         const Vec3 local = q - m_led_centres[k];
         if (std::abs(local.dot(m_led_tangents[k])) <= 0.5 * o.led_width_mm + margin_mm &&
             std::abs(local.dot(m_led_radials[k])) <= 0.5 * o.led_height_mm + margin_mm)
-            return true;
+            return int(k);
     }
-    return false;
+    return -1;
 }
 
 bool PathIntegrator::quad_near_led(const std::array<Vec3, 4>& q, double margin_mm) const {
@@ -322,7 +323,7 @@ LanesN<N> PathIntegrator::next_event(const EmbreeScene& scene, const Vec3& p, co
     const double u1 = rng.uniform(), u2 = rng.uniform();
     const Vec3 l = led_point(k, u1, u2);
     const double pdf_area = 1.0 / (leds * m_led_area_mm2);
-    const LanesN<N> emitted = lanes.led / m_led_area_mm2; // Lambertian radiance
+    const LanesN<N> emitted = lanes.led / m_led_area_mm2 * led_gain(k); // Lambertian radiance
     if (!scene.has_interface()) {
         const Vec3 to_led = l - p;
         const double d2 = to_led.squaredNorm();
@@ -419,10 +420,10 @@ LanesN<N> PathIntegrator::trace(const EmbreeScene& scene, const Vec3& origin, co
         if (end.blocked) break;
         // An LED ends the path, adding its light under MIS where the ray meets its front.
         if (const auto& led = end.led) {
-            if (!led->second) break; // the black back of an LED
+            if (!led->front) break; // the black back of an LED
             const auto weight =
-                led_weight(*this, scene, s, led->first, m_next_event, pdf_area, start_nee_per_bsdf);
-            if (weight) s.L += s.beta * (lanes.led / m_led_area_mm2) * *weight;
+                led_weight(*this, scene, s, led->t_mm, m_next_event, pdf_area, start_nee_per_bsdf);
+            if (weight) s.L += s.beta * (lanes.led / m_led_area_mm2) * *weight * led_gain(led->k);
             break;
         }
         if (!hit.hit()) break;

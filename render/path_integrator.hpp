@@ -190,15 +190,23 @@ public:
     /// Number of LEDs, their area (mm^2), and the LED rectangle hit by the segment, if any.
     int led_count() const { return int(m_led_centres.size()); }
     double led_area_mm2() const { return m_led_area_mm2; }
-    /// Closest LED crossing of origin + t * direction with t in (tnear, tfar): t, and whether
-    /// the ray meets its emitting (+z) face.
-    std::optional<std::pair<double, bool>> led_hit(const Vec3& origin_mm, const Vec3& direction,
-                                                   double tnear_mm, double tfar_mm) const;
+    /// An LED crossing: at t_mm along the ray, on the emitting (+z) face or not (`front`), of
+    /// LED `k`.
+    struct LedHit {
+        double t_mm = 0.0;
+        bool front = false;
+        int k = 0;
+    };
+    /// Closest LED crossing of origin + t * direction with t in (tnear, tfar).
+    std::optional<LedHit> led_hit(const Vec3& origin_mm, const Vec3& direction, double tnear_mm,
+                                  double tfar_mm) const;
+    /// LED k's intensity relative to the lanes' `led` (OpticsParams::led_gain).
+    double led_gain(int k) const { return m_shading.led_gain(k); }
     /// How origin_mm + t * direction ends for t in (tnear_mm, tfar_mm), before a surface at
     /// tfar_mm: at an LED (`led`, as led_hit gives it), or at the mount (`blocked`: the frame
     /// or the lens barrel, looked for only up to the LED, which ends the ray first).
     struct RayEnd {
-        std::optional<std::pair<double, bool>> led;
+        std::optional<LedHit> led;
         bool blocked = false;
     };
     RayEnd ray_end(const Vec3& origin_mm, const Vec3& direction, double tnear_mm,
@@ -208,7 +216,10 @@ public:
     /// (the renderer's choice of the pixels that mirror an LED:
     /// RenderSettings::reflection_samples_per_pixel).
     std::optional<Vec3> led_plane_crossing(const Vec3& origin_mm, const Vec3& direction) const;
-    bool near_led(const Vec3& q_mm, double margin_mm) const;
+    bool near_led(const Vec3& q_mm, double margin_mm) const { return led_at(q_mm, margin_mm) >= 0; }
+    /// The first LED whose rectangle, grown by margin_mm, holds q_mm (a point of the LEDs'
+    /// plane), or -1.
+    int led_at(const Vec3& q_mm, double margin_mm) const;
     /// Whether the quadrilateral q[0] q[1] q[2] q[3] (points on the LEDs' plane, in order
     /// round it) meets an LED's rectangle grown by margin_mm on each side, by separating axes;
     /// true (no proof of the contrary) where it is not strictly convex.

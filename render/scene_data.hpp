@@ -115,6 +115,8 @@ struct OpticsParams {
     /// the layers are index-matched among themselves (no other boundary refracts).
     double refractive_index = 1.4;
     Vec3 led_rgb{1.0, 1.0, 1.0}; ///< relative emission per LED (white)
+    /// Each LED's intensity relative to led_rgb, in ring order (the first on +x); empty: all 1.
+    std::vector<double> led_gain;
     double exposure = 1.0;       ///< multiplies the auto exposure (the reference -> 0.8)
     /// Spectral mode when set: every camera sample carries 16 hero wavelengths (the fast
     /// integrator: RenderSettings::fast_wavelengths); the coating,

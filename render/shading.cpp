@@ -53,6 +53,11 @@ const OpticsParams& validated(const OpticsParams& o) {
     require_in("led_ring_radius_mm", o.led_ring_radius_mm, 0.0, big, "finite, >= 0 (mm)");
     require_in("led_z_mm", o.led_z_mm, -big, big, "finite (mm)");
     require_in("led_rgb", o.led_rgb, 0.0, big, "each channel finite and >= 0");
+    if (!o.led_gain.empty() && int(o.led_gain.size()) != o.led_count)
+        reject("led_gain", std::to_string(o.led_gain.size()) + " values",
+               "empty or one value per LED (" + std::to_string(o.led_count) + ")");
+    for (const double g : o.led_gain)
+        if (!(g >= 0.0 && g <= big)) reject("led_gain", std::to_string(g), "finite, >= 0");
     require_in("led_width_mm", o.led_width_mm, std::numeric_limits<double>::min(), big,
                "finite, > 0 (mm)");
     require_in("led_height_mm", o.led_height_mm, std::numeric_limits<double>::min(), big,
@@ -77,7 +82,9 @@ std::vector<Vec3> led_ring(const OpticsParams& optics) {
 } // namespace
 
 ShadingModel::ShadingModel(const OpticsParams& optics)
-    : m_optics(validated(optics)), m_led_positions_mm(led_ring(optics)) {}
+    : m_optics(validated(optics)), m_led_positions_mm(led_ring(optics)),
+      m_led_gain(optics.led_gain.empty() ? std::vector<double>(std::size_t(optics.led_count), 1.0)
+                                         : optics.led_gain) {}
 
 LaneOptics<kRgbLanes> ShadingModel::rgb_lanes() const {
     auto lanes = [](const Vec3& v) {
@@ -129,8 +136,8 @@ double ShadingModel::led_geometry(const Vec3& led_mm, const Vec3& p_mm, const Ve
 
 double ShadingModel::unoccluded_geometry(const Vec3& p_mm, const Vec3& normal) const {
     double total = 0.0;
-    for (const Vec3& led : m_led_positions_mm)
-        total += led_geometry(led, p_mm, normal);
+    for (std::size_t k = 0; k < m_led_positions_mm.size(); ++k)
+        total += m_led_gain[k] * led_geometry(m_led_positions_mm[k], p_mm, normal);
     return total;
 }
 
@@ -142,8 +149,9 @@ template <int N>
 LanesN<N> ShadingModel::irradiance(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& normal,
                                    const LaneOptics<N>& lanes) const {
     LanesN<N> total = LanesN<N>::Zero();
-    for (const Vec3& led : m_led_positions_mm) {
-        const double geometry = led_geometry(led, p_mm, normal);
+    for (std::size_t k = 0; k < m_led_positions_mm.size(); ++k) {
+        const Vec3& led = m_led_positions_mm[k];
+        const double geometry = m_led_gain[k] * led_geometry(led, p_mm, normal);
         if (geometry > 0.0) total += geometry * transmittance(scene, led, p_mm, lanes);
     }
     return lanes.led * total;

@@ -129,7 +129,7 @@ public:
                          const LaneOptics<N>& lanes) const;
     Rgb irradiance(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& normal) const;
 
-    /// Sum over the LEDs of cos_emit cos_surface / d^2 at p (1/mm^2), nothing in the way: times
+    /// Sum over the LEDs of gain cos_emit cos_surface / d^2 at p (1/mm^2), nothing in the way: times
     /// an LED's emission it is the analytic irradiance used for auto exposure.
     double unoccluded_geometry(const Vec3& p_mm, const Vec3& normal) const;
     /// RGB: led_rgb times unoccluded_geometry.
@@ -167,6 +167,8 @@ public:
 
     /// LED positions, mm: led_count points on the ring, the first on the +x axis.
     const std::vector<Vec3>& led_positions_mm() const { return m_led_positions_mm; }
+    /// LED k's intensity relative to led_rgb (OpticsParams::led_gain; 1 where that is empty).
+    double led_gain(int k) const { return m_led_gain[std::size_t(k)]; }
     const OpticsParams& optics() const { return m_optics; }
 
 private:
@@ -184,6 +186,7 @@ private:
 
     OpticsParams m_optics;
     std::vector<Vec3> m_led_positions_mm;
+    std::vector<double> m_led_gain;
 };
 
 } // namespace chromasim::render::detail

@@ -252,6 +252,8 @@ void check_sensors(const fs::path& dir, const CheckOptions& options, CheckReport
         return;
     }
     const Plan plan = make_plan(*spec);
+    const auto draws = sensor_draws(*spec);
+    const std::map<std::string, Factor> drawn(draws.begin(), draws.end());
     CsvRows rows(dir, "sensors.csv", "chromasim check: ");
     Checker c(rows, report, options);
     while (rows.next()) {
@@ -267,9 +269,8 @@ void check_sensors(const fs::path& dir, const CheckOptions& options, CheckReport
         if (!(planned.sensor >= 0)) continue;
         for (const auto& [key, value] : plan.sensors[std::size_t(planned.sensor)].values) {
             const double written = c.number(key);
-            if (!drawable(spec->varied.at(key), written))
-                c.find(key, "outside the spec's " + value_to_yaml(spec->varied.at(key),
-                                                                  ValueType::Varied));
+            if (!drawable(drawn.at(key), written))
+                c.find(key, "outside the spec's " + value_to_yaml(drawn.at(key), ValueType::Varied));
             else if (written != value)
                 c.find(key, "not the plan's draw " + format_number(value));
         }

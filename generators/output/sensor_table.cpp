@@ -1,12 +1,13 @@
 #include "generators/output/sensor_table.hpp"
 
+#include "generators/plan/sensor_variants.hpp"
 #include "generators/spec/spec_schema.hpp"
 
 namespace chromasim::generators {
 
 std::string sensors_header(const Spec& spec) {
     std::string header = "split,trial,sensor";
-    for (const auto& [key, factor] : spec.varied)
+    for (const auto& [key, factor] : sensor_draws(spec))
         header += "," + key;
     return header;
 }

@@ -10,7 +10,7 @@
 
 namespace chromasim::generators {
 
-/// The header: split, trial, sensor, then the spec's varied keys (Spec::varied's order).
+/// The header: split, trial, sensor, then what a sensor draws (sensor_draws), in order.
 std::string sensors_header(const Spec& spec);
 
 /// Trial `trial`'s row, ending in a newline.

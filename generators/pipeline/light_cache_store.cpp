@@ -3,6 +3,7 @@
 #include "generators/io/cache_file.hpp"
 #include "generators/io/stopwatch.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -82,6 +83,10 @@ std::uint64_t light_cache_key(const render::SensorFrame& rest, const render::Opt
     k.value(o.lens_radius_mm);
     k.value(o.refractive_index);
     k.vec(o.led_rgb);
+    // Gains all 1 key as no gains, so a spec that names them keeps its caches.
+    if (std::any_of(o.led_gain.begin(), o.led_gain.end(), [](double g) { return g != 1.0; }))
+        for (const double g : o.led_gain)
+            k.value(g);
     k.value(o.spectra.has_value());
     if (o.spectra) {
         for (const render::Spectrum& s : o.spectra->camera.sensitivity())

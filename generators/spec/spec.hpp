@@ -72,6 +72,8 @@ struct Spec {
         double led_z_mm = -13.8;
         double led_width_mm = 3.5, led_height_mm = 2.8;
         Rgb led_rgb{1.0, 1.0, 1.0};
+        std::vector<double> led_gains{1.0}; ///< one for all, or one per LED
+        double led_gain_tolerance = 0.0;    ///< each sensor's draw: gains (1 +- this)
         double refractive_index = 1.4;
         double marker_thickness_mm = 0.5;
         double marker_radius_mm = 0.5;

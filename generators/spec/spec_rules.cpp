@@ -114,6 +114,19 @@ SchemaRule trial_length() {
     return r;
 }
 
+/// sensor.led.gains sets every LED with one number, or each with its own.
+SchemaRule led_gains() {
+    SchemaRule r;
+    r.key = "sensor.led.gains";
+    r.holds = [](const Spec& s, std::size_t) {
+        const std::size_t n = s.sensor.led_gains.size();
+        return n == 1 || n == std::size_t(s.sensor.led_count);
+    };
+    r.problem = "does not hold one gain per LED";
+    r.allowed = "one number for every LED, or a list of sensor.led.count numbers";
+    return r;
+}
+
 SchemaRule crossed_sensors() {
     SchemaRule r;
     r.key = "sampling.sensor_assignment";
@@ -313,6 +326,7 @@ std::vector<SchemaRule> build_rules() {
     }
     rules.push_back(split_sum());
     rules.push_back(led_beside_lens());
+    rules.push_back(led_gains());
     rules.push_back(crossed_sensors());
     rules.push_back(slide_travel());
     rules.push_back(trial_length());

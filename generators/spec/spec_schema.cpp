@@ -150,6 +150,8 @@ const char* type_name(ValueType type) {
         return "factor";
     case ValueType::Varied:
         return "varied";
+    case ValueType::Numbers:
+        return "numbers";
     }
     return "?";
 }
@@ -174,6 +176,8 @@ std::string allowed_cell(const SchemaEntry& e) {
     case ValueType::Factor:
     case ValueType::Varied:
         return "number, list of numbers or {min, max}, each in " + range_text(e);
+    case ValueType::Numbers:
+        return "number or list of numbers, each in " + range_text(e);
     }
     return "";
 }
@@ -315,6 +319,7 @@ ScalarCheck check_scalar(const SchemaEntry& entry, std::string_view text, bool q
     case ValueType::Vec3:
     case ValueType::Factor:
     case ValueType::Varied:
+    case ValueType::Numbers:
         return detail::check_number(entry, text, quoted);
     case ValueType::Integer:
         return detail::check_integer(entry, text, quoted);
@@ -354,6 +359,9 @@ std::string describe_allowed(const SchemaEntry& entry) {
     case ValueType::Varied:
         return "number in " + detail::range_text(entry) + unit +
                ", or a list or {min, max} of them (a varied sensor)";
+    case ValueType::Numbers:
+        return "a number or a non-empty list of numbers, each in " + detail::range_text(entry) +
+               unit;
     }
     return "";
 }
@@ -391,10 +399,11 @@ std::string value_to_yaml(const SpecValue& value, ValueType type) {
                "]";
     }
     case ValueType::Factor:
-    case ValueType::Varied: {
+    case ValueType::Varied:
+    case ValueType::Numbers: {
         const Factor& f = std::get<Factor>(value);
-        // A sensor value that does not vary reads as the plain number it is.
-        if (type == ValueType::Varied && !f.is_range && f.values.size() == 1)
+        // A sensor value that does not vary, or one number for all, reads as the plain number.
+        if (type != ValueType::Factor && !f.is_range && f.values.size() == 1)
             return format_number(f.values[0]);
         if (f.is_range)
             return "{min: " + format_number(f.min) + ", max: " + format_number(f.max) + "}";

@@ -28,11 +28,14 @@ enum class ValueType {
     /// A sensor value that may vary: a number, or a list or {min, max} drawn once per sensor
     /// variant (sampling.sensor_variants); read and stored as a Factor.
     Varied,
+    /// One number, or a non-empty list of numbers (one per item, e.g. per LED), each
+    /// range-checked; read and stored as a Factor's values.
+    Numbers,
 };
 
 /// A validated value; the alternative matches the entry's ValueType (Number -> double,
 /// Integer -> int64_t, Bool -> bool, Enum and String -> string, Rgb and Vec3 -> Rgb, the
-/// std::array<double, 3> both are stored in, Factor and Varied -> Factor).
+/// std::array<double, 3> both are stored in, Factor, Varied and Numbers -> Factor).
 using SpecValue = std::variant<double, std::int64_t, bool, std::string, Rgb, Factor>;
 
 /// An interval of allowed numbers; each end is inclusive ("[") or exclusive ("(").

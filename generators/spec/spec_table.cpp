@@ -22,6 +22,8 @@ namespace { // internal linkage: these names are common
 template <class T> void assign(T& field, const SpecValue& v) {
     if constexpr (std::is_integral_v<T> && !std::is_same_v<T, bool>) {
         field = static_cast<T>(std::get<std::int64_t>(v));
+    } else if constexpr (std::is_same_v<T, std::vector<double>>) {
+        field = std::get<Factor>(v).values; // a `numbers` entry
     } else {
         field = std::get<T>(v);
     }
@@ -30,6 +32,8 @@ template <class T> void assign(T& field, const SpecValue& v) {
 template <class T> SpecValue to_value(const T& x) {
     if constexpr (std::is_integral_v<T> && !std::is_same_v<T, bool>) {
         return static_cast<std::int64_t>(x);
+    } else if constexpr (std::is_same_v<T, std::vector<double>>) {
+        return Factor{x};
     } else {
         return x;
     }
@@ -136,6 +140,14 @@ SchemaEntry varied(std::string key, double def, Range range, std::string unit, s
         return it != s.varied.end() ? it->second : Factor{std::vector<double>{access(s)}};
     };
     return e;
+}
+
+/// A `numbers` entry: one number or a list, into a std::vector<double> field.
+template <class Access>
+SchemaEntry numbers(std::string key, double def, Range range, std::string unit, std::string doc,
+                    Access access) {
+    return make_entry(std::move(key), ValueType::Numbers, Factor{std::vector<double>{def}},
+                      std::move(unit), range, std::move(doc), access);
 }
 
 template <class Access>
@@ -312,6 +324,14 @@ void add_sensor_leds(std::vector<SchemaEntry>& out) {
                       "Relative emission of each LED, linear RGB (white) [G]; spectral mode: "
                       "their mean scales the LED spectrum.",
                       CHROMASIM_FIELD(sensor.led_rgb)));
+    out.push_back(numbers("sensor.led.gains", 1, closed(0, 10), "",
+                          "Each LED's intensity relative to `rgb`, in ring order from +x "
+                          "(`chromasim calibrate` fits them); one number sets every LED.",
+                          CHROMASIM_FIELD(sensor.led_gains)));
+    out.push_back(number("sensor.led.gain_tolerance", 0, closed(0, 0.5), "",
+                         "Each sensor variant draws every LED's gain uniformly within this "
+                         "fraction either side of its `gains` value (0: the gains as written).",
+                         CHROMASIM_FIELD(sensor.led_gain_tolerance)));
 }
 
 void add_sensor_optics(std::vector<SchemaEntry>& out) {

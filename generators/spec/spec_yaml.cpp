@@ -157,6 +157,9 @@ SpecValue read_factor(const SpecReader& r, const SchemaEntry& entry, const std::
                 read_scalar(r, entry, key + "[" + std::to_string(i) + "]", value, value[i])));
         return f;
     }
+    if (entry.type == ValueType::Numbers)
+        fail(r, value.Mark(), key, node_text(value), "is " + kind(value) + ", not a list",
+             allowed);
     f.is_range = true;
     bool has_min = false, has_max = false;
     for (const auto& pair : value) {
@@ -256,6 +259,7 @@ SpecValue read_value(const SpecReader& r, const SchemaEntry& entry, const std::s
         return read_rgb(r, entry, key, key_node, value);
     case ValueType::Factor:
     case ValueType::Varied:
+    case ValueType::Numbers:
         return read_factor(r, entry, key, key_node, value);
     default:
         return read_scalar(r, entry, key, key_node, value);

@@ -20,6 +20,12 @@ render::Vec3 vec(const Rgb& c) {
 }
 } // namespace
 
+std::vector<double> led_gains(const Spec& spec) {
+    const std::vector<double>& g = spec.sensor.led_gains;
+    if (g.size() == 1) return std::vector<double>(std::size_t(spec.sensor.led_count), g[0]);
+    return g;
+}
+
 mechanics::DomeModelOptions dome_options(const Spec& spec) {
     mechanics::DomeModelOptions o;
     o.mesh_level = spec.sensor.mesh_level;
@@ -135,6 +141,7 @@ render::OpticsParams optics_params(const Spec& spec) {
     o.frame_inner_radius_mm = mechanics::DomeParams{}.radii_mm[0];
     o.lens_radius_mm = spec.sensor.lens_radius_mm;
     o.led_rgb = vec(spec.sensor.led_rgb);
+    o.led_gain = led_gains(spec);
     o.exposure = spec.render.exposure;
     if (spec.render.spectral) {
         o.spectra = render::load_sensor_spectra(

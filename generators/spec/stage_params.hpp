@@ -27,6 +27,8 @@ mechanics::ObjectShape object_shape(const ObjectSource& source, const Spec::Obje
 /// The mechanics' shape of `object` as it stands, its mesh file read now.
 mechanics::ObjectShape object_shape(const Spec& spec, const Spec::Object& object);
 render::CameraParams camera_params(const Spec& spec);
+/// sensor.led.gains, one per LED (one number repeated).
+std::vector<double> led_gains(const Spec& spec);
 render::OpticsParams optics_params(const Spec& spec);
 /// `optics` in RGB mode: with spectra, the coating and marker colours the camera sees under
 /// the LEDs (albedos, and the markers' absorption over a path of `marker_path_mm`, the

@@ -7,6 +7,7 @@
 #include "generators/plan/plan.hpp"
 #include "generators/plan/sensor_variants.hpp"
 #include "generators/spec/spec.hpp"
+#include "generators/spec/stage_params.hpp"
 
 #include "run_chromasim.hpp"
 #include "scratch_dir.hpp"
@@ -260,4 +261,43 @@ TEST_CASE("a Simulator is one sensor: a varied spec is refused with what to do",
         CHECK_THAT(e.what(), Contains("varies its sensor (sensor.materials.clear_layer.E_MPa, "
                                       "...); a Simulator is one sensor"));
     }
+}
+
+TEST_CASE("LED gains: one number or one per LED, and each sensor draws its own within the "
+          "tolerance",
+          "[generators][sensors]") {
+    const Spec fixed = parse_spec("sensor: {led: {count: 3, gains: [1.0, 0.9, 1.1]}}\n", "a.yaml");
+    CHECK(fixed.sensor.led_gains == std::vector<double>{1.0, 0.9, 1.1});
+    CHECK_FALSE(varies_sensor(fixed));
+    CHECK(optics_params(fixed).led_gain == std::vector<double>{1.0, 0.9, 1.1});
+    CHECK(optics_params(parse_spec("name: x\n", "a.yaml")).led_gain ==
+          std::vector<double>(6, 1.0));
+    CHECK(error_of("sensor: {led: {count: 3, gains: [1.0, 0.9]}}\n") ==
+          "bad.yaml:1:25: sensor.led.gains: [1.0, 0.9] does not hold one gain per LED; allowed: "
+          "one number for every LED, or a list of sensor.led.count numbers");
+    CHECK_THAT(error_of("sensor: {led: {gains: {min: 0.9, max: 1.1}}}\n"),
+               Contains("sensor.led.gains: {min: 0.9, max: 1.1} is a mapping, not a list"));
+    CHECK_THAT(error_of("sensor: {led: {gains: [1, -0.5]}}\n"), Contains("sensor.led.gains[1]"));
+
+    std::string yaml = varied_spec(3);
+    yaml.insert(yaml.find("sensor:\n") + 8, "  led: {count: 3, gains: 2.0, gain_tolerance: 0.1}\n");
+    const Spec spec = parse_spec(yaml, "v.yaml");
+    REQUIRE(varies_sensor(spec));
+    const Plan plan = make_plan(spec);
+    for (const SensorVariant& v : plan.sensors) {
+        REQUIRE(v.values.size() == 5); // E, the inner dye, then 3 LEDs
+        CHECK(v.values[2].first == "sensor.led.gains[0]");
+        const Spec one = sensor_spec(spec, v);
+        CHECK_FALSE(varies_sensor(one));
+        for (int k = 0; k < 3; ++k) {
+            const double g = v.values[std::size_t(2 + k)].second;
+            CHECK(g >= 1.8);
+            CHECK(g <= 2.2);
+            CHECK(one.sensor.led_gains[std::size_t(k)] == g);
+        }
+    }
+    CHECK(plan.sensors[0].values[2].second != plan.sensors[1].values[2].second);
+    // The varied keys draw as they did without LED gains.
+    const Plan without = make_plan(parse_spec(varied_spec(3), "v.yaml"));
+    CHECK(without.sensors[2].values[1] == plan.sensors[2].values[1]);
 }
