@@ -273,10 +273,11 @@ TEST_CASE("LED gains: one number or one per LED, and each sensor draws its own w
     CHECK(optics_params(parse_spec("name: x\n", "a.yaml")).led_gain ==
           std::vector<double>(6, 1.0));
     CHECK(error_of("sensor: {led: {count: 3, gains: [1.0, 0.9]}}\n") ==
-          "bad.yaml:1:25: sensor.led.gains: [1.0, 0.9] does not hold one gain per LED; allowed: "
+          "bad.yaml:1:26: sensor.led.gains: value '[1.0, 0.9]' does not hold one gain per LED; "
+          "allowed: "
           "one number for every LED, or a list of sensor.led.count numbers");
     CHECK_THAT(error_of("sensor: {led: {gains: {min: 0.9, max: 1.1}}}\n"),
-               Contains("sensor.led.gains: {min: 0.9, max: 1.1} is a mapping, not a list"));
+               Contains("sensor.led.gains: value '{min: 0.9, max: 1.1}' is a mapping, not a list"));
     CHECK_THAT(error_of("sensor: {led: {gains: [1, -0.5]}}\n"), Contains("sensor.led.gains[1]"));
 
     std::string yaml = varied_spec(3);
@@ -300,4 +301,39 @@ TEST_CASE("LED gains: one number or one per LED, and each sensor draws its own w
     // The varied keys draw as they did without LED gains.
     const Plan without = make_plan(parse_spec(varied_spec(3), "v.yaml"));
     CHECK(without.sensors[2].values[1] == plan.sensors[2].values[1]);
+}
+
+TEST_CASE("generate records each sensor's LED gains and check verifies them",
+          "[generators][sensors]") {
+    ScratchDir dir("led_gains");
+    std::string yaml = varied_spec(2, 2);
+    yaml.insert(yaml.find("sensor:\n") + 8, "  led: {gain_tolerance: 0.2}\n");
+    const fs::path spec_path = dir.write("gains.yaml", yaml);
+    const Plan plan = make_plan(load_spec(spec_path));
+    const fs::path out = dir.path / "out";
+    const Run gen = run_chromasim(dir, "generate " + spec_path.string() + " -o " + out.string() +
+                                           " -q --cache-dir " + (dir.path / "cache").string());
+    INFO(gen.output);
+    REQUIRE(gen.code == 0);
+    const auto sensors = read_csv(out / "sensors.csv");
+    REQUIRE(sensors.size() == plan.trials.size());
+    for (const auto& row : sensors) {
+        const SensorVariant& v = plan.sensors[std::size_t(std::stoi(row.at("sensor")))];
+        for (int k = 0; k < 6; ++k) {
+            const std::string key = "sensor.led.gains[" + std::to_string(k) + "]";
+            CHECK(std::stod(row.at(key)) == v.values[std::size_t(2 + k)].second);
+        }
+    }
+    CHECK(check_dataset(out).findings_total == 0);
+    // A gain outside 1 +- 0.2 is found.
+    std::string text = chromasim::generators::read_file(out / "sensors.csv");
+    const std::string gain = sensors.front().at("sensor.led.gains[5]");
+    const std::size_t at = text.find("," + gain + "\n");
+    REQUIRE(at != std::string::npos);
+    text.replace(at, gain.size() + 2, ",1.5\n");
+    std::ofstream(out / "sensors.csv", std::ios::binary) << text;
+    const CheckReport report = check_dataset(out);
+    REQUIRE(report.findings_total == 1);
+    CHECK(report.findings[0].column == "sensor.led.gains[5]");
+    CHECK(report.findings[0].problem == "outside the spec's {min: 0.8, max: 1.2}");
 }

@@ -47,10 +47,10 @@ TEST_CASE("LED gains: the preview's irradiance is the gains' sum of each LED's a
           "[render][leds]") {
     EmbreeScene scene;
     scene.set_frame(dome_with_box_markers());
-    const OpticsParams base = fuse_optics();
+    const OpticsParams base; // LEDs 1 mm under the rim, no lens barrel: straight light
     const ShadingModel lit(with_gains(base, {kGains.begin(), kGains.end()}));
     for (const double polar : {0.0, 30.0, 60.0}) {
-        const Vec3 p = 12.69 * unit_from_angles(polar, 20.0), n = -p.normalized();
+        const Vec3 p = 11.6 * unit_from_angles(polar, 20.0), n = -p.normalized();
         Rgb sum = Rgb::Zero();
         for (int k = 0; k < 6; ++k)
             sum += kGains[std::size_t(k)] *
