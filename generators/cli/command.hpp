@@ -23,6 +23,7 @@ void add_check(CLI::App& app, Action& action);
 void add_spec_doc(CLI::App& app, Action& action);
 void add_bench(CLI::App& app, Action& action);
 void add_verify(CLI::App& app, Action& action);
+void add_calibrate(CLI::App& app, Action& action);
 
 /// --cache-dir and --no-cache, as generate, export-scene and verify sensor take them.
 struct CacheOptions {

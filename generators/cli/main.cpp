@@ -26,6 +26,7 @@ int main(int argc, char** argv) {
     cli::add_spec_doc(app, action);
     cli::add_bench(app, action);
     cli::add_verify(app, action);
+    cli::add_calibrate(app, action);
 
     CLI11_PARSE(app, argc, argv);
     std::unique_ptr<tbb::global_control> limit;

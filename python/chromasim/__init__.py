@@ -24,7 +24,7 @@ need only numpy; torch is imported by train and the Dataset classes only.
 
 import os as _os
 
-__version__ = "0.46.0"  # the CMake project version (python/tests/test_data.py checks it)
+__version__ = "0.47.0"  # the CMake project version (python/tests/test_data.py checks it)
 
 
 def _build_dirs() -> list[str]:

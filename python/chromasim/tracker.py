@@ -107,8 +107,7 @@ class Tracker:
         self.layout, self.threshold, self.size_gain = layout, threshold, size_gain
         rest = self._checked(rest_image)
         self.spacing = {layer: layout.spacing_px(layer) for layer in LAYERS}
-        size = max(3, int(round(0.8 * min(self.spacing.values()))))
-        self.background = np.maximum(ndimage.grey_closing(rest, size=(size, size, 1)), 1e-3)
+        self.background = background_of(rest, 0.8 * min(self.spacing.values()))
         self.rest = {layer: self._match(layer, rest, layout.project(layout.rest_mm[layer]))
                      for layer in LAYERS}
         self.reset()
@@ -119,8 +118,7 @@ class Tracker:
         if a.shape != want or a.dtype != np.uint8:
             raise ValueError(f"chromasim.tracker: an image of {a.shape} {a.dtype}; allowed: "
                              f"{want} uint8 (the sensor's PNG pixels)")
-        x = a.astype(np.float64) / 255.0   # sRGB -> linear
-        return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
+        return srgb_to_linear(a)
 
     def reset(self) -> None:
         """Starts a new sequence: markers are looked for near their rest positions."""
@@ -128,22 +126,7 @@ class Tracker:
 
     def _blobs(self, lin: np.ndarray, layer: str) -> tuple[np.ndarray, np.ndarray]:
         """(centroids n x 2, areas n) of the layer's blobs."""
-        c = CHANNEL[layer]
-        dens = -np.log(np.clip(lin[:, :, c], 1e-4, None) / self.background[:, :, c])
-        other = -np.log(np.clip(lin[:, :, 1 - c], 1e-4, None) / self.background[:, :, 1 - c])
-        mask = (dens > self.threshold) & (dens > 0.5 * other)
-        labels, n = ndimage.label(mask)
-        if n == 0:
-            return np.zeros((0, 2)), np.zeros(0)
-        index = np.arange(1, n + 1)
-        w = np.where(mask, dens, 0.0)
-        mass = ndimage.sum(w, labels, index)
-        ys, xs = np.indices(mask.shape)
-        centroid = np.stack([ndimage.sum(w * (xs + 0.5), labels, index) / mass,
-                             ndimage.sum(w * (ys + 0.5), labels, index) / mass], axis=1)
-        peak = ndimage.maximum(dens, labels, index)
-        upper = mask & (dens >= 0.5 * peak[np.maximum(labels - 1, 0)])
-        return centroid, np.asarray(ndimage.sum(upper.astype(float), labels, index))
+        return blobs(lin, self.background, layer, self.threshold)
 
     def _match(self, layer: str, lin: np.ndarray, guess_px: np.ndarray):
         """(centroid_px, area, found) per marker: the nearest blob to its guess."""
@@ -180,6 +163,40 @@ class Tracker:
         u = self.layout.rays(np.where(found[:, None], at, 0.0)) * (r - inward)[:, None] - rest_mm
         u[~found] = np.nan
         return u
+
+
+def srgb_to_linear(image: np.ndarray) -> np.ndarray:
+    """A PNG's 8-bit sRGB pixels as linear values in [0, 1]."""
+    x = np.asarray(image, np.float64) / 255.0
+    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
+
+
+def background_of(lin: np.ndarray, size_px: float) -> np.ndarray:
+    """The image with its markers closed away (a grey closing `size_px` across)."""
+    size = max(3, int(round(size_px)))
+    return np.maximum(ndimage.grey_closing(lin, size=(size, size, 1)), 1e-3)
+
+
+def blobs(lin: np.ndarray, background: np.ndarray, layer: str,
+          threshold: float = 0.4) -> tuple[np.ndarray, np.ndarray]:
+    """(centroids n x 2 px, areas n px) of one layer's markers in a linear image: its channel's
+    optical density against `background` above `threshold`, at least half the other's."""
+    c = CHANNEL[layer]
+    dens = -np.log(np.clip(lin[:, :, c], 1e-4, None) / background[:, :, c])
+    other = -np.log(np.clip(lin[:, :, 1 - c], 1e-4, None) / background[:, :, 1 - c])
+    mask = (dens > threshold) & (dens > 0.5 * other)
+    labels, n = ndimage.label(mask)
+    if n == 0:
+        return np.zeros((0, 2)), np.zeros(0)
+    index = np.arange(1, n + 1)
+    w = np.where(mask, dens, 0.0)
+    mass = ndimage.sum(w, labels, index)
+    ys, xs = np.indices(mask.shape)
+    centroid = np.stack([ndimage.sum(w * (xs + 0.5), labels, index) / mass,
+                         ndimage.sum(w * (ys + 0.5), labels, index) / mass], axis=1)
+    peak = ndimage.maximum(dens, labels, index)
+    upper = mask & (dens >= 0.5 * peak[np.maximum(labels - 1, 0)])
+    return centroid, np.asarray(ndimage.sum(upper.astype(float), labels, index))
 
 
 def calibrate_size(fields: list[LayerField], inward_mm: list[np.ndarray],

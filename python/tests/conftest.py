@@ -39,3 +39,12 @@ def quickstart(datasets):
 def sliding(datasets):
     from chromasim.data import open_dataset
     return open_dataset(datasets["tiny_sliding"])
+
+
+@pytest.fixture(scope="session")
+def chromasim_exe():
+    exe = os.environ.get("CHROMASIM_EXE",
+                         os.path.join(make_datasets.ROOT, "build", "release", "chromasim"))
+    if not os.path.exists(exe):
+        pytest.fail(f"{exe}: no chromasim executable; build it or set CHROMASIM_EXE")
+    return exe

@@ -116,4 +116,29 @@ inline void small_cache_on(Renderer& renderer, const SensorFrame& rest, const Se
     renderer.set_frame(frame);
 }
 
+/// The path integrator's mean radiance along `d` from the origin over `paths` paths (seed 3),
+/// its standard error, and the fast integrator's over `fast_samples` (seed 4).
+struct AlongRay {
+    detail::RgbLanes path, se, fast;
+};
+inline AlongRay along_ray(const PathIntegrator& path, const FastIntegrator& fast,
+                          const EmbreeScene& scene, const detail::LaneOptics<detail::kRgbLanes>& lanes,
+                          const Vec3& d, int paths = 40000, int fast_samples = 64) {
+    using detail::RgbLanes;
+    RgbLanes p = RgbLanes::Zero(), p2 = RgbLanes::Zero(), f = RgbLanes::Zero();
+    for (int i = 0; i < paths; ++i) {
+        detail::PixelRng rng(3, std::uint64_t(i));
+        const RgbLanes L = path.radiance(scene, Vec3::Zero(), d, lanes, rng);
+        p += L;
+        p2 += L.square();
+    }
+    for (int i = 0; i < fast_samples; ++i) {
+        detail::PixelRng rng(4, std::uint64_t(i));
+        f += fast.radiance<detail::kRgbLanes>(scene, Vec3::Zero(), d, lanes, nullptr, rng);
+    }
+    p /= paths;
+    f /= fast_samples;
+    return {p, ((p2 / paths - p.square()).max(0.0) / (paths - 1.0)).sqrt(), f};
+}
+
 } // namespace chromasim::render::test

@@ -33,22 +33,7 @@ TEST_CASE("fast integrator: on a dome without markers it agrees with the path in
     fast.set_frame(frame, scene);
     const auto lanes = shading.rgb_lanes();
     for (double polar : {0.0, 40.0, 70.0}) {
-        const Vec3 d = unit_from_angles(polar, 15.0);
-        constexpr int kPaths = 40000, kFast = 64;
-        RgbLanes p = RgbLanes::Zero(), p2 = RgbLanes::Zero(), f = RgbLanes::Zero();
-        for (int i = 0; i < kPaths; ++i) {
-            PixelRng rng(3, std::uint64_t(i));
-            const RgbLanes L = path.radiance(scene, Vec3::Zero(), d, lanes, rng);
-            p += L;
-            p2 += L.square();
-        }
-        for (int i = 0; i < kFast; ++i) {
-            PixelRng rng(4, std::uint64_t(i));
-            f += fast.radiance<kRgbLanes>(scene, Vec3::Zero(), d, lanes, nullptr, rng);
-        }
-        p /= kPaths;
-        f /= kFast;
-        const RgbLanes se = ((p2 / kPaths - p.square()).max(0.0) / (kPaths - 1.0)).sqrt();
+        const auto [p, se, f] = along_ray(path, fast, scene, lanes, unit_from_angles(polar, 15.0));
         for (int c = 0; c < 3; ++c) {
             INFO("polar " << polar << " deg, lane " << c << ": fast " << f[c] << ", path " << p[c]
                           << " +- " << se[c]);

@@ -33,14 +33,6 @@ std::vector<double> alone(int k) {
     return g;
 }
 
-/// The FUSE sensor's deep LEDs and lens barrel (docs/SENSOR.md).
-OpticsParams fuse_optics() {
-    OpticsParams o;
-    o.led_z_mm = -13.8;
-    o.lens_radius_mm = 8.0;
-    return o;
-}
-
 } // namespace
 
 TEST_CASE("LED gains: the preview's irradiance is the gains' sum of each LED's alone",
@@ -138,22 +130,8 @@ TEST_CASE("LED gains: the fast integrator agrees with the path integrator under 
     // Towards LED 0 (gain 2) and LED 1 (gain 0.25), near the apex and near the rim.
     for (const auto& [polar, azimuth] : {std::pair{30.0, 0.0}, std::pair{30.0, 60.0},
                                          std::pair{65.0, 0.0}, std::pair{65.0, 60.0}}) {
-        const Vec3 d = unit_from_angles(polar, azimuth);
-        constexpr int kPaths = 40000, kFast = 64;
-        RgbLanes p = RgbLanes::Zero(), p2 = RgbLanes::Zero(), f = RgbLanes::Zero();
-        for (int i = 0; i < kPaths; ++i) {
-            PixelRng rng(3, std::uint64_t(i));
-            const RgbLanes L = path.radiance(scene, Vec3::Zero(), d, lanes, rng);
-            p += L;
-            p2 += L.square();
-        }
-        for (int i = 0; i < kFast; ++i) {
-            PixelRng rng(4, std::uint64_t(i));
-            f += fast.radiance<kRgbLanes>(scene, Vec3::Zero(), d, lanes, nullptr, rng);
-        }
-        p /= kPaths;
-        f /= kFast;
-        const RgbLanes se = ((p2 / kPaths - p.square()).max(0.0) / (kPaths - 1.0)).sqrt();
+        const auto [p, se, f] =
+            along_ray(path, fast, scene, lanes, unit_from_angles(polar, azimuth));
         for (int c = 0; c < 3; ++c) {
             INFO("polar " << polar << " deg, azimuth " << azimuth << " deg, lane " << c
                           << ": fast " << f[c] << ", path " << p[c] << " +- " << se[c]);

@@ -138,4 +138,12 @@ inline SensorFrame grooved(const SensorFrame& rest, double lo_deg, double hi_deg
     return out;
 }
 
+/// The FUSE sensor's LEDs (13.8 mm under the rim) and lens barrel (docs/SENSOR.md).
+inline OpticsParams fuse_optics() {
+    OpticsParams o;
+    o.led_z_mm = -13.8;
+    o.lens_radius_mm = 8.0;
+    return o;
+}
+
 } // namespace chromasim::render::test

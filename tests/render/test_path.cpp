@@ -354,18 +354,6 @@ TEST_CASE("through a pressed inner surface, next-event estimation with MIS agree
         60000, 400000);
 }
 
-namespace {
-
-/// The FUSE sensor's LEDs (13.8 mm under the rim) and lens barrel (docs/SENSOR.md).
-OpticsParams fuse_optics() {
-    OpticsParams o;
-    o.led_z_mm = -13.8;
-    o.lens_radius_mm = 8.0;
-    return o;
-}
-
-} // namespace
-
 // The LEDs lie deep under the rim.
 TEST_CASE("beside a lens barrel next-event estimation with MIS agrees with BSDF sampling alone",
           "[render][path]") {
