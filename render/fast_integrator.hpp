@@ -255,9 +255,9 @@ public:
     /// The term radiance16 leaves out with reflected_leds = false, for up to 16 camera rays
     /// from `origin_mm`: fresnel[i] is the Fresnel reflectance F times the LED's gain where ray
     /// i's reflection off the inner surface reaches an LED (the LED's radiance, l.led / the
-    /// LED's area per lane, times that is then its radiance), 0 elsewhere. The same two packets and tests as
-    /// radiance16 (the camera ray to the inner surface, its reflection to the next surface),
-    /// nothing else: no layers, no shading, no random draw.
+    /// LED's area per lane, times that is then its radiance), 0 elsewhere. The same two
+    /// packets and tests as radiance16 (the camera ray to the inner surface, its reflection to
+    /// the next surface), nothing else: no layers, no shading, no random draw.
     void reflected_leds16(const EmbreeScene& scene, const Vec3& origin_mm,
                           std::span<const Vec3> directions, std::span<double> fresnel) const;
 

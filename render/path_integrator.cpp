@@ -235,8 +235,7 @@ PathIntegrator::RayEnd PathIntegrator::ray_end(const Vec3& origin, const Vec3& d
                                                double tnear, double tfar) const {
     RayEnd end;
     end.led = led_hit(origin, direction, tnear, tfar);
-    end.blocked =
-        m_shading.crosses_mount(origin, direction, tnear, end.led ? end.led->t_mm : tfar);
+    end.blocked = m_shading.crosses_mount(origin, direction, tnear, end.led ? end.led->t_mm : tfar);
     if (end.blocked) end.led.reset();
     return end;
 }

@@ -129,8 +129,8 @@ public:
                          const LaneOptics<N>& lanes) const;
     Rgb irradiance(const EmbreeScene& scene, const Vec3& p_mm, const Vec3& normal) const;
 
-    /// Sum over the LEDs of gain cos_emit cos_surface / d^2 at p (1/mm^2), nothing in the way: times
-    /// an LED's emission it is the analytic irradiance used for auto exposure.
+    /// Sum over the LEDs of gain cos_emit cos_surface / d^2 at p (1/mm^2), nothing in the way:
+    /// times an LED's emission it is the analytic irradiance used for auto exposure.
     double unoccluded_geometry(const Vec3& p_mm, const Vec3& normal) const;
     /// RGB: led_rgb times unoccluded_geometry.
     Rgb unoccluded_irradiance(const Vec3& p_mm, const Vec3& normal) const;

@@ -51,11 +51,10 @@ void add_calibrate(CLI::App& app, Action& action) {
     auto* cmd = app.add_subcommand(
         "calibrate", "fit a spec to your sensor: a rest image, presses of known force "
                      "(`chromasim calibrate --help`; docs/CALIBRATION.md)");
-    cmd->prefix_command();   // every argument, --help included, goes to the Python tool
+    cmd->prefix_command(); // every argument, --help included, goes to the Python tool
     cmd->set_help_flag();
-    cmd->callback([cmd, &action] {
-        action = [args = cmd->remaining()] { return run_python(args); };
-    });
+    cmd->callback(
+        [cmd, &action] { action = [args = cmd->remaining()] { return run_python(args); }; });
 }
 
 } // namespace chromasim::cli

@@ -270,7 +270,8 @@ void check_sensors(const fs::path& dir, const CheckOptions& options, CheckReport
         for (const auto& [key, value] : plan.sensors[std::size_t(planned.sensor)].values) {
             const double written = c.number(key);
             if (!drawable(drawn.at(key), written))
-                c.find(key, "outside the spec's " + value_to_yaml(drawn.at(key), ValueType::Varied));
+                c.find(key,
+                       "outside the spec's " + value_to_yaml(drawn.at(key), ValueType::Varied));
             else if (written != value)
                 c.find(key, "not the plan's draw " + format_number(value));
         }

@@ -65,6 +65,7 @@ struct Spec {
         double camera_fx_px = 0, camera_fy_px = 0, camera_cx_px = 0, camera_cy_px = 0;
         double camera_k1 = 0, camera_k2 = 0, camera_k3 = 0, camera_k4 = 0;
         std::array<double, 3> camera_position_mm{0.0, 0.0, 0.0}; ///< in the dome frame
+        double camera_position_tolerance_mm = 0.0; ///< each sensor's draw: position +- this
         double camera_roll_deg = 0, camera_pitch_deg = 0, camera_yaw_deg = 0;
         double lens_radius_mm = 8.0; ///< the lens barrel below the rim plane (0: none)
         int led_count = 6;

@@ -127,6 +127,20 @@ SchemaRule led_gains() {
     return r;
 }
 
+/// A drawn camera position stays within sensor.camera.position_mm's range.
+SchemaRule camera_position_tolerance() {
+    SchemaRule r;
+    r.key = "sensor.camera.position_tolerance_mm";
+    r.holds = [](const Spec& s, std::size_t) {
+        const auto& p = s.sensor.camera_position_mm;
+        const double t = s.sensor.camera_position_tolerance_mm;
+        return std::all_of(p.begin(), p.end(), [t](double x) { return std::abs(x) + t <= 10.0; });
+    };
+    r.problem = "lets a drawn camera position leave [-10, 10] mm";
+    r.allowed = "|each of sensor.camera.position_mm| + the tolerance up to 10 mm";
+    return r;
+}
+
 SchemaRule crossed_sensors() {
     SchemaRule r;
     r.key = "sampling.sensor_assignment";
@@ -327,6 +341,7 @@ std::vector<SchemaRule> build_rules() {
     rules.push_back(split_sum());
     rules.push_back(led_beside_lens());
     rules.push_back(led_gains());
+    rules.push_back(camera_position_tolerance());
     rules.push_back(crossed_sensors());
     rules.push_back(slide_travel());
     rules.push_back(trial_length());

@@ -289,6 +289,10 @@ void add_camera_model(std::vector<SchemaEntry>& out) {
                        "Camera position in the dome frame (origin: the dome centre; the inner "
                        "surface has radius 10.5 mm), both models.",
                        CHROMASIM_FIELD(sensor.camera_position_mm)));
+    out.push_back(number("sensor.camera.position_tolerance_mm", 0, closed(0, 1), "mm",
+                         "Each sensor variant draws its camera's position uniformly within this "
+                         "distance of `position_mm` along each axis (0: as written).",
+                         CHROMASIM_FIELD(sensor.camera_position_tolerance_mm)));
     out.push_back(varied("sensor.camera.roll_deg", 0, closed(-180, 180), "deg",
                          "Camera rotation about the dome's x axis (applied first; 0, 0, 0: "
                          "looking along +z, image x along +x).",

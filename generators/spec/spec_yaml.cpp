@@ -158,8 +158,7 @@ SpecValue read_factor(const SpecReader& r, const SchemaEntry& entry, const std::
         return f;
     }
     if (entry.type == ValueType::Numbers)
-        fail(r, value.Mark(), key, node_text(value), "is " + kind(value) + ", not a list",
-             allowed);
+        fail(r, value.Mark(), key, node_text(value), "is " + kind(value) + ", not a list", allowed);
     f.is_range = true;
     bool has_min = false, has_max = false;
     for (const auto& pair : value) {

@@ -10,10 +10,11 @@ eps from sum_i u_i sigma_i v_i(t) alone.
 Support-vector classifiers (scikit-learn SVC, RBF kernel, features standardised) predict
 the class of the safety margin Gamma of each frame from the first r recruitments:
 2 classes (Gamma below 0.5, Gamma at or above 0.5) and k = 3..10 classes (k equal bins of
-Gamma over [0, 1], the paper's "quantization of the safety margin"). Two schemes: stratified
-k-fold ("10-fold" in the paper) and leave-one-friction-out (each friction condition of the
-dataset held out in turn; the paper's cross-subject test holds out a participant, this
-dataset has no participants and friction is the factor the classifier must be invariant to).
+Gamma over [0, 1], the paper's "quantization of the safety margin"). Three schemes: stratified
+k-fold ("10-fold" in the paper), leave-one-friction-out (each friction condition held out in
+turn: the factor the classifier must be invariant to) and leave-one-sensor-out (each sensor of
+a dataset that varies its sensor, sensors.csv, held out in turn: the paper's cross-subject
+test on datasets_spec/seed001_participants.yaml).
 
 Usage:
   python3 -m chromasim.eigenstrain DATASET -o OUTDIR [--bases 10] [--classes 2-10]
@@ -121,7 +122,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--folds", type=int, default=10, help="folds of the stratified k-fold")
     p.add_argument("--seed", type=int, default=0, help="seed of the fold shuffle")
     p.add_argument("--schemes", default="kfold,lofo",
-                   help="kfold (stratified k-fold) and/or lofo (leave one friction out)")
+                   help="kfold (stratified k-fold), lofo (leave one friction out) and/or loso "
+                        "(leave one sensor out: a dataset whose spec varies its sensor)")
     p.add_argument("--finger", choices=("left", "right"), default=None,
                    help="only this fingertip's strain (default: every fingertip with strain)")
     p.add_argument("--max-travel", type=float, default=0.0, metavar="MM",
@@ -194,7 +196,7 @@ def _check_args(args) -> list[str]:
     schemes = [x.strip() for x in args.schemes.split(",") if x.strip()]
     bad = [x for x in schemes if x not in SCHEMES]
     if bad or not schemes:
-        sys.exit(f"eigenstrain: --schemes {args.schemes!r}; allowed: kfold, lofo")
+        sys.exit(f"eigenstrain: --schemes {args.schemes!r}; allowed: kfold, lofo, loso")
     if args.bases < 1 or args.folds < 2:
         sys.exit("eigenstrain: --bases must be >= 1 and --folds >= 2")
     return schemes
@@ -266,9 +268,11 @@ def _classify_all(args, s: StrainSet, es: Eigenstrains, R: int, schemes):
         rs = rs_all if (args.grid == "full" or k == 2) else [r_class]
         chance = float(np.bincount(y).max() / len(y))
         for scheme in schemes:
-            folds_list = splits(scheme, y, s.friction, args.folds, args.seed)
+            groups = s.sensor if scheme == "loso" else s.friction
+            folds_list = splits(scheme, y, groups, args.folds, args.seed)
             if not folds_list:
-                print(f"eigenstrain: {scheme}: skipped (one friction condition only)")
+                print(f"eigenstrain: {scheme}: skipped (one "
+                      f"{'sensor' if scheme == 'loso' else 'friction condition'} only)")
                 continue
             res = cross_validate(F, y, folds_list, args.C, args.kernel, rs, fold_features)
             if k == 2 and args.full_field == "cv":

@@ -11,8 +11,9 @@ from dataclasses import dataclass
 import numpy as np
 
 # Cross-validation schemes of splits(), and their names in the tables and figures
-SCHEMES = ("kfold", "lofo")
-SCHEME_NAMES = {"kfold": "stratified k-fold", "lofo": "leave one friction out"}
+SCHEMES = ("kfold", "lofo", "loso")
+SCHEME_NAMES = {"kfold": "stratified k-fold", "lofo": "leave one friction out",
+                "loso": "leave one sensor out"}
 
 
 # ---------------------------------------------------------------------------------------
@@ -129,7 +130,8 @@ def _fit(F, y, C, kernel):
 def splits(scheme: str, y: np.ndarray, groups: np.ndarray, folds: int, seed: int):
     """(train, test) index pairs. kfold: StratifiedKFold(folds, shuffled with `seed`) on
     the classes y (plain shuffled KFold when a class has fewer than `folds` members);
-    lofo: LeaveOneGroupOut on `groups` (the friction names)."""
+    lofo and loso: LeaveOneGroupOut on `groups` (the friction names, or the sensors of a
+    dataset whose spec varies its sensor: seed 001's participants)."""
     from sklearn.model_selection import KFold, LeaveOneGroupOut, StratifiedKFold
     if scheme == "kfold":
         counts = np.bincount(y)
@@ -138,7 +140,7 @@ def splits(scheme: str, y: np.ndarray, groups: np.ndarray, folds: int, seed: int
             cv = StratifiedKFold(n_splits=folds, shuffle=True, random_state=seed)
             return list(cv.split(np.zeros(len(y)), y))
         return list(KFold(n_splits=folds, shuffle=True, random_state=seed).split(y))
-    if scheme == "lofo":
+    if scheme in ("lofo", "loso"):
         if len(np.unique(groups)) < 2:
             return []
         return list(LeaveOneGroupOut().split(np.zeros(len(y)), y, groups))

@@ -29,6 +29,7 @@ class StrainSet:
     time_s: np.ndarray
     grid: dict
     dropped_unconverged: int = 0
+    sensor: np.ndarray | None = None   # sensors.csv's sensor of each row's trial (-1: none)
 
     @property
     def n(self) -> int:
@@ -79,10 +80,10 @@ def load_strain_set(ds: Dataset, finger: str | None = None,
         frame=lab["frame"][idx].astype(np.int64), finger=fg,
         friction=lab["friction"][idx], mu=per_finger("mu"), gamma=per_finger("gamma"),
         travel_mm=lab["travel_mm"][idx] if "travel_mm" in lab else np.zeros(len(idx)),
-        time_s=lab["time_s"][idx], grid=grid)
+        time_s=lab["time_s"][idx], grid=grid, sensor=ds.frame_sensor()[idx])
     if not keep.all():
         for name in ("fields", "trial", "frame", "finger", "friction", "mu", "gamma",
-                     "travel_mm", "time_s"):
+                     "travel_mm", "time_s", "sensor"):
             setattr(s, name, getattr(s, name)[keep])
         s.dropped_unconverged = int((per_finger("converged") == 0).sum()) \
             if drop_unconverged and all(f"{f}_converged" in lab for f in fingers) else 0

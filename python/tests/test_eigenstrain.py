@@ -97,6 +97,26 @@ def test_leave_one_friction_out_splits(strain_set):
         assert strain_set.friction[test][0] not in set(strain_set.friction[train])
 
 
+def test_leave_one_sensor_out_splits_and_cli(datasets, tmp_path):
+    s = E.load_strain_set(E.open_dataset(datasets["tiny_participants"]))
+    assert sorted(set(s.sensor)) == [0, 1, 2]
+    y = E.gamma_classes(s.gamma, 2)
+    folds = E.splits("loso", y, s.sensor, 10, 0)
+    assert len(folds) == 3
+    for train, test in folds:
+        assert len(set(s.sensor[test])) == 1
+        assert s.sensor[test][0] not in set(s.sensor[train])
+    out = tmp_path / "loso"
+    assert E.main([datasets["tiny_participants"], "-o", str(out), "--schemes", "loso",
+                   "--bases", "3", "--classes", "2", "--repeats", "1"]) == 0
+    with open(out / "accuracy.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert {r["scheme"] for r in rows} == {"loso"}
+    assert {r["folds"] for r in rows} == {"3"}
+    # a dataset that varies no sensor has one group, -1: loso skips it
+    assert set(E.load_strain_set(E.open_dataset(datasets["tiny_sliding"])).sensor) == {-1}
+
+
 def test_two_classes_on_the_tiny_slide(strain_set):
     # 21 slides: 8 % of the frames have Gamma >= 0.5; 6 bases must beat the majority class
     # and find most of the minority class (balanced accuracy)

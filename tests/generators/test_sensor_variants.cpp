@@ -270,8 +270,7 @@ TEST_CASE("LED gains: one number or one per LED, and each sensor draws its own w
     CHECK(fixed.sensor.led_gains == std::vector<double>{1.0, 0.9, 1.1});
     CHECK_FALSE(varies_sensor(fixed));
     CHECK(optics_params(fixed).led_gain == std::vector<double>{1.0, 0.9, 1.1});
-    CHECK(optics_params(parse_spec("name: x\n", "a.yaml")).led_gain ==
-          std::vector<double>(6, 1.0));
+    CHECK(optics_params(parse_spec("name: x\n", "a.yaml")).led_gain == std::vector<double>(6, 1.0));
     CHECK(error_of("sensor: {led: {count: 3, gains: [1.0, 0.9]}}\n") ==
           "bad.yaml:1:26: sensor.led.gains: value '[1.0, 0.9]' does not hold one gain per LED; "
           "allowed: "
@@ -336,4 +335,29 @@ TEST_CASE("generate records each sensor's LED gains and check verifies them",
     REQUIRE(report.findings_total == 1);
     CHECK(report.findings[0].column == "sensor.led.gains[5]");
     CHECK(report.findings[0].problem == "outside the spec's {min: 0.8, max: 1.2}");
+}
+
+TEST_CASE("each sensor draws its camera's position within the tolerance", "[generators][sensors]") {
+    std::string yaml = varied_spec(3);
+    yaml.insert(yaml.find("sensor:\n") + 8,
+                "  camera: {position_mm: [0.1, 0.0, -0.2], position_tolerance_mm: 0.15}\n");
+    const Spec spec = parse_spec(yaml, "v.yaml");
+    REQUIRE(varies_sensor(spec));
+    const Plan plan = make_plan(spec);
+    const std::array<double, 3> centre{0.1, 0.0, -0.2};
+    for (const SensorVariant& v : plan.sensors) {
+        REQUIRE(v.values.size() == 5); // E, the inner dye, then x, y, z
+        const Spec one = sensor_spec(spec, v);
+        CHECK_FALSE(varies_sensor(one));
+        for (std::size_t i = 0; i < 3; ++i) {
+            CHECK(v.values[2 + i].first == "sensor.camera.position_mm[" + std::to_string(i) + "]");
+            CHECK(std::abs(v.values[2 + i].second - centre[i]) <= 0.15);
+            CHECK(one.sensor.camera_position_mm[i] == v.values[2 + i].second);
+        }
+    }
+    CHECK(plan.sensors[0].values[2].second != plan.sensors[1].values[2].second);
+    CHECK(error_of("sensor: {camera: {position_mm: [9.95, 0, 0], position_tolerance_mm: 0.1}}\n") ==
+          "bad.yaml:1:46: sensor.camera.position_tolerance_mm: value '0.1' lets a drawn camera "
+          "position leave [-10, 10] mm; allowed: |each of sensor.camera.position_mm| + the "
+          "tolerance up to 10 mm");
 }

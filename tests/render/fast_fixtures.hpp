@@ -122,8 +122,9 @@ struct AlongRay {
     detail::RgbLanes path, se, fast;
 };
 inline AlongRay along_ray(const PathIntegrator& path, const FastIntegrator& fast,
-                          const EmbreeScene& scene, const detail::LaneOptics<detail::kRgbLanes>& lanes,
-                          const Vec3& d, int paths = 40000, int fast_samples = 64) {
+                          const EmbreeScene& scene,
+                          const detail::LaneOptics<detail::kRgbLanes>& lanes, const Vec3& d,
+                          int paths = 40000, int fast_samples = 64) {
     using detail::RgbLanes;
     RgbLanes p = RgbLanes::Zero(), p2 = RgbLanes::Zero(), f = RgbLanes::Zero();
     for (int i = 0; i < paths; ++i) {

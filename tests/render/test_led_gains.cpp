@@ -52,14 +52,16 @@ TEST_CASE("LED gains: the preview's irradiance is the gains' sum of each LED's a
         REQUIRE(E.maxCoeff() > 0.0);
         for (int c = 0; c < 3; ++c)
             CHECK(E[c] == Approx(sum[c]).epsilon(1e-12));
-        CHECK(ShadingModel(base).irradiance(scene, p, n).isApprox(
-            ShadingModel(with_gains(base, std::vector<double>(6, 1.0))).irradiance(scene, p, n),
-            0.0));
+        CHECK(ShadingModel(base)
+                  .irradiance(scene, p, n)
+                  .isApprox(ShadingModel(with_gains(base, std::vector<double>(6, 1.0)))
+                                .irradiance(scene, p, n),
+                            0.0));
     }
 }
 
-TEST_CASE("LED gains: a path's light is the gains' sum of each LED's alone, with and without "
-          "next-event estimation",
+// With and without next-event estimation, the same draws.
+TEST_CASE("LED gains: a path's light is the gains' sum of each LED's alone, NEE on and off",
           "[render][leds][path]") {
     EmbreeScene scene;
     scene.set_frame(dome_with_box_markers());
@@ -133,8 +135,8 @@ TEST_CASE("LED gains: the fast integrator agrees with the path integrator under 
         const auto [p, se, f] =
             along_ray(path, fast, scene, lanes, unit_from_angles(polar, azimuth));
         for (int c = 0; c < 3; ++c) {
-            INFO("polar " << polar << " deg, azimuth " << azimuth << " deg, lane " << c
-                          << ": fast " << f[c] << ", path " << p[c] << " +- " << se[c]);
+            INFO("polar " << polar << " deg, azimuth " << azimuth << " deg, lane " << c << ": fast "
+                          << f[c] << ", path " << p[c] << " +- " << se[c]);
             // The tolerance of the equal-LED comparison (test_fast.cpp); the LEDs' light in
             // these directions differs by a factor of up to 2.6 between the two azimuths.
             CHECK(se[c] < 0.01 * p[c]);
